@@ -1,0 +1,507 @@
+#include "tcpest/common/yaml_lite.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+namespace tcpest {
+namespace yaml {
+
+namespace {
+
+constexpr std::size_t kMaxDepth = 16U;
+constexpr std::size_t kUnsetIndent = static_cast<std::size_t>(-1);
+
+bool is_blank(char c) noexcept { return c == ' ' || c == '\t' || c == '\r'; }
+
+// A view of a piece of the text.
+struct Span {
+  const char* begin = nullptr;
+  std::size_t size = 0U;
+};
+
+Span trim(Span s) noexcept {
+  while (s.size > 0U && is_blank(s.begin[0])) {
+    ++s.begin;
+    --s.size;
+  }
+  while (s.size > 0U && is_blank(s.begin[s.size - 1U])) {
+    --s.size;
+  }
+  return s;
+}
+
+// Cuts a comment: '#' at the start or after white space, outside quotes.
+Span strip_comment(Span s) noexcept {
+  char quote = '\0';
+  for (std::size_t i = 0U; i < s.size; ++i) {
+    const char c = s.begin[i];
+    if (quote != '\0') {
+      if (c == quote) {
+        quote = '\0';
+      }
+      continue;
+    }
+    if (c == '"' || c == '\'') {
+      quote = c;
+    } else if (c == '#' && (i == 0U || is_blank(s.begin[i - 1U]))) {
+      s.size = i;
+      break;
+    }
+  }
+  return s;
+}
+
+Span unquote(Span s) noexcept {
+  if (s.size >= 2U && (s.begin[0] == '"' || s.begin[0] == '\'') && s.begin[s.size - 1U] == s.begin[0]) {
+    ++s.begin;
+    s.size -= 2U;
+  }
+  return s;
+}
+
+bool append(char* out, std::size_t capacity, std::size_t& used, Span s) noexcept {
+  if (used + s.size + 1U > capacity) {
+    return false;
+  }
+  std::memcpy(out + used, s.begin, s.size);
+  used += s.size;
+  out[used] = '\0';
+  return true;
+}
+
+bool append_char(char* out, std::size_t capacity, std::size_t& used, char c) noexcept {
+  if (used + 2U > capacity) {
+    return false;
+  }
+  out[used] = c;
+  ++used;
+  out[used] = '\0';
+  return true;
+}
+
+}  // namespace
+
+bool parse_double(const char* text, double& out) noexcept {
+  const char* p = text;
+  while (*p == ' ') {
+    ++p;
+  }
+  if (*p == '+') {
+    ++p;
+  }
+  const char* end = p + std::strlen(p);
+  while (end > p && end[-1] == ' ') {
+    --end;
+  }
+  if (p == end) {
+    return false;
+  }
+  double value = 0.0;
+  const auto parsed = std::from_chars(p, end, value);
+  if (parsed.ec != std::errc() || parsed.ptr != end || !std::isfinite(value)) {
+    return false;
+  }
+  out = value;
+  return true;
+}
+
+Status<Diagnostic> Document::load(const char* path) noexcept {
+  copy_text(file_, sizeof file_, path);
+  std::FILE* f = std::fopen(path, "rb");
+  if (f == nullptr) {
+    return Status<Diagnostic>::failure(Diagnostic::make(path, 0U, "", "cannot open the file"));
+  }
+  const std::size_t n = std::fread(buffer_, 1U, sizeof buffer_, f);
+  const bool read_error = std::ferror(f) != 0;
+  const bool too_big = (n == sizeof buffer_);
+  static_cast<void>(std::fclose(f));  // read-only file: nothing to flush, a close error changes nothing
+  if (read_error) {
+    return Status<Diagnostic>::failure(Diagnostic::make(path, 0U, "", "cannot read the file"));
+  }
+  if (too_big) {
+    return Status<Diagnostic>::failure(Diagnostic::make(path, 0U, "", "file too large (256 KiB at most)"));
+  }
+  return parse(buffer_, n, path);
+}
+
+Status<Diagnostic> Document::parse(const char* text, std::size_t length, const char* file) noexcept {
+  if (file != file_) {
+    copy_text(file_, sizeof file_, file);
+  }
+  count_ = 0U;
+  struct Level {
+    std::size_t indent;
+    std::size_t path_length;
+  };
+  Level levels[kMaxDepth + 1U];
+  std::size_t depth = 0U;
+  levels[0] = Level{0U, 0U};
+  char path[kMaxPath] = {};
+  std::size_t open_key = kMaxEntries;  // entry whose value is still to come (mapping or block sequence)
+  bool open_flow = false;              // inside a flow sequence that continues on the next line
+  std::size_t open_flow_line = 0U;
+
+  auto fail = [&](std::uint32_t line, const char* field, const char* message) noexcept {
+    return Status<Diagnostic>::failure(Diagnostic::make(file_, line, field, message));
+  };
+
+  // Adds the items of a flow sequence piece ("a, b" or "a, b]") to entry e.
+  // Returns false on overflow; sets `closed` when the ']' is found.
+  auto add_flow_items = [&](Entry& e, Span piece, bool& closed, bool& nested) noexcept -> bool {
+    closed = false;
+    nested = false;
+    std::size_t used = std::strlen(e.value);
+    std::size_t start = 0U;
+    for (std::size_t i = 0U; i <= piece.size; ++i) {
+      const bool at_end = (i == piece.size);
+      const char c = at_end ? ',' : piece.begin[i];
+      if (c == '[' || c == '{') {
+        nested = true;
+        return true;
+      }
+      if (c == ',' || c == ']') {
+        Span item = unquote(trim(Span{piece.begin + start, i - start}));
+        if (item.size > 0U) {
+          if (used > 0U && !append_char(e.value, sizeof e.value, used, '\n')) {
+            return false;
+          }
+          if (!append(e.value, sizeof e.value, used, item)) {
+            return false;
+          }
+        }
+        start = i + 1U;
+        if (c == ']') {
+          closed = true;
+          return trim(Span{piece.begin + i + 1U, piece.size - i - 1U}).size == 0U;
+        }
+      }
+    }
+    return true;
+  };
+
+  std::size_t pos = 0U;
+  std::uint32_t line_number = 0U;
+  while (pos < length) {
+    ++line_number;
+    const char* line_begin = text + pos;
+    std::size_t line_size = 0U;
+    while (pos + line_size < length && text[pos + line_size] != '\n') {
+      ++line_size;
+    }
+    pos += line_size + 1U;
+    Span raw{line_begin, line_size};
+    Span content = trim(strip_comment(raw));
+    if (content.size == 0U) {
+      continue;
+    }
+    std::size_t indent = 0U;
+    while (indent < raw.size && raw.begin[indent] == ' ') {
+      ++indent;
+    }
+    if (indent < raw.size && raw.begin[indent] == '\t') {
+      return fail(line_number, "", "tab in indentation (YAML allows spaces only)");
+    }
+
+    if (open_flow) {
+      Entry& e = entries_[count_ - 1U];
+      bool closed = false;
+      bool nested = false;
+      if (!add_flow_items(e, content, closed, nested)) {
+        return fail(line_number, e.path, "sequence too long");
+      }
+      if (nested) {
+        return fail(line_number, e.path, "nested sequences are not supported");
+      }
+      open_flow = !closed;
+      continue;
+    }
+    if (content.begin[0] == '%' || (content.size >= 3U && std::strncmp(content.begin, "---", 3U) == 0) ||
+        (content.size >= 3U && std::strncmp(content.begin, "...", 3U) == 0)) {
+      continue;  // directive or document marker
+    }
+
+    // Block sequence item: "- value".
+    if (content.begin[0] == '-' && (content.size == 1U || content.begin[1] == ' ')) {
+      if (open_key == kMaxEntries) {
+        return fail(line_number, "", "sequence item without a key above it");
+      }
+      Entry& e = entries_[open_key];
+      // The key was pushed as a mapping level; a sequence opens none.
+      if (depth > 0U && levels[depth].indent == kUnsetIndent && levels[depth].path_length == std::strlen(e.path)) {
+        --depth;
+      }
+      if (indent < levels[depth].indent) {
+        return fail(line_number, e.path, "sequence item indented less than its key");
+      }
+      Span item = unquote(trim(Span{content.begin + 1U, content.size - 1U}));
+      if (item.size > 0U && (item.begin[0] == '[' || item.begin[0] == '{' ||
+                             std::memchr(item.begin, ':', item.size) != nullptr)) {
+        return fail(line_number, e.path, "sequences of mappings or sequences are not supported");
+      }
+      e.is_mapping = false;
+      e.is_sequence = true;
+      std::size_t used = std::strlen(e.value);
+      if ((used > 0U && !append_char(e.value, sizeof e.value, used, '\n')) ||
+          !append(e.value, sizeof e.value, used, item)) {
+        return fail(line_number, e.path, "sequence too long");
+      }
+      continue;
+    }
+
+    // "key: value" or "key:".
+    std::size_t colon = content.size;
+    char quote = '\0';
+    for (std::size_t i = 0U; i < content.size; ++i) {
+      const char c = content.begin[i];
+      if (quote != '\0') {
+        if (c == quote) {
+          quote = '\0';
+        }
+        continue;
+      }
+      if (c == '"' || c == '\'') {
+        quote = c;
+      } else if (c == ':' && (i + 1U == content.size || content.begin[i + 1U] == ' ')) {
+        colon = i;
+        break;
+      }
+    }
+    if (colon == content.size) {
+      return fail(line_number, "", "expected 'key: value'");
+    }
+    Span key = unquote(trim(Span{content.begin, colon}));
+    Span value = trim(Span{content.begin + colon + 1U, content.size - colon - 1U});
+    if (key.size == 0U) {
+      return fail(line_number, "", "empty key");
+    }
+
+    // Find the parent: a mapping opened by the key above takes its
+    // indentation from its first child; then close every deeper level.
+    if (depth > 0U && levels[depth].indent == kUnsetIndent) {
+      if (indent > levels[depth - 1U].indent) {
+        levels[depth].indent = indent;
+      } else {
+        --depth;  // the key above has no children: an empty value
+      }
+    }
+    while (depth > 0U && indent < levels[depth].indent) {
+      --depth;
+    }
+    if (indent != levels[depth].indent) {
+      return fail(line_number, "", "unexpected indentation");
+    }
+    path[levels[depth].path_length] = '\0';
+    std::size_t used = levels[depth].path_length;
+    if ((used > 0U && !append_char(path, sizeof path, used, '.')) || !append(path, sizeof path, used, key)) {
+      return fail(line_number, "", "key path too long");
+    }
+    if (find(path) != nullptr) {
+      return fail(line_number, path, "duplicate key");
+    }
+    if (count_ == kMaxEntries) {
+      return fail(line_number, path, "too many keys");
+    }
+    Entry& e = entries_[count_];
+    e = Entry{};
+    copy_text(e.path, sizeof e.path, path);
+    e.line = line_number;
+    ++count_;
+    open_key = kMaxEntries;
+
+    if (value.size > 0U && value.begin[0] == '!') {
+      // A tag (e.g. !!opencv-matrix): ignored.
+      std::size_t t = 0U;
+      while (t < value.size && value.begin[t] != ' ') {
+        ++t;
+      }
+      value = trim(Span{value.begin + t, value.size - t});
+    }
+    if (value.size == 0U) {
+      if (depth == kMaxDepth) {
+        return fail(line_number, path, "nesting too deep");
+      }
+      e.is_mapping = true;
+      open_key = count_ - 1U;
+      ++depth;
+      levels[depth] = Level{kUnsetIndent, std::strlen(path)};  // indentation fixed by the first child
+      continue;
+    }
+    if (value.begin[0] == '&' || value.begin[0] == '*') {
+      return fail(line_number, path, "anchors and aliases are not supported");
+    }
+    if (value.begin[0] == '|' || value.begin[0] == '>') {
+      return fail(line_number, path, "multi-line strings are not supported");
+    }
+    if (value.begin[0] == '[') {
+      e.is_sequence = true;
+      bool closed = false;
+      bool nested = false;
+      if (!add_flow_items(e, Span{value.begin + 1U, value.size - 1U}, closed, nested)) {
+        return fail(line_number, path, "sequence too long, or text after ']'");
+      }
+      if (nested) {
+        return fail(line_number, path, "nested sequences are not supported");
+      }
+      open_flow = !closed;
+      open_flow_line = line_number;
+      continue;
+    }
+    Span scalar = unquote(value);
+    std::size_t value_used = 0U;
+    if (!append(e.value, sizeof e.value, value_used, scalar)) {
+      return fail(line_number, path, "value too long");
+    }
+  }
+  if (open_flow) {
+    return fail(static_cast<std::uint32_t>(open_flow_line), entries_[count_ - 1U].path,
+                "sequence not closed with ']'");
+  }
+  return ok_status<Diagnostic>();
+}
+
+const Entry* Document::find(const char* path) const noexcept {
+  for (std::size_t i = 0U; i < count_; ++i) {
+    if (std::strcmp(entries_[i].path, path) == 0) {
+      return &entries_[i];
+    }
+  }
+  return nullptr;
+}
+
+Diagnostic Document::error_at(const Entry* e, const char* path, const char* message) const noexcept {
+  return Diagnostic::make(file_, e != nullptr ? e->line : 0U, path, message);
+}
+
+Result<double, Diagnostic> Document::number(const char* path) const noexcept {
+  using R = Result<double, Diagnostic>;
+  const Entry* e = find(path);
+  if (e == nullptr) {
+    return R::failure(error_at(e, path, "missing"));
+  }
+  e->used = true;
+  double value = 0.0;
+  if (e->is_sequence || e->is_mapping || !parse_double(e->value, value)) {
+    return R::failure(error_at(e, path, "expected a finite number"));
+  }
+  return R::success(value);
+}
+
+Result<double, Diagnostic> Document::number_or(const char* path, double fallback) const noexcept {
+  if (find(path) == nullptr) {
+    return Result<double, Diagnostic>::success(fallback);
+  }
+  return number(path);
+}
+
+Result<long long, Diagnostic> Document::integer(const char* path) const noexcept {
+  using R = Result<long long, Diagnostic>;
+  const Entry* e = find(path);
+  if (e == nullptr) {
+    return R::failure(error_at(e, path, "missing"));
+  }
+  e->used = true;
+  long long value = 0;
+  const char* begin = e->value;
+  const char* end = begin + std::strlen(begin);
+  const auto parsed = std::from_chars(begin, end, value);
+  if (e->is_sequence || e->is_mapping || begin == end || parsed.ec != std::errc() || parsed.ptr != end) {
+    return R::failure(error_at(e, path, "expected an integer"));
+  }
+  return R::success(value);
+}
+
+Status<Diagnostic> Document::text(const char* path, char* out, std::size_t capacity) const noexcept {
+  const Entry* e = find(path);
+  if (e == nullptr) {
+    return Status<Diagnostic>::failure(error_at(e, path, "missing"));
+  }
+  e->used = true;
+  if (e->is_sequence || e->is_mapping) {
+    return Status<Diagnostic>::failure(error_at(e, path, "expected a text value"));
+  }
+  if (std::strlen(e->value) + 1U > capacity) {
+    return Status<Diagnostic>::failure(error_at(e, path, "text too long"));
+  }
+  copy_text(out, capacity, e->value);
+  return ok_status<Diagnostic>();
+}
+
+Status<Diagnostic> Document::numbers_upto(const char* path, double* out, std::size_t capacity,
+                                          std::size_t& count) const noexcept {
+  count = 0U;
+  const Entry* e = find(path);
+  if (e == nullptr) {
+    return Status<Diagnostic>::failure(error_at(e, path, "missing"));
+  }
+  e->used = true;
+  if (!e->is_sequence) {
+    return Status<Diagnostic>::failure(error_at(e, path, "expected a sequence of numbers"));
+  }
+  const char* p = e->value;
+  char item[64];
+  while (*p != '\0') {
+    std::size_t n = 0U;
+    while (p[n] != '\0' && p[n] != '\n') {
+      ++n;
+    }
+    if (n + 1U > sizeof item) {
+      return Status<Diagnostic>::failure(error_at(e, path, "sequence item too long"));
+    }
+    std::memcpy(item, p, n);
+    item[n] = '\0';
+    if (count == capacity) {
+      return Status<Diagnostic>::failure(error_at(e, path, "too many values"));
+    }
+    if (!parse_double(item, out[count])) {
+      char message[128];
+      static_cast<void>(std::snprintf(message, sizeof message, "item %zu is not a finite number", count + 1U));
+      return Status<Diagnostic>::failure(error_at(e, path, message));
+    }
+    ++count;
+    p += n;
+    if (*p == '\n') {
+      ++p;
+    }
+  }
+  return ok_status<Diagnostic>();
+}
+
+Status<Diagnostic> Document::numbers(const char* path, double* out, std::size_t count) const noexcept {
+  std::size_t got = 0U;
+  auto status = numbers_upto(path, out, count, got);
+  if (!status.ok()) {
+    // More values than expected reads as "too many values"; say how many are wanted.
+    const Entry* e = find(path);
+    if (e != nullptr && e->is_sequence && std::strstr(status.error().message, "too many") != nullptr) {
+      char message[128];
+      static_cast<void>(std::snprintf(message, sizeof message, "expected %zu numbers, found more", count));
+      return Status<Diagnostic>::failure(error_at(e, path, message));
+    }
+    return status;
+  }
+  if (got != count) {
+    char message[128];
+    static_cast<void>(std::snprintf(message, sizeof message, "expected %zu numbers, found %zu", count, got));
+    return Status<Diagnostic>::failure(error_at(find(path), path, message));
+  }
+  return ok_status<Diagnostic>();
+}
+
+const Entry* Document::first_unused(const char* prefix) const noexcept {
+  const std::size_t n = std::strlen(prefix);
+  for (std::size_t i = 0U; i < count_; ++i) {
+    const Entry& e = entries_[i];
+    if (e.used || e.is_mapping) {
+      continue;
+    }
+    if (n == 0U || (std::strncmp(e.path, prefix, n) == 0 && (e.path[n] == '.' || e.path[n] == '\0'))) {
+      return &e;
+    }
+  }
+  return nullptr;
+}
+
+}  // namespace yaml
+}  // namespace tcpest

@@ -1,0 +1,70 @@
+#include "tcpest/common/json.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+namespace tcpest {
+namespace json {
+namespace {
+
+struct Parsed {
+  Token tokens[256];
+  Document doc{tokens, 256U};
+  bool parse(const char* text) { return doc.parse(text, std::strlen(text)).ok(); }
+};
+
+TEST(Json, ReadsNestedValues) {
+  Parsed p;
+  ASSERT_TRUE(p.parse(R"({"corners": [[1.5, -2e3], null, [3, 4]], "prior": [0.1, 0.2, 0.3], "s": "a\"b"})"));
+  const auto corners = p.doc.member(p.doc.root(), "corners");
+  ASSERT_TRUE(corners.ok());
+  EXPECT_EQ(p.doc.array_size(corners.value()), 3U);
+  const auto first = p.doc.element(corners.value(), 0U);
+  ASSERT_TRUE(first.ok());
+  double uv[2];
+  ASSERT_TRUE(p.doc.numbers(first.value(), uv, 2U).ok());
+  EXPECT_DOUBLE_EQ(uv[0], 1.5);
+  EXPECT_DOUBLE_EQ(uv[1], -2000.0);
+  EXPECT_TRUE(p.doc.is_null(p.doc.element(corners.value(), 1U).value()));
+  const auto third = p.doc.element(corners.value(), 2U);
+  ASSERT_TRUE(p.doc.numbers(third.value(), uv, 2U).ok());
+  EXPECT_DOUBLE_EQ(uv[1], 4.0);
+  const auto prior = p.doc.member(p.doc.root(), "prior");
+  double pr[3];
+  ASSERT_TRUE(p.doc.numbers(prior.value(), pr, 3U).ok());
+  EXPECT_DOUBLE_EQ(pr[2], 0.3);
+  char text[8];
+  ASSERT_TRUE(p.doc.string(p.doc.member(p.doc.root(), "s").value(), text, sizeof text).ok());
+  EXPECT_STREQ(text, "a\"b");
+  EXPECT_FALSE(p.doc.member(p.doc.root(), "missing").ok());
+}
+
+TEST(Json, RefusesMalformedText) {
+  const char* bad[] = {"",         "{",          "[1, 2",       "{\"a\" 1}",  "[1,]x",  "[01x]",
+                       "{\"a\":}", "[1 2]",      "\"open",      "[nul]",      "{1: 2}", "[1] [2]",
+                       "[-]",      "{\"a\":1,}", "[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]"};
+  for (const char* text : bad) {
+    Parsed p;
+    EXPECT_FALSE(p.parse(text)) << text;
+  }
+}
+
+TEST(Json, ReportsTooManyTokensWithoutOverrun) {
+  Token tokens[4];
+  Document doc(tokens, 4U);
+  const char* text = "[1, 2, 3, 4, 5]";
+  const auto status = doc.parse(text, std::strlen(text));
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error().code, JsonError::TooManyTokens);
+}
+
+TEST(Json, RefusesNonFiniteNumbers) {
+  Parsed p;
+  ASSERT_TRUE(p.parse("[1e999]"));
+  EXPECT_FALSE(p.doc.number(1U).ok());
+}
+
+}  // namespace
+}  // namespace json
+}  // namespace tcpest

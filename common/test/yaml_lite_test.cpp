@@ -1,0 +1,99 @@
+#include "tcpest/common/yaml_lite.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+namespace tcpest {
+namespace yaml {
+namespace {
+
+Document& doc() {
+  static Document d;  // large: static storage, as in the product
+  return d;
+}
+
+bool parse(const char* text) { return doc().parse(text, std::strlen(text), "test.yaml").ok(); }
+
+TEST(YamlLite, ReadsRosCameraInfo) {
+  ASSERT_TRUE(parse(
+      "image_width: 720\nimage_height: 576\ncamera_name: 'pal'\ncamera_matrix:\n  rows: 3\n  cols: 3\n"
+      "  data: [400, 0, 359.5,\n         0, 400, 287.5,\n         0, 0, 1]\n"
+      "distortion_model: plumb_bob  # comment\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n"
+      "  data:\n  - -0.32\n  - 0.11\n  - 0\n  - 0\n  - 0\n"));
+  EXPECT_EQ(doc().integer("image_width").value(), 720);
+  double m[9];
+  ASSERT_TRUE(doc().numbers("camera_matrix.data", m, 9U).ok());
+  EXPECT_DOUBLE_EQ(m[5], 287.5);
+  double d[5];
+  ASSERT_TRUE(doc().numbers("distortion_coefficients.data", d, 5U).ok());
+  EXPECT_DOUBLE_EQ(d[0], -0.32);
+  char text[32];
+  ASSERT_TRUE(doc().text("distortion_model", text, sizeof text).ok());
+  EXPECT_STREQ(text, "plumb_bob");
+  ASSERT_TRUE(doc().text("camera_name", text, sizeof text).ok());
+  EXPECT_STREQ(text, "pal");
+}
+
+TEST(YamlLite, ReadsOpenCvFileStorage) {
+  ASSERT_TRUE(parse("%YAML:1.0\n---\nimage_width: 640\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n"
+                    "   dt: d\n   data: [ 5.0e+02, 0., 3.2e+02, 0., 5.0e+02, 2.4e+02, 0., 0., 1. ]\n"));
+  double m[9];
+  ASSERT_TRUE(doc().numbers("camera_matrix.data", m, 9U).ok());
+  EXPECT_DOUBLE_EQ(m[0], 500.0);
+  EXPECT_DOUBLE_EQ(m[8], 1.0);
+}
+
+TEST(YamlLite, NamesLineAndFieldOfErrors) {
+  ASSERT_TRUE(parse("a:\n  b: 1\n  c: x\nd: [1, 2]\n"));
+  const auto c = doc().number("a.c");
+  ASSERT_FALSE(c.ok());
+  EXPECT_EQ(c.error().line, 3U);
+  EXPECT_STREQ(c.error().field, "a.c");
+  const auto missing = doc().number("a.z");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_STREQ(missing.error().message, "missing");
+  double v[3];
+  const auto short_seq = doc().numbers("d", v, 3U);
+  ASSERT_FALSE(short_seq.ok());
+  EXPECT_EQ(short_seq.error().line, 4U);
+  char text[256];
+  c.error().format(text, sizeof text);
+  EXPECT_STREQ(text, "test.yaml:3: field 'a.c': expected a finite number");
+}
+
+TEST(YamlLite, FindsUnusedKeys) {
+  ASSERT_TRUE(parse("s:\n  known: 1\n  typo: 2\nother:\n  x: 1\n"));
+  ASSERT_TRUE(doc().number("s.known").ok());
+  const Entry* unused = doc().first_unused("s");
+  ASSERT_NE(unused, nullptr);
+  EXPECT_STREQ(unused->path, "s.typo");
+  EXPECT_EQ(unused->line, 3U);
+}
+
+TEST(YamlLite, RefusesWhatItDoesNotSupport) {
+  const char* bad[] = {"a: [1, 2\n",      "\ta: 1\n",        "a: &x 1\n",       "a: |\n  text\n",
+                       "a: 1\n  b: 2\n",  "just text\n",     "a: 1\na: 2\n",    "a:\n  - b: 1\n",
+                       "- 1\n",           "a: [1, [2]]\n"};
+  for (const char* text : bad) {
+    EXPECT_FALSE(parse(text)) << text;
+  }
+}
+
+TEST(YamlLite, EmptyMappingAndNesting) {
+  ASSERT_TRUE(parse("a:\nb:\n  c:\n    d: 4\n  e: 5\nf: 6\n"));
+  EXPECT_EQ(doc().integer("b.c.d").value(), 4);
+  EXPECT_EQ(doc().integer("b.e").value(), 5);
+  EXPECT_EQ(doc().integer("f").value(), 6);
+  EXPECT_TRUE(doc().find("a")->is_mapping);
+}
+
+TEST(YamlLite, LoadNamesMissingFile) {
+  const auto status = doc().load("/nonexistent/cam.yaml");
+  ASSERT_FALSE(status.ok());
+  EXPECT_STREQ(status.error().file, "/nonexistent/cam.yaml");
+}
+
+}  // namespace
+}  // namespace yaml
+}  // namespace tcpest

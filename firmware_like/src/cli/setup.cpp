@@ -1,0 +1,51 @@
+#include "cli/setup.hpp"
+
+#include <cstdio>
+
+#include "tcpest/common/yaml_lite.hpp"
+#include "tcpest/solver/config_io.hpp"
+
+namespace tcpest {
+namespace cli {
+
+bool load_model_setup(const char* command, const char* calib_path, const char* config_path,
+                      ModelSetup& out) noexcept {
+  static yaml::Document scratch;  // large parse buffer, start-up only
+  char message[768];
+  solver::CameraIntrinsics intrinsics = solver::default_pal_camera();
+  if (calib_path != nullptr) {
+    const auto loaded = solver::load_camera_info(calib_path, scratch);
+    if (!loaded.ok()) {
+      loaded.error().format(message, sizeof message);
+      std::fprintf(stderr, "tcpest %s: camera calibration: %s\n", command, message);
+      return false;
+    }
+    intrinsics = loaded.value();
+  }
+  const auto camera = solver::CameraModel::create(intrinsics);
+  if (!camera.ok()) {
+    std::fprintf(stderr, "tcpest %s: camera: %s\n", command, solver::to_string(camera.error()));
+    return false;
+  }
+  solver::InstrumentGeometry geometry;
+  if (config_path != nullptr) {
+    const auto loaded = solver::load_instrument_config(config_path, scratch);
+    if (!loaded.ok()) {
+      loaded.error().format(message, sizeof message);
+      std::fprintf(stderr, "tcpest %s: config: %s\n", command, message);
+      return false;
+    }
+    geometry = loaded.value();
+  }
+  const auto instrument = solver::InstrumentModel::create(geometry);
+  if (!instrument.ok()) {
+    std::fprintf(stderr, "tcpest %s: instrument geometry: %s\n", command, solver::to_string(instrument.error()));
+    return false;
+  }
+  out.camera = camera.value();
+  out.instrument = instrument.value();
+  return true;
+}
+
+}  // namespace cli
+}  // namespace tcpest

@@ -1,0 +1,23 @@
+// Start-up helpers shared by the subcommands: load the camera calibration and
+// the instrument configuration named on the command line (or the built-in
+// defaults), reporting any problem on stderr with file, line and field.
+#pragma once
+
+#include "tcpest/solver/camera.hpp"
+#include "tcpest/solver/instrument.hpp"
+
+namespace tcpest {
+namespace cli {
+
+struct ModelSetup {
+  solver::CameraModel camera;
+  solver::InstrumentModel instrument;
+};
+
+// calib_path / config_path may be nullptr: built-in PAL camera / default
+// geometry. `command` prefixes error messages. False after printing an error.
+bool load_model_setup(const char* command, const char* calib_path, const char* config_path,
+                      ModelSetup& out) noexcept;
+
+}  // namespace cli
+}  // namespace tcpest

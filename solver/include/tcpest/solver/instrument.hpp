@@ -1,0 +1,120 @@
+// The instrument model of model.md: the channel pose, the constant-curvature
+// bending section, the marker boundaries, the apparent corners with their
+// left/right labels, and the TCP. Pure geometry: no I/O, no allocation.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "tcpest/common/result.hpp"
+#include "tcpest/solver/camera.hpp"
+#include "tcpest/solver/types.hpp"
+
+namespace tcpest {
+namespace solver {
+
+enum class MarkerColor : std::uint8_t { Blue, Yellow };
+
+// The cubic play penalty rho(u) = (k/3) |u/a|^3 of the paper's eq. 8.
+struct PenaltyParameters {
+  double position_k = 15.0;                   // for x_ch, y_ch
+  double position_scale_mm = 1.0;             // a
+  double angle_k = 2.0;                       // for psi, mu
+  double angle_scale_rad = deg_to_rad(1.0);   // a
+};
+
+struct InstrumentGeometry {
+  double bend_length_mm = 18.5;   // L
+  double radius_mm = 1.81;        // R, over the markers
+  double tcp_offset_mm = 15.8;    // d_tcp, along the tip tangent
+  std::array<double, kNumBoundaries> boundaries_mm{{0.0, 3.7, 7.4, 11.1, 14.8, 18.5}};  // s_j
+  std::array<MarkerColor, kNumMarkers> marker_colors{
+      {MarkerColor::Blue, MarkerColor::Yellow, MarkerColor::Blue, MarkerColor::Yellow, MarkerColor::Blue}};
+  // Parts the solver does not use (rendering).
+  double shaft_radius_mm = 1.75;
+  double grasper_radius_mm = 1.5;
+  // Nominal (CAD) channel pose r_m*, left channel.
+  double nominal_x_ch_mm = -13.3;
+  double nominal_y_ch_mm = 6.2;
+  double nominal_psi_rad = deg_to_rad(10.0);
+  double nominal_mu_rad = 0.0;
+  PenaltyParameters penalty{};
+  // Joint range the instrument can reach (used to validate the geometry: the
+  // tube must not fold on itself at the tightest bend, and by consumers to
+  // flag absurd estimates).
+  double theta_max_rad = deg_to_rad(135.0);
+  double lambda_min_mm = 0.0;
+  double lambda_max_mm = 60.0;
+
+  // r_m* followed by the given joints.
+  PoseVector nominal_pose(double lambda_mm, double phi_rad, double theta_rad) const noexcept;
+};
+
+enum class GeometryError : std::uint8_t {
+  NonFiniteValue,         // a NaN or infinite value
+  NonPositiveLength,      // bend length, radii or TCP offset not positive
+  BadBoundaries,          // not increasing, or outside [0, L]
+  RadiusTooLarge,         // R >= L / theta_max: the tube would fold on itself
+  BadPenalty,             // penalty k negative or scale not positive
+  BadJointRange,          // theta_max not positive or lambda range empty
+};
+const char* to_string(GeometryError e) noexcept;
+Status<GeometryError> validate(const InstrumentGeometry& g) noexcept;
+
+// A point of the centreline with its frame, in the camera frame.
+struct CentrelineFrame {
+  Vec3 position;  // c(s)
+  Vec3 tangent;   // R_b t(s), base -> tip
+  Vec3 normal;    // R_b n(s), in the bending plane
+  Vec3 binormal;  // R_b b
+};
+
+// Channel and base frames for a configuration r.
+struct PoseFrames {
+  Vec3 channel_origin;    // O_ch
+  Mat3 channel_rotation;  // R_ch = Ry(psi) Rx(mu)
+  Vec3 base_origin;       // O_b
+  Mat3 base_rotation;     // R_b = R_ch Rz(phi)
+  double curvature = 0.0; // k = theta / L, 1/mm
+};
+
+struct CornerSet {
+  std::array<Vec2, kNumCorners> pixel{};     // f_hat_k, pixels
+  std::array<Vec3, kNumCorners> point{};     // limb point, camera frame, mm
+  std::array<bool, kNumCorners> present{};   // the model gives feature k (projectable)
+  std::array<bool, kNumCorners> in_image{};  // present and inside the image
+  Vec3 tcp = Vec3::Zero();
+  int count_present() const noexcept;
+  int count_in_image() const noexcept;
+};
+
+// d f_hat_k / d r for every present corner, 2x7.
+using CornerJacobian = Eigen::Matrix<double, 2, kNumParams>;
+using CornerJacobians = std::array<CornerJacobian, kNumCorners>;
+
+Mat3 rotation_x(double angle_rad) noexcept;
+Mat3 rotation_y(double angle_rad) noexcept;
+Mat3 rotation_z(double angle_rad) noexcept;
+
+class InstrumentModel {
+ public:
+  InstrumentModel() noexcept = default;
+  static Result<InstrumentModel, GeometryError> create(const InstrumentGeometry& geometry) noexcept;
+
+  const InstrumentGeometry& geometry() const noexcept { return g_; }
+
+  PoseFrames frames(const PoseVector& r) const noexcept;
+  // Centreline frame at arc length s (mm, 0 = base, L = tip end).
+  CentrelineFrame centreline(const PoseFrames& f, double s_mm) const noexcept;
+  Vec3 tcp(const PoseVector& r) const noexcept;
+  // The apparent corners of model.md (and the TCP). With `jacobians`, also
+  // their derivatives with respect to r (the limb points slide on the tube).
+  void corners(const CameraModel& camera, const PoseVector& r, CornerSet& out,
+               CornerJacobians* jacobians = nullptr) const noexcept;
+
+ private:
+  InstrumentGeometry g_{};
+};
+
+}  // namespace solver
+}  // namespace tcpest

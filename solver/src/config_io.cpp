@@ -1,0 +1,234 @@
+#include "tcpest/solver/config_io.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+namespace tcpest {
+namespace solver {
+
+namespace {
+
+using CameraResult = Result<CameraIntrinsics, Diagnostic>;
+using GeometryResult = Result<InstrumentGeometry, Diagnostic>;
+
+bool read_number(const yaml::Document& doc, const char* path, double& out, Diagnostic& error) noexcept {
+  if (!doc.has(path)) {
+    return true;  // optional: keep the default
+  }
+  const auto value = doc.number(path);
+  if (!value.ok()) {
+    error = value.error();
+    return false;
+  }
+  out = value.value();
+  return true;
+}
+
+}  // namespace
+
+Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc) noexcept {
+  CameraIntrinsics k;
+  const auto width = doc.integer("image_width");
+  if (!width.ok()) {
+    return CameraResult::failure(width.error());
+  }
+  const auto height = doc.integer("image_height");
+  if (!height.ok()) {
+    return CameraResult::failure(height.error());
+  }
+  if (width.value() <= 0 || width.value() > 16384) {
+    return CameraResult::failure(doc.error_at(doc.find("image_width"), "image_width", "must be 1..16384"));
+  }
+  if (height.value() <= 0 || height.value() > 16384) {
+    return CameraResult::failure(doc.error_at(doc.find("image_height"), "image_height", "must be 1..16384"));
+  }
+  k.width = static_cast<int>(width.value());
+  k.height = static_cast<int>(height.value());
+
+  double m[9] = {};
+  auto status = doc.numbers("camera_matrix.data", m, 9U);
+  if (!status.ok()) {
+    return CameraResult::failure(status.error());
+  }
+  const yaml::Entry* matrix = doc.find("camera_matrix.data");
+  if (m[1] != 0.0) {
+    return CameraResult::failure(doc.error_at(matrix, "camera_matrix.data", "skew is not supported (element 2 must be 0)"));
+  }
+  if (m[3] != 0.0 || m[6] != 0.0 || m[7] != 0.0 || m[8] == 0.0) {
+    return CameraResult::failure(
+        doc.error_at(matrix, "camera_matrix.data", "not an upper-triangular camera matrix [fx 0 cx; 0 fy cy; 0 0 1]"));
+  }
+  // A matrix scaled by m[8] != 1 is the same camera.
+  k.fx = m[0] / m[8];
+  k.cx = m[2] / m[8];
+  k.fy = m[4] / m[8];
+  k.cy = m[5] / m[8];
+  if (!(k.fx > 0.0) || !(k.fy > 0.0)) {
+    return CameraResult::failure(
+        doc.error_at(matrix, "camera_matrix.data", "focal lengths must be positive (the matrix is singular)"));
+  }
+
+  char model[32] = {};
+  status = doc.text("distortion_model", model, sizeof model);
+  if (!status.ok()) {
+    return CameraResult::failure(status.error());
+  }
+  if (std::strcmp(model, "plumb_bob") != 0) {
+    return CameraResult::failure(doc.error_at(doc.find("distortion_model"), "distortion_model",
+                                              "only plumb_bob is supported"));
+  }
+  double d[14] = {};
+  std::size_t count = 0U;
+  status = doc.numbers_upto("distortion_coefficients.data", d, 14U, count);
+  if (!status.ok()) {
+    return CameraResult::failure(status.error());
+  }
+  const yaml::Entry* dist = doc.find("distortion_coefficients.data");
+  if (count < 4U) {
+    return CameraResult::failure(doc.error_at(dist, "distortion_coefficients.data", "expected 5 values (k1 k2 p1 p2 k3)"));
+  }
+  for (std::size_t i = 5U; i < count; ++i) {
+    if (d[i] != 0.0) {
+      return CameraResult::failure(doc.error_at(
+          dist, "distortion_coefficients.data", "coefficients beyond k3 (rational/thin-prism models) are not supported"));
+    }
+  }
+  k.k1 = d[0];
+  k.k2 = d[1];
+  k.p1 = d[2];
+  k.p2 = d[3];
+  k.k3 = (count >= 5U) ? d[4] : 0.0;
+
+  const auto model_check = CameraModel::create(k);
+  if (!model_check.ok()) {
+    const char* field = "camera_matrix.data";
+    if (model_check.error() == CameraError::NoValidRegion) {
+      field = "distortion_coefficients.data";
+    }
+    return CameraResult::failure(doc.error_at(doc.find(field), field, to_string(model_check.error())));
+  }
+  return CameraResult::success(k);
+}
+
+Result<CameraIntrinsics, Diagnostic> load_camera_info(const char* path, yaml::Document& scratch) noexcept {
+  const auto loaded = scratch.load(path);
+  if (!loaded.ok()) {
+    return CameraResult::failure(loaded.error());
+  }
+  return read_camera_info(scratch);
+}
+
+Result<InstrumentGeometry, Diagnostic> read_instrument_config(const yaml::Document& doc) noexcept {
+  InstrumentGeometry g;
+  Diagnostic error;
+  double theta_max_deg = rad_to_deg(g.theta_max_rad);
+  double psi_deg = rad_to_deg(g.nominal_psi_rad);
+  double mu_deg = rad_to_deg(g.nominal_mu_rad);
+  double angle_scale_deg = rad_to_deg(g.penalty.angle_scale_rad);
+  struct Field {
+    const char* path;
+    double* target;
+  };
+  const Field fields[] = {
+      {"instrument.bend_length_mm", &g.bend_length_mm},
+      {"instrument.radius_mm", &g.radius_mm},
+      {"instrument.tcp_offset_mm", &g.tcp_offset_mm},
+      {"instrument.shaft_radius_mm", &g.shaft_radius_mm},
+      {"instrument.grasper_radius_mm", &g.grasper_radius_mm},
+      {"instrument.theta_max_deg", &theta_max_deg},
+      {"instrument.lambda_min_mm", &g.lambda_min_mm},
+      {"instrument.lambda_max_mm", &g.lambda_max_mm},
+      {"channel_nominal.x_ch_mm", &g.nominal_x_ch_mm},
+      {"channel_nominal.y_ch_mm", &g.nominal_y_ch_mm},
+      {"channel_nominal.psi_deg", &psi_deg},
+      {"channel_nominal.mu_deg", &mu_deg},
+      {"play_penalty.position_k", &g.penalty.position_k},
+      {"play_penalty.position_scale_mm", &g.penalty.position_scale_mm},
+      {"play_penalty.angle_k", &g.penalty.angle_k},
+      {"play_penalty.angle_scale_deg", &angle_scale_deg},
+  };
+  for (const Field& f : fields) {
+    if (!read_number(doc, f.path, *f.target, error)) {
+      return GeometryResult::failure(error);
+    }
+  }
+  g.theta_max_rad = deg_to_rad(theta_max_deg);
+  g.nominal_psi_rad = deg_to_rad(psi_deg);
+  g.nominal_mu_rad = deg_to_rad(mu_deg);
+  g.penalty.angle_scale_rad = deg_to_rad(angle_scale_deg);
+  const bool explicit_boundaries = doc.has("instrument.boundaries_mm");
+  if (explicit_boundaries) {
+    auto status = doc.numbers("instrument.boundaries_mm", g.boundaries_mm.data(), g.boundaries_mm.size());
+    if (!status.ok()) {
+      return GeometryResult::failure(status.error());
+    }
+  } else {
+    // Five equal stripes over the (possibly configured) bend length.
+    for (int j = 0; j < kNumBoundaries; ++j) {
+      g.boundaries_mm[static_cast<std::size_t>(j)] = g.bend_length_mm * j / kNumMarkers;
+    }
+  }
+  if (doc.has("instrument.marker_colors")) {
+    const yaml::Entry* e = doc.find("instrument.marker_colors");
+    e->used = true;
+    const char* p = e->value;
+    std::size_t i = 0U;
+    while (*p != '\0') {
+      std::size_t n = 0U;
+      while (p[n] != '\0' && p[n] != '\n') {
+        ++n;
+      }
+      if (i == g.marker_colors.size()) {
+        return GeometryResult::failure(doc.error_at(e, e->path, "expected 5 colours"));
+      }
+      if (n == 4U && std::strncmp(p, "blue", 4U) == 0) {
+        g.marker_colors[i] = MarkerColor::Blue;
+      } else if (n == 6U && std::strncmp(p, "yellow", 6U) == 0) {
+        g.marker_colors[i] = MarkerColor::Yellow;
+      } else {
+        return GeometryResult::failure(doc.error_at(e, e->path, "colours are 'blue' or 'yellow'"));
+      }
+      ++i;
+      p += n;
+      if (*p == '\n') {
+        ++p;
+      }
+    }
+    if (!e->is_sequence || i != g.marker_colors.size()) {
+      return GeometryResult::failure(doc.error_at(e, e->path, "expected a sequence of 5 colours"));
+    }
+  }
+  const char* sections[] = {"instrument", "channel_nominal", "play_penalty"};
+  for (const char* section : sections) {
+    const yaml::Entry* unknown = doc.first_unused(section);
+    if (unknown != nullptr) {
+      return GeometryResult::failure(doc.error_at(unknown, unknown->path, "unknown key"));
+    }
+  }
+  const auto valid = validate(g);
+  if (!valid.ok()) {
+    const char* field = "instrument";
+    switch (valid.error()) {
+      case GeometryError::BadBoundaries: field = "instrument.boundaries_mm"; break;
+      case GeometryError::RadiusTooLarge: field = "instrument.radius_mm"; break;
+      case GeometryError::BadPenalty: field = "play_penalty"; break;
+      case GeometryError::BadJointRange: field = "instrument.theta_max_deg"; break;
+      case GeometryError::NonFiniteValue:
+      case GeometryError::NonPositiveLength: break;
+    }
+    return GeometryResult::failure(doc.error_at(doc.find(field), field, to_string(valid.error())));
+  }
+  return GeometryResult::success(g);
+}
+
+Result<InstrumentGeometry, Diagnostic> load_instrument_config(const char* path, yaml::Document& scratch) noexcept {
+  const auto loaded = scratch.load(path);
+  if (!loaded.ok()) {
+    return GeometryResult::failure(loaded.error());
+  }
+  return read_instrument_config(scratch);
+}
+
+}  // namespace solver
+}  // namespace tcpest

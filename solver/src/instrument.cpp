@@ -1,0 +1,340 @@
+#include "tcpest/solver/instrument.hpp"
+
+#include <cmath>
+
+namespace tcpest {
+namespace solver {
+
+namespace {
+
+// Below |k s| = kSeriesArc the derivative of p(s) with respect to k uses its
+// series (the closed form cancels badly there).
+constexpr double kSeriesArc = 1.0e-3;
+// model.md: below |k L| = 1e-6 the position uses the series.
+constexpr double kSeriesCurvatureArc = 1.0e-6;
+
+using Mat37 = Eigen::Matrix<double, 3, kNumParams>;
+
+Mat3 rotation_x_derivative(double a) noexcept {
+  const double c = std::cos(a);
+  const double s = std::sin(a);
+  Mat3 m;
+  m << 0.0, 0.0, 0.0, 0.0, -s, -c, 0.0, c, -s;
+  return m;
+}
+Mat3 rotation_y_derivative(double a) noexcept {
+  const double c = std::cos(a);
+  const double s = std::sin(a);
+  Mat3 m;
+  m << -s, 0.0, c, 0.0, 0.0, 0.0, -c, 0.0, -s;
+  return m;
+}
+Mat3 rotation_z_derivative(double a) noexcept {
+  const double c = std::cos(a);
+  const double s = std::sin(a);
+  Mat3 m;
+  m << -s, -c, 0.0, c, -s, 0.0, 0.0, 0.0, 0.0;
+  return m;
+}
+
+// p(s) in the base frame (model.md), with the series for tiny k L.
+Vec3 arc_position(double k, double s, double bend_length) noexcept {
+  if (std::fabs(k * bend_length) < kSeriesCurvatureArc) {
+    return Vec3(k * s * s / 2.0, 0.0, s - k * k * s * s * s / 6.0);
+  }
+  const double half = std::sin(0.5 * k * s);
+  // (1 - cos(k s)) / k written as 2 sin^2(k s / 2) / k: equal, without cancellation.
+  return Vec3(2.0 * half * half / k, 0.0, std::sin(k * s) / k);
+}
+
+// d p(s) / d k.
+Vec3 arc_position_dk(double k, double s) noexcept {
+  const double ks = k * s;
+  if (std::fabs(ks) < kSeriesArc) {
+    const double ks2 = ks * ks;
+    return Vec3(s * s * (0.5 - ks2 / 8.0 + ks2 * ks2 / 144.0), 0.0, s * s * ks * (-1.0 / 3.0 + ks2 / 30.0));
+  }
+  const double sn = std::sin(ks);
+  const double cs = std::cos(ks);
+  const double half = std::sin(0.5 * ks);
+  return Vec3((ks * sn - 2.0 * half * half) / (k * k), 0.0, (ks * cs - sn) / (k * k));
+}
+
+Vec3 arc_tangent(double k, double s) noexcept { return Vec3(std::sin(k * s), 0.0, std::cos(k * s)); }
+Vec3 arc_normal(double k, double s) noexcept { return Vec3(std::cos(k * s), 0.0, -std::sin(k * s)); }
+
+bool finite_geometry(const InstrumentGeometry& g) noexcept {
+  const double values[] = {g.bend_length_mm,    g.radius_mm,         g.tcp_offset_mm,         g.shaft_radius_mm,
+                           g.grasper_radius_mm, g.nominal_x_ch_mm,   g.nominal_y_ch_mm,       g.nominal_psi_rad,
+                           g.nominal_mu_rad,    g.penalty.position_k, g.penalty.position_scale_mm,
+                           g.penalty.angle_k,   g.penalty.angle_scale_rad, g.theta_max_rad,   g.lambda_min_mm,
+                           g.lambda_max_mm};
+  for (double v : values) {
+    if (!std::isfinite(v)) {
+      return false;
+    }
+  }
+  for (double b : g.boundaries_mm) {
+    if (!std::isfinite(b)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+Mat3 rotation_x(double a) noexcept {
+  const double c = std::cos(a);
+  const double s = std::sin(a);
+  Mat3 m;
+  m << 1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c;
+  return m;
+}
+Mat3 rotation_y(double a) noexcept {
+  const double c = std::cos(a);
+  const double s = std::sin(a);
+  Mat3 m;
+  m << c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c;
+  return m;
+}
+Mat3 rotation_z(double a) noexcept {
+  const double c = std::cos(a);
+  const double s = std::sin(a);
+  Mat3 m;
+  m << c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0;
+  return m;
+}
+
+PoseVector InstrumentGeometry::nominal_pose(double lambda_mm, double phi_rad, double theta_rad) const noexcept {
+  PoseVector r;
+  r << nominal_x_ch_mm, nominal_y_ch_mm, nominal_psi_rad, nominal_mu_rad, lambda_mm, phi_rad, theta_rad;
+  return r;
+}
+
+const char* to_string(GeometryError e) noexcept {
+  switch (e) {
+    case GeometryError::NonFiniteValue: return "a geometry value is not a finite number";
+    case GeometryError::NonPositiveLength: return "bend length, radii and TCP offset must be positive";
+    case GeometryError::BadBoundaries: return "marker boundaries must increase from 0 to the bend length";
+    case GeometryError::RadiusTooLarge: return "tube radius too large for the tightest bend (R must be < L / theta_max)";
+    case GeometryError::BadPenalty: return "penalty k must be >= 0 and its scale a > 0";
+    case GeometryError::BadJointRange: return "theta_max must be positive and lambda_min < lambda_max";
+  }
+  return "unknown geometry error";
+}
+
+Status<GeometryError> validate(const InstrumentGeometry& g) noexcept {
+  using S = Status<GeometryError>;
+  if (!finite_geometry(g)) {
+    return S::failure(GeometryError::NonFiniteValue);
+  }
+  if (!(g.bend_length_mm > 0.0) || !(g.radius_mm > 0.0) || !(g.tcp_offset_mm > 0.0) || !(g.shaft_radius_mm > 0.0) ||
+      !(g.grasper_radius_mm > 0.0)) {
+    return S::failure(GeometryError::NonPositiveLength);
+  }
+  constexpr double kTolerance = 1e-9;
+  if (std::fabs(g.boundaries_mm[0]) > kTolerance ||
+      std::fabs(g.boundaries_mm[kNumBoundaries - 1] - g.bend_length_mm) > kTolerance) {
+    return S::failure(GeometryError::BadBoundaries);
+  }
+  for (int j = 1; j < kNumBoundaries; ++j) {
+    if (!(g.boundaries_mm[static_cast<std::size_t>(j)] > g.boundaries_mm[static_cast<std::size_t>(j - 1)])) {
+      return S::failure(GeometryError::BadBoundaries);
+    }
+  }
+  if (!(g.theta_max_rad > 0.0) || !(g.lambda_min_mm < g.lambda_max_mm)) {
+    return S::failure(GeometryError::BadJointRange);
+  }
+  if (!(g.radius_mm < g.bend_length_mm / g.theta_max_rad)) {
+    return S::failure(GeometryError::RadiusTooLarge);
+  }
+  if (!(g.penalty.position_k >= 0.0) || !(g.penalty.angle_k >= 0.0) || !(g.penalty.position_scale_mm > 0.0) ||
+      !(g.penalty.angle_scale_rad > 0.0)) {
+    return S::failure(GeometryError::BadPenalty);
+  }
+  return S::success(Unit{});
+}
+
+int CornerSet::count_present() const noexcept {
+  int n = 0;
+  for (bool p : present) {
+    n += p ? 1 : 0;
+  }
+  return n;
+}
+
+int CornerSet::count_in_image() const noexcept {
+  int n = 0;
+  for (bool p : in_image) {
+    n += p ? 1 : 0;
+  }
+  return n;
+}
+
+Result<InstrumentModel, GeometryError> InstrumentModel::create(const InstrumentGeometry& geometry) noexcept {
+  const auto status = validate(geometry);
+  if (!status.ok()) {
+    return Result<InstrumentModel, GeometryError>::failure(status.error());
+  }
+  InstrumentModel m;
+  m.g_ = geometry;
+  return Result<InstrumentModel, GeometryError>::success(m);
+}
+
+PoseFrames InstrumentModel::frames(const PoseVector& r) const noexcept {
+  PoseFrames f;
+  f.channel_origin = Vec3(r[kXch], r[kYch], 0.0);
+  f.channel_rotation = rotation_y(r[kPsi]) * rotation_x(r[kMu]);
+  f.base_origin = f.channel_origin + r[kLambda] * f.channel_rotation.col(2);
+  f.base_rotation = f.channel_rotation * rotation_z(r[kPhi]);
+  f.curvature = r[kTheta] / g_.bend_length_mm;
+  return f;
+}
+
+CentrelineFrame InstrumentModel::centreline(const PoseFrames& f, double s_mm) const noexcept {
+  CentrelineFrame c;
+  c.position = f.base_origin + f.base_rotation * arc_position(f.curvature, s_mm, g_.bend_length_mm);
+  c.tangent = f.base_rotation * arc_tangent(f.curvature, s_mm);
+  c.normal = f.base_rotation * arc_normal(f.curvature, s_mm);
+  c.binormal = f.base_rotation.col(1);
+  return c;
+}
+
+Vec3 InstrumentModel::tcp(const PoseVector& r) const noexcept {
+  const PoseFrames f = frames(r);
+  const CentrelineFrame end = centreline(f, g_.bend_length_mm);
+  return end.position + g_.tcp_offset_mm * end.tangent;
+}
+
+void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, CornerSet& out,
+                              CornerJacobians* jacobians) const noexcept {
+  out.present.fill(false);
+  out.in_image.fill(false);
+  const PoseFrames f = frames(r);
+  {
+    const CentrelineFrame end = centreline(f, g_.bend_length_mm);
+    out.tcp = end.position + g_.tcp_offset_mm * end.tangent;
+  }
+  const double radius = g_.radius_mm;
+
+  // Derivatives of the frames with respect to r (only when asked).
+  Mat3 d_rch_dpsi;
+  Mat3 d_rch_dmu;
+  Mat3 d_rb[kNumParams];
+  Vec3 d_ob[kNumParams];
+  const double dk_dtheta = 1.0 / g_.bend_length_mm;
+  if (jacobians != nullptr) {
+    const Mat3 ry = rotation_y(r[kPsi]);
+    const Mat3 rx = rotation_x(r[kMu]);
+    const Mat3 rz = rotation_z(r[kPhi]);
+    d_rch_dpsi = rotation_y_derivative(r[kPsi]) * rx;
+    d_rch_dmu = ry * rotation_x_derivative(r[kMu]);
+    for (int q = 0; q < kNumParams; ++q) {
+      d_rb[q].setZero();
+      d_ob[q].setZero();
+    }
+    d_ob[kXch] = Vec3::UnitX();
+    d_ob[kYch] = Vec3::UnitY();
+    d_ob[kPsi] = r[kLambda] * d_rch_dpsi.col(2);
+    d_ob[kMu] = r[kLambda] * d_rch_dmu.col(2);
+    d_ob[kLambda] = f.channel_rotation.col(2);
+    d_rb[kPsi] = d_rch_dpsi * rz;
+    d_rb[kMu] = d_rch_dmu * rz;
+    d_rb[kPhi] = f.channel_rotation * rotation_z_derivative(r[kPhi]);
+  }
+
+  for (int j = 0; j < kNumBoundaries; ++j) {
+    const double s = g_.boundaries_mm[static_cast<std::size_t>(j)];
+    const Vec3 p_local = arc_position(f.curvature, s, g_.bend_length_mm);
+    const Vec3 n_local = arc_normal(f.curvature, s);
+    const Vec3 t_local = arc_tangent(f.curvature, s);
+    const Vec3 c = f.base_origin + f.base_rotation * p_local;
+    const Vec3 n = f.base_rotation * n_local;
+    const Vec3 b = f.base_rotation.col(1);
+    const Vec3 t = f.base_rotation * t_local;
+
+    Vec2 c_px;
+    Eigen::Matrix<double, 2, 3> c_jac;
+    if (!camera.project(c, c_px, c_jac)) {
+      continue;  // the boundary's centre is behind the camera or not projectable
+    }
+    const double a_coef = n.dot(c);
+    const double b_coef = b.dot(c);
+    const double rho = std::hypot(a_coef, b_coef);
+    if (!(rho > radius)) {
+      continue;  // the camera is inside the tube's circle: no limb
+    }
+    const double base_angle = std::atan2(b_coef, a_coef);
+    const double w = -radius / rho;
+    const double delta = std::acos(w);
+    const Vec2 image_axis = c_jac * t;  // image direction of the centreline, base -> tip
+
+    Vec3 points[2];
+    Vec2 pixels[2];
+    Eigen::Matrix<double, 2, 3> point_jac[2];
+    bool valid[2] = {false, false};
+    int sides[2] = {0, 0};
+    double angles[2] = {0.0, 0.0};
+    for (int i = 0; i < 2; ++i) {
+      const double sign = (i == 0) ? 1.0 : -1.0;
+      angles[i] = base_angle + sign * delta;
+      points[i] = c + radius * (std::cos(angles[i]) * n + std::sin(angles[i]) * b);
+      valid[i] = camera.project(points[i], pixels[i], point_jac[i]);
+      if (valid[i]) {
+        const Vec2 v = pixels[i] - c_px;
+        const double cross = image_axis.x() * v.y() - image_axis.y() * v.x();
+        sides[i] = (cross < 0.0) ? kSideLeft : kSideRight;
+      }
+    }
+    if (valid[0] && valid[1] && sides[0] == sides[1]) {
+      continue;  // degenerate view along the axis: the labels would collide
+    }
+
+    // Derivatives of c, n, b for this boundary (3x7 each).
+    Mat37 dc;
+    Mat37 dn;
+    Mat37 db;
+    if (jacobians != nullptr) {
+      const Vec3 dp_dk = arc_position_dk(f.curvature, s);
+      const Vec3 dn_dk = -s * t_local;  // d n(s)/dk
+      for (int q = 0; q < kNumParams; ++q) {
+        dc.col(q) = d_ob[q] + d_rb[q] * p_local;
+        dn.col(q) = d_rb[q] * n_local;
+        db.col(q) = d_rb[q].col(1);
+      }
+      dc.col(kTheta) += f.base_rotation * dp_dk * dk_dtheta;
+      dn.col(kTheta) += f.base_rotation * dn_dk * dk_dtheta;
+    }
+
+    for (int i = 0; i < 2; ++i) {
+      if (!valid[i]) {
+        continue;
+      }
+      const int k = corner_index(j, sides[i]);
+      const std::size_t ku = static_cast<std::size_t>(k);
+      out.present[ku] = true;
+      out.point[ku] = points[i];
+      out.pixel[ku] = pixels[i];
+      out.in_image[ku] = camera.in_image(pixels[i]);
+      if (jacobians != nullptr) {
+        const double sign = (i == 0) ? 1.0 : -1.0;
+        const Eigen::Matrix<double, 1, kNumParams> d_a = c.transpose() * dn + n.transpose() * dc;
+        const Eigen::Matrix<double, 1, kNumParams> d_b = c.transpose() * db + b.transpose() * dc;
+        const Eigen::Matrix<double, 1, kNumParams> d_rho = (a_coef * d_a + b_coef * d_b) / rho;
+        const Eigen::Matrix<double, 1, kNumParams> d_base = (a_coef * d_b - b_coef * d_a) / (rho * rho);
+        const Eigen::Matrix<double, 1, kNumParams> d_w = (radius / (rho * rho)) * d_rho;
+        const Eigen::Matrix<double, 1, kNumParams> d_delta = (-1.0 / std::sqrt(1.0 - w * w)) * d_w;
+        const Eigen::Matrix<double, 1, kNumParams> d_angle = d_base + sign * d_delta;
+        const double ca = std::cos(angles[i]);
+        const double sa = std::sin(angles[i]);
+        const Vec3 along_circle = radius * (-sa * n + ca * b);
+        const Mat37 d_point = dc + radius * (ca * dn + sa * db) + along_circle * d_angle;
+        (*jacobians)[ku] = point_jac[i] * d_point;
+      }
+    }
+  }
+}
+
+}  // namespace solver
+}  // namespace tcpest

@@ -1,0 +1,128 @@
+#include "tcpest/solver/instrument.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+namespace tcpest {
+namespace solver {
+namespace {
+
+CameraModel vectors_camera() {
+  CameraIntrinsics k = default_pal_camera();
+  k.p1 = 0.001;
+  k.p2 = -0.0005;
+  k.k3 = -0.01;
+  return CameraModel::create(k).value();
+}
+
+PoseVector random_pose(std::mt19937& rng) {
+  std::normal_distribution<double> play_mm(0.0, 1.5);
+  std::normal_distribution<double> play_rad(0.0, deg_to_rad(3.0));
+  std::uniform_real_distribution<double> lambda(10.0, 40.0);
+  std::uniform_real_distribution<double> phi(-kPi, kPi);
+  std::uniform_real_distribution<double> theta(-1.8, 1.8);
+  PoseVector r;
+  r << -13.3 + play_mm(rng), 6.2 + play_mm(rng), deg_to_rad(10.0) + play_rad(rng), play_rad(rng), lambda(rng),
+      phi(rng), theta(rng);
+  return r;
+}
+
+// The analytic corner Jacobians (limb points sliding on the tube) against
+// central differences, over many random configurations, including nearly
+// straight ones where the series take over.
+TEST(Instrument, CornerJacobiansMatchCentralDifferences) {
+  const CameraModel cam = vectors_camera();
+  const auto model = InstrumentModel::create(InstrumentGeometry{});
+  ASSERT_TRUE(model.ok());
+  std::mt19937 rng(42);
+  int checked = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    PoseVector r = random_pose(rng);
+    if (trial % 10 == 0) {
+      r[kTheta] = (trial % 20 == 0) ? 0.0 : 1e-5;
+    }
+    CornerSet base;
+    CornerJacobians jac;
+    model.value().corners(cam, r, base, &jac);
+    for (int q = 0; q < kNumParams; ++q) {
+      const double h = (q == kPsi || q == kMu || q == kPhi || q == kTheta) ? 1e-7 : 1e-6;
+      PoseVector lo = r;
+      PoseVector hi = r;
+      lo[q] -= h;
+      hi[q] += h;
+      CornerSet a;
+      CornerSet b;
+      model.value().corners(cam, lo, a);
+      model.value().corners(cam, hi, b);
+      for (int k = 0; k < kNumCorners; ++k) {
+        if (!base.present[k] || !a.present[k] || !b.present[k]) {
+          continue;
+        }
+        const Vec2 numeric = (b.pixel[k] - a.pixel[k]) / (2.0 * h);
+        const double tol = 2e-4 * (1.0 + numeric.norm());
+        EXPECT_NEAR(jac[k](0, q), numeric.x(), tol) << "trial " << trial << " k " << k << " q " << q;
+        EXPECT_NEAR(jac[k](1, q), numeric.y(), tol) << "trial " << trial << " k " << k << " q " << q;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 10000);
+}
+
+TEST(Instrument, CornersAreOnTheLimb) {
+  const CameraModel cam = vectors_camera();
+  const auto model = InstrumentModel::create(InstrumentGeometry{});
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 50; ++trial) {
+    const PoseVector r = random_pose(rng);
+    CornerSet out;
+    model.value().corners(cam, r, out);
+    const PoseFrames f = model.value().frames(r);
+    for (int k = 0; k < kNumCorners; ++k) {
+      if (!out.present[k]) {
+        continue;
+      }
+      const CentrelineFrame c = model.value().centreline(f, InstrumentGeometry{}.boundaries_mm[k / 2]);
+      const Vec3 m = (out.point[k] - c.position) / 1.81;
+      EXPECT_NEAR(m.norm(), 1.0, 1e-12);
+      EXPECT_NEAR(m.dot(out.point[k]), 0.0, 1e-9);  // the viewing ray grazes the tube
+      EXPECT_NEAR(m.dot(c.tangent), 0.0, 1e-12);
+    }
+  }
+}
+
+TEST(Instrument, NothingBehindTheCamera) {
+  const CameraModel cam = vectors_camera();
+  const auto model = InstrumentModel::create(InstrumentGeometry{});
+  PoseVector r = InstrumentGeometry{}.nominal_pose(20.0, 0.0, 0.0);
+  r[kPsi] = kPi;  // channel pointing backwards
+  CornerSet out;
+  model.value().corners(cam, r, out);
+  EXPECT_EQ(out.count_present(), 0);
+}
+
+TEST(Instrument, RefusesAbsurdGeometry) {
+  InstrumentGeometry g;
+  g.bend_length_mm = -1.0;
+  EXPECT_FALSE(validate(g).ok());
+  g = InstrumentGeometry{};
+  g.radius_mm = 9.0;  // L / theta_max = 18.5 / 2.36 = 7.85 mm
+  EXPECT_EQ(validate(g).error(), GeometryError::RadiusTooLarge);
+  g = InstrumentGeometry{};
+  g.boundaries_mm[2] = 2.0;
+  EXPECT_EQ(validate(g).error(), GeometryError::BadBoundaries);
+  g = InstrumentGeometry{};
+  g.tcp_offset_mm = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(validate(g).error(), GeometryError::NonFiniteValue);
+  g = InstrumentGeometry{};
+  g.penalty.position_scale_mm = 0.0;
+  EXPECT_EQ(validate(g).error(), GeometryError::BadPenalty);
+  EXPECT_TRUE(validate(InstrumentGeometry{}).ok());
+}
+
+}  // namespace
+}  // namespace solver
+}  // namespace tcpest

@@ -1,0 +1,45 @@
+# Build rules shared by every unit: one place for warnings, language
+# restrictions and instrumentation, so that no unit can drift from them.
+
+set(TCPEST_WARNINGS -Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Wshadow
+    -Wdouble-promotion -Wnon-virtual-dtor -Wold-style-cast -Wcast-align -Wnull-dereference
+    -Werror)
+
+if(TCPEST_SANITIZE)
+  add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
+  add_link_options(-fsanitize=address,undefined)
+endif()
+if(TCPEST_COVERAGE)
+  add_compile_options(--coverage -O0 -g)
+  add_link_options(--coverage)
+endif()
+
+# Core libraries (solver, vision, can_iface, and what they depend on): no
+# exceptions, no RTTI, every warning an error.
+function(tcpest_core_library name)
+  add_library(${name} ${ARGN})
+  target_compile_options(${name} PRIVATE ${TCPEST_WARNINGS} -fno-exceptions -fno-rtti)
+  target_compile_features(${name} PUBLIC cxx_std_17)
+endfunction()
+
+# Other first-party code (hal backends, the loop, the command): same warnings.
+function(tcpest_library name)
+  add_library(${name} ${ARGN})
+  target_compile_options(${name} PRIVATE ${TCPEST_WARNINGS})
+  target_compile_features(${name} PUBLIC cxx_std_17)
+endfunction()
+
+# A GoogleTest program registered with CTest. LABELS default to "unit".
+# Usage: tcpest_test(NAME name SOURCES ... LIBS ... [LABELS ...])
+function(tcpest_test)
+  cmake_parse_arguments(T "" "NAME" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${T_NAME} ${T_SOURCES})
+  target_compile_options(${T_NAME} PRIVATE ${TCPEST_WARNINGS} -Wno-sign-conversion)
+  target_link_libraries(${T_NAME} PRIVATE ${T_LIBS} tcpest_test_support GTest::gtest)
+  target_compile_definitions(${T_NAME} PRIVATE TCPEST_TEST_DATA_DIR="${PROJECT_SOURCE_DIR}/tests/data")
+  if(NOT T_LABELS)
+    set(T_LABELS unit)
+  endif()
+  include(GoogleTest)
+  gtest_discover_tests(${T_NAME} PROPERTIES LABELS "${T_LABELS}" DISCOVERY_TIMEOUT 60)
+endfunction()

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages a tcpest job needs, only those missing.
+# Usage: source toolchain/deps.sh; tcpest_install_deps PKG...
+tcpest_install_deps() {
+  local missing=()
+  local pkg
+  for pkg in "$@"; do
+    if ! dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed"; then
+      missing+=("$pkg")
+    fi
+  done
+  if [ "${#missing[@]}" -eq 0 ]; then
+    return 0
+  fi
+  echo "tcpest: installing Debian packages: ${missing[*]}"
+  local sudo=""
+  if [ "$(id -u)" -ne 0 ]; then
+    sudo="sudo"
+  fi
+  $sudo apt-get update -qq || return 1
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" || return 1
+}
+
+# What building and running tcpest needs.
+TCPEST_BUILD_PACKAGES=(cmake make g++ libeigen3-dev libjpeg62-turbo-dev libturbojpeg0-dev pkg-config)
+# What the tests and checks need on top.
+TCPEST_TEST_PACKAGES=(libgtest-dev libgmock-dev libbenchmark-dev clang clang-tidy cppcheck
+                      can-utils user-mode-linux kmod iproute2 python3 g++-aarch64-linux-gnu)

@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# The main job: builds tcpest (installing what is missing) and runs the demo
+# on the built-in synthetic scene. Extra arguments go to `tcpest demo`.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source toolchain/deps.sh
+tcpest_install_deps "${TCPEST_BUILD_PACKAGES[@]}"
+cmake --preset default -DTCPEST_BUILD_TESTS=OFF -DTCPEST_BUILD_BENCHMARKS=OFF >/dev/null
+cmake --build build/default --target tcpest -j"$(nproc)"
+exec ./build/default/firmware_like/tcpest demo "$@"
