@@ -8,6 +8,8 @@ const Command* commands(int& count) noexcept {
       {"demo", "run the full loop on the built-in synthetic scene and report accuracy and timing", cmd_demo},
       {"run", "the estimation loop as deployed: frames in, TCP estimates out on CAN", cmd_run},
       {"estimate", "extract corners and solve the pose on image files", cmd_estimate},
+      {"evaluate", "run the pipeline over an annotated dataset and score it against its ground truth",
+       cmd_evaluate},
       {"solve", "solve the pose from given corners (bring your own detector)", cmd_solve},
       {"project", "project the model: corners and TCP for a configuration r", cmd_project},
       {"render", "render synthetic endoscopic images with exact ground truth", cmd_render},

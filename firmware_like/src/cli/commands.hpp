@@ -28,6 +28,7 @@ int cmd_study(int argc, char** argv);
 int cmd_render(int argc, char** argv);
 int cmd_train_colors(int argc, char** argv);
 int cmd_estimate(int argc, char** argv);
+int cmd_evaluate(int argc, char** argv);
 int cmd_run(int argc, char** argv);
 int cmd_demo(int argc, char** argv);
 int cmd_bench(int argc, char** argv);
