@@ -68,6 +68,8 @@ class PeriodicTimer {
   };
 
   PeriodicTimer(Clock& clock, std::int64_t period_ns) noexcept : clock_(clock), period_ns_(period_ns) {}
+  // Changes the period (before start()).
+  void set_period_ns(std::int64_t period_ns) noexcept { period_ns_ = period_ns; }
   // The first deadline is start_ns + period.
   void start(std::int64_t start_ns) noexcept;
   // Sleeps until the next deadline that has not passed. kInterrupted when a

@@ -1,0 +1,200 @@
+// The cyclic executive: one thread, one cycle per trigger, the steps of
+// kSchedule in order, every step and every cycle timed against its budget.
+//
+//   trigger   frame: a live camera's next frame / the replay rate (or none with --no-pacing)
+//             period: absolute deadlines on CLOCK_MONOTONIC
+//             sync: the CAN SYNC message
+//   cycle     acquire, classify, interpret, borders, corners, solve, publish, housekeeping
+//
+// With the period and SYNC triggers the cycle publishes first, at the tick,
+// the estimate of the previous cycle (can-protocol.md: "from the latest
+// finished cycle"): the send time then only has the timer's jitter. With the
+// frame trigger it publishes as soon as the estimate exists (lowest latency).
+//
+// Everything is sized in create(); run_cycle() allocates nothing (tested with
+// tests::AllocationScope over thousands of cycles).
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+
+#include "tcpest/common/image.hpp"
+#include "tcpest/common/result.hpp"
+#include "tcpest/hal/camera/frame_source.hpp"
+#include "tcpest/hal/clock/clock.hpp"
+#include "tcpest/loop/config.hpp"
+#include "tcpest/loop/histogram.hpp"
+#include "tcpest/loop/ports.hpp"
+#include "tcpest/loop/schedule.hpp"
+#include "tcpest/solver/camera.hpp"
+#include "tcpest/solver/instrument.hpp"
+#include "tcpest/solver/pose_solver.hpp"
+
+namespace tcpest {
+namespace loop {
+
+enum class LoopError : std::uint8_t {
+  kNone = 0,
+  kBadConfig,     // an inconsistent setting (image size, period)
+  kOutOfMemory,   // a start-up buffer could not be allocated
+};
+const char* to_string(LoopError error) noexcept;
+
+// Everything one cycle did: the row of cycles.csv.
+struct CycleRecord {
+  std::uint64_t cycle = 0U;
+  std::uint32_t frame_sequence = 0U;
+  bool have_frame = false;
+  hal::CameraError frame_error = hal::CameraError::kNone;
+  std::int64_t frame_timestamp_ns = 0;
+  std::int64_t trigger_ns = 0;      // the tick's deadline (period/paced), or the cycle start
+  std::int64_t start_ns = 0;
+  std::int64_t end_ns = 0;
+  std::array<std::int64_t, kNumSteps> step_ns{};
+  std::int64_t total_ns = 0;
+  std::int64_t latency_ns = -1;     // frame timestamp -> CAN send; -1 when nothing was sent
+  std::int64_t send_offset_ns = -1; // send time - trigger time (jitter of the sends); -1 when nothing was sent
+  std::uint32_t slipped = 0U;       // periods skipped before this cycle
+  bool overrun = false;
+  NodeMode mode = NodeMode::kBootUp;
+  PriorSource prior = PriorSource::kGeneric;
+  int failed_stage = -1;            // index_of(Step) of the stage that failed, -1 if none
+  std::uint8_t stage_error = 0U;
+  solver::SolveStatus solve_status = solver::SolveStatus::InvalidInput;
+  bool solved = false;
+  Publication publication{};        // what this cycle's estimate is (sent now or at the next tick)
+  bool camera_lost = false;
+  bool bus_lost = false;
+  hal::FrameTruth truth{};
+};
+
+struct LoopStats {
+  std::array<DurationHistogram, kNumSteps> step{};
+  DurationHistogram total;
+  DurationHistogram latency;
+  DurationHistogram send_offset;  // |send - trigger| (period and SYNC triggers: the send jitter)
+  std::array<std::uint64_t, kNumSteps> step_overruns{};
+  std::uint64_t cycles = 0U;
+  std::uint64_t cycle_overruns = 0U;
+  std::uint64_t slips = 0U;
+  std::uint64_t frames = 0U;          // frames acquired and decoded
+  std::uint64_t frame_errors = 0U;    // frames dropped (corrupt, truncated, wrong size)
+  std::uint64_t not_ready = 0U;       // cycles without a frame from a live camera
+  std::array<std::uint64_t, 4> status{};  // per EstimateStatus
+  std::array<std::uint64_t, 3> prior{};   // per PriorSource
+  std::uint64_t published = 0U;
+  std::uint64_t publish_errors = 0U;
+  std::uint64_t track_drops = 0U;
+  std::uint64_t camera_lost_events = 0U;
+  std::uint64_t camera_recoveries = 0U;
+  std::uint64_t bus_lost_events = 0U;
+  std::uint64_t bus_recoveries = 0U;
+  std::uint64_t resets = 0U;
+};
+
+class CycleObserver {
+ public:
+  CycleObserver() noexcept = default;
+  virtual ~CycleObserver() = default;
+  CycleObserver(const CycleObserver&) = delete;
+  CycleObserver& operator=(const CycleObserver&) = delete;
+  CycleObserver(CycleObserver&&) = delete;
+  CycleObserver& operator=(CycleObserver&&) = delete;
+  // After each cycle, outside its timing. `frame` is this cycle's image.
+  virtual void on_cycle(const CycleRecord& record, const ImageView& frame) noexcept = 0;
+};
+
+struct LoopParts {
+  hal::FrameSource* source = nullptr;
+  hal::Clock* clock = nullptr;
+  FeaturePipeline* pipeline = nullptr;
+  NodePort* node = nullptr;
+  const solver::CameraModel* camera = nullptr;
+  const solver::InstrumentModel* instrument = nullptr;
+};
+
+enum class CycleOutcome : std::uint8_t {
+  kContinue,     // a cycle ran
+  kFinished,     // the replay ended or the configured number of frames was reached
+  kInterrupted,  // a signal cut the trigger wait short (the caller checks its stop flag)
+};
+
+class Executive {
+ public:
+  static Result<std::unique_ptr<Executive>, LoopError> create(const LoopConfig& config, const LoopParts& parts) noexcept;
+  ~Executive();
+  Executive(const Executive&) = delete;
+  Executive& operator=(const Executive&) = delete;
+  Executive(Executive&&) = delete;
+  Executive& operator=(Executive&&) = delete;
+
+  void set_observer(CycleObserver* observer) noexcept { observer_ = observer; }
+  // Starts the trigger's time base (called by run(), or before the first run_cycle()).
+  void start() noexcept;
+  CycleOutcome run_cycle() noexcept;
+  // Cycles until finished or *stop becomes true (checked every cycle and
+  // after every interrupted wait). Returns kFinished or kInterrupted.
+  CycleOutcome run(const std::atomic<bool>* stop) noexcept;
+
+  const LoopStats& stats() const noexcept { return *stats_; }
+  const CycleRecord& last() const noexcept { return record_; }
+  ImageView frame() const noexcept { return frame_view_.view(); }
+  const LoopConfig& config() const noexcept { return config_; }
+  // The cycle budget against which overruns are counted (ns).
+  std::int64_t cycle_budget_ns() const noexcept { return cycle_budget_ns_; }
+  bool publishes_first() const noexcept { return publish_first_; }
+
+ private:
+  Executive(const LoopConfig& config, const LoopParts& parts) noexcept;
+  CycleOutcome wait_trigger() noexcept;
+  void step_publish(std::int64_t trigger_ns) noexcept;
+  bool step_acquire() noexcept;
+  void run_pipeline() noexcept;
+  void step_solve() noexcept;
+  void step_housekeeping() noexcept;
+  void choose_prior(std::int64_t now_ns) noexcept;
+  void make_publication() noexcept;
+  void reset_track() noexcept;
+  bool camera_cycle() const noexcept;
+
+  LoopConfig config_;
+  LoopParts parts_;
+  hal::PeriodicTimer timer_;
+  bool use_timer_ = false;
+  bool publish_first_ = false;
+  std::int64_t cycle_budget_ns_ = 0;
+  std::unique_ptr<std::uint8_t[]> frame_buffer_;
+  MutableImageView frame_view_{};
+  std::unique_ptr<LoopStats> stats_;
+  std::unique_ptr<solver::PoseSolver> solver_;
+  CycleObserver* observer_ = nullptr;
+  CycleRecord record_{};
+  hal::FrameInfo info_{};
+  std::uint64_t cycle_ = 0U;
+  bool finished_ = false;
+
+  // The track and the estimate.
+  solver::CornerObservation corners_{};
+  solver::PoseVector prior_r_ = solver::PoseVector::Zero();
+  solver::PoseVector last_r_ = solver::PoseVector::Zero();
+  solver::PoseVector generic_r_ = solver::PoseVector::Zero();
+  bool have_estimate_ = false;   // a last estimate exists (held status repeats it)
+  bool track_alive_ = false;
+  int failed_frames_ = 0;
+  Publication last_publication_{};
+  bool have_pending_ = false;    // publish-first: an estimate waits for the next tick
+  std::uint16_t frame_counter_ = 0U;
+
+  // Health.
+  bool camera_lost_ = false;
+  int not_ready_run_ = 0;
+  bool bus_lost_ = false;
+  std::int64_t next_retry_ns_ = 0;
+  bool overrun_reported_ = false;
+  bool frame_error_reported_ = false;
+};
+
+}  // namespace loop
+}  // namespace tcpest

@@ -1,0 +1,71 @@
+// The cyclic executive's schedule, declared here and nowhere else: the steps
+// of one cycle in the order they run, each with its time budget. The loop
+// measures every step of every cycle against these budgets and counts each
+// overrun; nothing is silently absorbed.
+//
+// Budgets are for PAL 720x576 on one core of the reference machine (see
+// docs/loop.md for the measured numbers they come from); the cycle budget is
+// their sum, and a cycle is also an overrun when it does not end before the
+// next period starts.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+namespace tcpest {
+namespace loop {
+
+enum class Step : std::uint8_t {
+  kAcquire = 0,   // wait-free part of input: frame into the RGB buffer (decode/convert), bus input
+  kClassify,      // vision stage 1: pixel classes, regions
+  kInterpret,     // vision stage 2: which region is which marker (with the chosen prior)
+  kBorders,       // vision stage 3: Bezier borders
+  kCorners,       // vision stage 4: the apparent corners
+  kSolve,         // pose solver (Levenberg-Marquardt)
+  kPublish,       // TCP, JOINTS, MECHANICAL, QUALITY on the bus
+  kHousekeeping,  // heartbeat, EMCY, recovery attempts, statistics
+};
+constexpr int kNumSteps = 8;
+
+struct StepSpec {
+  Step step;
+  const char* name;
+  std::int64_t budget_us;
+};
+
+// THE schedule.
+constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
+    {Step::kAcquire, "acquire", 1500},
+    {Step::kClassify, "classify", 1000},
+    {Step::kInterpret, "interpret", 300},
+    {Step::kBorders, "borders", 700},
+    {Step::kCorners, "corners", 300},
+    {Step::kSolve, "solve", 1000},
+    {Step::kPublish, "publish", 100},
+    {Step::kHousekeeping, "housekeeping", 100},
+}};
+
+constexpr std::int64_t cycle_budget_us() noexcept {
+  std::int64_t sum = 0;
+  for (const StepSpec& s : kSchedule) {
+    sum += s.budget_us;
+  }
+  return sum;
+}
+
+constexpr int index_of(Step step) noexcept { return static_cast<int>(step); }
+constexpr const char* step_name(Step step) noexcept { return kSchedule[static_cast<std::size_t>(step)].name; }
+
+// The table is in Step order (index_of(s) is its row): checked at compile time.
+constexpr bool schedule_in_order() noexcept {
+  for (int i = 0; i < kNumSteps; ++i) {
+    if (static_cast<int>(kSchedule[static_cast<std::size_t>(i)].step) != i) {
+      return false;
+    }
+  }
+  return true;
+}
+static_assert(schedule_in_order(), "kSchedule must list the steps in Step order");
+
+}  // namespace loop
+}  // namespace tcpest

@@ -1,0 +1,178 @@
+#include "tcpest/loop/config.hpp"
+
+#include <cstring>
+
+namespace tcpest {
+namespace loop {
+
+namespace {
+
+using S = Status<Diagnostic>;
+
+S read_int(const yaml::Document& doc, const char* path, long long lo, long long hi, long long& value) noexcept {
+  if (!doc.has(path)) {
+    return ok_status<Diagnostic>();
+  }
+  const auto v = doc.integer(path);
+  if (!v.ok()) {
+    return S::failure(v.error());
+  }
+  if (v.value() < lo || v.value() > hi) {
+    return S::failure(doc.error_at(doc.find(path), path, "out of range"));
+  }
+  value = v.value();
+  return ok_status<Diagnostic>();
+}
+
+template <typename T>
+S read_int_as(const yaml::Document& doc, const char* path, long long lo, long long hi, T& out) noexcept {
+  long long value = static_cast<long long>(out);
+  const S s = read_int(doc, path, lo, hi, value);
+  if (s.ok()) {
+    out = static_cast<T>(value);
+  }
+  return s;
+}
+
+S read_double(const yaml::Document& doc, const char* path, double lo, double hi, double& out) noexcept {
+  if (!doc.has(path)) {
+    return ok_status<Diagnostic>();
+  }
+  const auto v = doc.number(path);
+  if (!v.ok()) {
+    return S::failure(v.error());
+  }
+  if (!(v.value() >= lo && v.value() <= hi)) {
+    return S::failure(doc.error_at(doc.find(path), path, "out of range"));
+  }
+  out = v.value();
+  return ok_status<Diagnostic>();
+}
+
+S read_bool(const yaml::Document& doc, const char* path, bool& out) noexcept {
+  if (!doc.has(path)) {
+    return ok_status<Diagnostic>();
+  }
+  char text[16] = {};
+  const S s = doc.text(path, text, sizeof text);
+  if (!s.ok()) {
+    return s;
+  }
+  if (std::strcmp(text, "true") == 0 || std::strcmp(text, "yes") == 0 || std::strcmp(text, "on") == 0) {
+    out = true;
+  } else if (std::strcmp(text, "false") == 0 || std::strcmp(text, "no") == 0 || std::strcmp(text, "off") == 0) {
+    out = false;
+  } else {
+    return S::failure(doc.error_at(doc.find(path), path, "expected true or false"));
+  }
+  return ok_status<Diagnostic>();
+}
+
+S read_text(const yaml::Document& doc, const char* path, char* out, std::size_t capacity) noexcept {
+  if (!doc.has(path)) {
+    return ok_status<Diagnostic>();
+  }
+  return doc.text(path, out, capacity);
+}
+
+#define TCPEST_TRY(expr)   \
+  do {                     \
+    const S s_ = (expr);   \
+    if (!s_.ok()) {        \
+      return s_;           \
+    }                      \
+  } while (false)
+
+}  // namespace
+
+const char* to_string(Trigger trigger) noexcept {
+  switch (trigger) {
+    case Trigger::kFrame:
+      return "frame";
+    case Trigger::kPeriod:
+      return "period";
+    case Trigger::kSync:
+      return "sync";
+  }
+  return "?";
+}
+
+Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) noexcept {
+  LoopSettings& l = out.loop;
+  if (doc.has("loop.trigger")) {
+    char text[16] = {};
+    TCPEST_TRY(doc.text("loop.trigger", text, sizeof text));
+    if (std::strcmp(text, "frame") == 0) {
+      l.trigger = Trigger::kFrame;
+    } else if (std::strcmp(text, "period") == 0) {
+      l.trigger = Trigger::kPeriod;
+    } else if (std::strcmp(text, "sync") == 0) {
+      l.trigger = Trigger::kSync;
+    } else {
+      return S::failure(doc.error_at(doc.find("loop.trigger"), "loop.trigger", "expected frame, period or sync"));
+    }
+  }
+  TCPEST_TRY(read_int_as(doc, "loop.period_us", 1000, 10000000, l.period_us));
+  TCPEST_TRY(read_bool(doc, "loop.pacing", l.pacing));
+  TCPEST_TRY(read_int_as(doc, "loop.frames", 0, 1000000000000LL, l.frames));
+  TCPEST_TRY(read_text(doc, "loop.source", l.source, sizeof l.source));
+  TCPEST_TRY(read_bool(doc, "loop.replay_loop", l.replay_loop));
+  TCPEST_TRY(read_text(doc, "loop.v4l2_format", l.v4l2_format, sizeof l.v4l2_format));
+  if (doc.has("loop.solve_mode")) {
+    char text[16] = {};
+    TCPEST_TRY(doc.text("loop.solve_mode", text, sizeof text));
+    if (std::strcmp(text, "adaptive") == 0) {
+      l.solve_mode = SolveModeSetting::kAdaptive;
+    } else if (std::strcmp(text, "fixed") == 0) {
+      l.solve_mode = SolveModeSetting::kFixedModel;
+    } else {
+      return S::failure(doc.error_at(doc.find("loop.solve_mode"), "loop.solve_mode", "expected adaptive or fixed"));
+    }
+  }
+  TCPEST_TRY(read_int_as(doc, "loop.track_drop_after", 1, 1000, l.track_drop_after));
+  TCPEST_TRY(read_int_as(doc, "loop.min_corners_valid", 4, 12, l.min_corners_valid));
+  TCPEST_TRY(read_double(doc, "loop.max_rms_valid_px", 0.0, 1000.0, l.max_rms_valid_px));
+  TCPEST_TRY(read_int_as(doc, "loop.camera_timeout_ms", 1, 60000, l.camera_timeout_ms));
+  TCPEST_TRY(read_int_as(doc, "loop.camera_lost_after", 1, 10000, l.camera_lost_after));
+  TCPEST_TRY(read_int_as(doc, "loop.retry_ms", 10, 600000, l.retry_ms));
+  TCPEST_TRY(read_int_as(doc, "loop.status_period_ms", 100, 600000, l.status_period_ms));
+
+  CanSettings& c = out.can;
+  TCPEST_TRY(read_text(doc, "can.bus", c.bus, sizeof c.bus));
+  TCPEST_TRY(read_int_as(doc, "can.node_id", 1, 127, c.node_id));
+  TCPEST_TRY(read_int_as(doc, "can.heartbeat_ms", 10, 60000, c.heartbeat_ms));
+  TCPEST_TRY(read_int_as(doc, "can.prior_timeout_ms", 1, 60000, c.prior_timeout_ms));
+  TCPEST_TRY(read_int_as(doc, "can.prior_max_counter_gap", 1, 14, c.prior_max_counter_gap));
+  TCPEST_TRY(read_bool(doc, "can.autostart", c.autostart));
+  TCPEST_TRY(read_int_as(doc, "can.sync_timeout_ms", 1, 600000, c.sync_timeout_ms));
+
+  RtSettings& r = out.rt;
+  TCPEST_TRY(read_bool(doc, "rt.lock_memory", r.lock_memory));
+  TCPEST_TRY(read_int_as(doc, "rt.fifo_priority", 0, 99, r.fifo_priority));
+  TCPEST_TRY(read_int_as(doc, "rt.cpu", -1, 1023, r.cpu));
+  TCPEST_TRY(read_int_as(doc, "rt.prefault_stack_kb", 0, 65536, r.prefault_stack_kb));
+
+  const char* sections[] = {"loop", "can", "rt"};
+  for (const char* section : sections) {
+    const yaml::Entry* unknown = doc.first_unused(section);
+    if (unknown != nullptr) {
+      return S::failure(doc.error_at(unknown, unknown->path, "unknown key"));
+    }
+  }
+  return ok_status<Diagnostic>();
+}
+
+Status<Diagnostic> load_loop_config(const char* path, yaml::Document& scratch, LoopConfig& out) noexcept {
+  out = LoopConfig{};
+  if (path == nullptr) {
+    return ok_status<Diagnostic>();
+  }
+  const S loaded = scratch.load(path);
+  if (!loaded.ok()) {
+    return loaded;
+  }
+  return read_loop_config(scratch, out);
+}
+
+}  // namespace loop
+}  // namespace tcpest

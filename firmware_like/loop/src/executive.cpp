@@ -1,0 +1,571 @@
+#include "tcpest/loop/executive.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <new>
+
+namespace tcpest {
+namespace loop {
+
+namespace {
+
+constexpr double kGenericLambdaMm = 25.0;  // the generic prior's start (vision's generic prior uses the same)
+
+std::int64_t ms_to_ns(std::int64_t ms) noexcept { return ms * hal::kNsPerMs; }
+
+bool is_device_failure(hal::CameraError e) noexcept {
+  return e == hal::CameraError::kDeviceLost || e == hal::CameraError::kNotFound || e == hal::CameraError::kIo;
+}
+
+}  // namespace
+
+const char* to_string(LoopError error) noexcept {
+  switch (error) {
+    case LoopError::kNone:
+      return "ok";
+    case LoopError::kBadConfig:
+      return "inconsistent loop configuration";
+    case LoopError::kOutOfMemory:
+      return "out of memory at start-up";
+  }
+  return "?";
+}
+
+const char* to_string(PriorSource source) noexcept {
+  switch (source) {
+    case PriorSource::kGeneric:
+      return "generic";
+    case PriorSource::kTemporal:
+      return "temporal";
+    case PriorSource::kEncoder:
+      return "encoder";
+  }
+  return "?";
+}
+
+const char* to_string(NodeMode mode) noexcept {
+  switch (mode) {
+    case NodeMode::kBootUp:
+      return "boot-up";
+    case NodeMode::kPreOperational:
+      return "pre-operational";
+    case NodeMode::kOperational:
+      return "operational";
+    case NodeMode::kStopped:
+      return "stopped";
+  }
+  return "?";
+}
+
+const char* to_string(EstimateStatus status) noexcept {
+  switch (status) {
+    case EstimateStatus::kValid:
+      return "valid";
+    case EstimateStatus::kDegraded:
+      return "degraded";
+    case EstimateStatus::kHeld:
+      return "held";
+    case EstimateStatus::kInvalid:
+      return "invalid";
+  }
+  return "?";
+}
+
+const char* to_string(Fault fault) noexcept {
+  switch (fault) {
+    case Fault::kCameraLost:
+      return "camera lost";
+    case Fault::kBusLost:
+      return "bus lost";
+    case Fault::kCycleOverrun:
+      return "cycle overrun";
+    case Fault::kFrameErrors:
+      return "frame errors";
+  }
+  return "?";
+}
+
+const char* to_string(PortError error) noexcept {
+  switch (error) {
+    case PortError::kNone:
+      return "ok";
+    case PortError::kBusDown:
+      return "bus down";
+    case PortError::kBusFull:
+      return "transmit queue full";
+    case PortError::kTimeout:
+      return "timeout";
+    case PortError::kInterrupted:
+      return "interrupted";
+    case PortError::kNotAllowed:
+      return "not allowed in this NMT state";
+  }
+  return "?";
+}
+
+Executive::Executive(const LoopConfig& config, const LoopParts& parts) noexcept
+    : config_(config), parts_(parts), timer_(*parts.clock, 0) {}
+
+Executive::~Executive() = default;
+
+Result<std::unique_ptr<Executive>, LoopError> Executive::create(const LoopConfig& config,
+                                                              const LoopParts& parts) noexcept {
+  using R = Result<std::unique_ptr<Executive>, LoopError>;
+  if (parts.source == nullptr || parts.clock == nullptr || parts.pipeline == nullptr || parts.node == nullptr ||
+      parts.camera == nullptr || parts.instrument == nullptr) {
+    return R::failure(LoopError::kBadConfig);
+  }
+  const int width = parts.source->width();
+  const int height = parts.source->height();
+  if (width <= 0 || height <= 0 || width != parts.camera->width() || height != parts.camera->height()) {
+    return R::failure(LoopError::kBadConfig);
+  }
+  std::unique_ptr<Executive> loop(new (std::nothrow) Executive(config, parts));
+  if (!loop) {
+    return R::failure(LoopError::kOutOfMemory);
+  }
+  const std::size_t stride = static_cast<std::size_t>(width) * 3U;
+  const std::size_t bytes = stride * static_cast<std::size_t>(height);
+  loop->frame_buffer_.reset(new (std::nothrow) std::uint8_t[bytes]);
+  loop->stats_.reset(new (std::nothrow) LoopStats());
+  loop->solver_.reset(new (std::nothrow) solver::PoseSolver(*parts.camera, *parts.instrument));
+  if (!loop->frame_buffer_ || !loop->stats_ || !loop->solver_) {
+    return R::failure(LoopError::kOutOfMemory);
+  }
+  std::memset(loop->frame_buffer_.get(), 0, bytes);  // pre-fault the pages before the first cycle
+  loop->frame_view_ = MutableImageView{loop->frame_buffer_.get(), width, height, stride};
+  loop->generic_r_ = parts.instrument->geometry().nominal_pose(kGenericLambdaMm, 0.0, 0.0);
+  loop->prior_r_ = loop->generic_r_;
+  loop->last_r_ = loop->generic_r_;
+
+  // The trigger's time base.
+  std::int64_t period_ns = 0;
+  const LoopSettings& l = config.loop;
+  switch (l.trigger) {
+    case Trigger::kFrame:
+      if (!parts.source->live() && l.pacing && parts.source->rate_hz() > 0.0) {
+        period_ns = static_cast<std::int64_t>(std::llround(1e9 / parts.source->rate_hz()));
+      }
+      break;
+    case Trigger::kPeriod:
+      period_ns = l.period_us * hal::kNsPerUs;
+      break;
+    case Trigger::kSync:
+      break;
+  }
+  if (l.trigger == Trigger::kPeriod && period_ns <= 0) {
+    return R::failure(LoopError::kBadConfig);
+  }
+  loop->use_timer_ = period_ns > 0;
+  loop->timer_.set_period_ns(period_ns);
+  loop->publish_first_ = l.trigger != Trigger::kFrame;
+  loop->cycle_budget_ns_ = cycle_budget_us() * hal::kNsPerUs;
+  if (period_ns > 0 && period_ns < loop->cycle_budget_ns_) {
+    loop->cycle_budget_ns_ = period_ns;
+  }
+  return R::success(std::move(loop));
+}
+
+void Executive::start() noexcept {
+  const std::int64_t now = parts_.clock->now_ns();
+  if (use_timer_) {
+    timer_.start(now);
+  }
+  next_retry_ns_ = now;
+}
+
+CycleOutcome Executive::wait_trigger() noexcept {
+  if (finished_ || (config_.loop.frames != 0U && cycle_ >= config_.loop.frames)) {
+    return CycleOutcome::kFinished;
+  }
+  hal::Clock& clock = *parts_.clock;
+  record_.slipped = 0U;
+  if (use_timer_) {
+    const auto tick = timer_.wait_next();
+    if (!tick.ok()) {
+      return CycleOutcome::kInterrupted;  // the deadline is kept: the next call waits for it again
+    }
+    record_.trigger_ns = tick.value().deadline_ns;
+    record_.slipped = tick.value().slipped;
+    return CycleOutcome::kContinue;
+  }
+  if (config_.loop.trigger == Trigger::kSync) {
+    const std::int64_t deadline = clock.now_ns() + ms_to_ns(config_.can.sync_timeout_ms);
+    const auto synced = parts_.node->wait_sync(deadline);
+    if (!synced.ok() && synced.error() == PortError::kInterrupted) {
+      return CycleOutcome::kInterrupted;
+    }
+    // A timeout still runs the cycle (heartbeat, recovery); it publishes nothing.
+    record_.trigger_ns = clock.now_ns();
+    return CycleOutcome::kContinue;
+  }
+  if (camera_lost_) {
+    // No frames to wait for: keep the heartbeat and the retries going at the configured period.
+    const auto slept = clock.sleep_until_ns(clock.now_ns() + config_.loop.period_us * hal::kNsPerUs);
+    if (!slept.ok()) {
+      return CycleOutcome::kInterrupted;
+    }
+  }
+  record_.trigger_ns = clock.now_ns();
+  return CycleOutcome::kContinue;
+}
+
+CycleOutcome Executive::run_cycle() noexcept {
+  const std::int64_t trigger_before = record_.trigger_ns;
+  const CycleOutcome outcome = wait_trigger();
+  if (outcome != CycleOutcome::kContinue) {
+    return outcome;
+  }
+  // A fresh record, keeping what wait_trigger() filled in.
+  const std::int64_t trigger_ns = record_.trigger_ns;
+  const std::uint32_t slipped = record_.slipped;
+  static_cast<void>(trigger_before);  // kept only for symmetry with the interrupted path
+  record_ = CycleRecord{};
+  record_.trigger_ns = trigger_ns;
+  record_.slipped = slipped;
+  record_.cycle = cycle_++;
+  hal::Clock& clock = *parts_.clock;
+  const std::int64_t start = clock.now_ns();
+  record_.start_ns = start;
+
+  std::int64_t t = start;
+  auto lap = [&](Step step) noexcept {
+    const std::int64_t now = clock.now_ns();
+    record_.step_ns[static_cast<std::size_t>(index_of(step))] += now - t;
+    t = now;
+  };
+
+  if (publish_first_) {
+    step_publish(trigger_ns);
+    lap(Step::kPublish);
+  }
+  const bool have_frame = step_acquire();
+  lap(Step::kAcquire);
+  if (have_frame) {
+    run_pipeline();  // times its own stages
+    t = clock.now_ns();
+  }
+  make_publication();
+  if (!publish_first_) {
+    step_publish(trigger_ns);
+    lap(Step::kPublish);
+  }
+  step_housekeeping();
+  lap(Step::kHousekeeping);
+
+  record_.end_ns = t;
+  record_.total_ns = t - start;
+  record_.mode = parts_.node->mode();
+  record_.camera_lost = camera_lost_;
+  record_.bus_lost = bus_lost_;
+  record_.overrun = record_.total_ns > cycle_budget_ns_;
+
+  LoopStats& s = *stats_;
+  ++s.cycles;
+  s.slips += record_.slipped;
+  for (int i = 0; i < kNumSteps; ++i) {
+    const std::int64_t ns = record_.step_ns[static_cast<std::size_t>(i)];
+    s.step[static_cast<std::size_t>(i)].add(ns);
+    if (ns > kSchedule[static_cast<std::size_t>(i)].budget_us * hal::kNsPerUs) {
+      ++s.step_overruns[static_cast<std::size_t>(i)];
+    }
+  }
+  s.total.add(record_.total_ns);
+  if (record_.overrun) {
+    ++s.cycle_overruns;
+  }
+  if (record_.overrun != overrun_reported_) {
+    // One EMCY when a run of overruns starts, one (error reset) when it ends.
+    parts_.node->set_fault(Fault::kCycleOverrun, record_.overrun,
+                           static_cast<std::uint32_t>(record_.total_ns / hal::kNsPerUs));
+    overrun_reported_ = record_.overrun;
+  }
+  if (camera_cycle()) {
+    ++s.status[static_cast<std::size_t>(record_.publication.status)];
+  }
+
+  if (observer_ != nullptr) {
+    observer_->on_cycle(record_, frame_view_.view());
+  }
+  return CycleOutcome::kContinue;
+}
+
+CycleOutcome Executive::run(const std::atomic<bool>* stop) noexcept {
+  start();
+  for (;;) {  // bounded by the source's end, the frame limit or the stop flag
+    if (stop != nullptr && stop->load(std::memory_order_relaxed)) {
+      return CycleOutcome::kInterrupted;
+    }
+    const CycleOutcome outcome = run_cycle();
+    if (outcome == CycleOutcome::kFinished) {
+      return outcome;
+    }
+  }
+}
+
+void Executive::step_publish(std::int64_t trigger_ns) noexcept {
+  NodePort& node = *parts_.node;
+  if (node.mode() != NodeMode::kOperational || bus_lost_) {
+    return;
+  }
+  Publication p{};
+  if (publish_first_) {
+    if (config_.loop.trigger == Trigger::kSync && record_.trigger_ns == 0) {
+      return;
+    }
+    if (!have_pending_) {
+      // Nothing finished yet: an invalid estimate, so the robot sees the node is alive.
+      p.status = EstimateStatus::kInvalid;
+      p.frame_timestamp_ns = trigger_ns;
+      p.frame_counter = frame_counter_;
+    } else {
+      p = last_publication_;
+    }
+  } else {
+    if (!camera_cycle()) {
+      return;  // nothing happened at the camera: nothing to say (e.g. the end of a replay)
+    }
+    p = record_.publication;
+  }
+  const std::int64_t send_ns = parts_.clock->now_ns();
+  std::int64_t latency_ns = -1;
+  const auto sent = node.publish(p, latency_ns);
+  if (!sent.ok()) {
+    ++stats_->publish_errors;
+    if (sent.error() == PortError::kBusDown && !bus_lost_) {
+      bus_lost_ = true;
+      ++stats_->bus_lost_events;
+      node.set_fault(Fault::kBusLost, true, 0U);
+    }
+    return;
+  }
+  ++stats_->published;
+  record_.latency_ns = latency_ns;
+  record_.send_offset_ns = send_ns - trigger_ns;
+  stats_->latency.add(latency_ns);
+  stats_->send_offset.add(record_.send_offset_ns < 0 ? -record_.send_offset_ns : record_.send_offset_ns);
+}
+
+bool Executive::step_acquire() noexcept {
+  NodePort& node = *parts_.node;
+  hal::Clock& clock = *parts_.clock;
+  const auto received = node.receive(clock.now_ns());
+  if (!received.ok() && received.error() == PortError::kBusDown && !bus_lost_) {
+    bus_lost_ = true;
+    ++stats_->bus_lost_events;
+    node.set_fault(Fault::kBusLost, true, 1U);
+  }
+  if (node.take_reset()) {
+    ++stats_->resets;
+    reset_track();
+    have_estimate_ = false;
+    have_pending_ = false;
+  }
+  if (node.mode() == NodeMode::kStopped || camera_lost_) {
+    return false;
+  }
+  const auto got = parts_.source->acquire(frame_view_, info_);
+  if (got.ok()) {
+    not_ready_run_ = 0;
+    ++stats_->frames;
+    record_.have_frame = true;
+    record_.frame_sequence = info_.sequence;
+    // Replay frames "arrive" at the trigger; a live camera's own time stamp travels with its frame.
+    record_.frame_timestamp_ns = parts_.source->live() ? info_.timestamp_ns : record_.trigger_ns;
+    record_.truth = info_.truth;
+    if (frame_error_reported_) {
+      node.set_fault(Fault::kFrameErrors, false, 0U);
+      frame_error_reported_ = false;
+    }
+    return true;
+  }
+  const hal::CameraError e = got.error();
+  record_.frame_error = e;
+  if (e == hal::CameraError::kEndOfStream) {
+    finished_ = true;
+  } else if (e == hal::CameraError::kNotReady) {
+    ++stats_->not_ready;
+    if (++not_ready_run_ >= config_.loop.camera_lost_after) {
+      camera_lost_ = true;
+    }
+  } else if (is_device_failure(e) && parts_.source->live()) {
+    camera_lost_ = true;
+  } else {
+    // A corrupt, truncated or wrongly sized frame: one dropped frame.
+    ++stats_->frame_errors;
+    ++failed_frames_;
+    if (!frame_error_reported_) {
+      node.set_fault(Fault::kFrameErrors, true, static_cast<std::uint32_t>(e));
+      frame_error_reported_ = true;
+    }
+  }
+  if (camera_lost_) {
+    ++stats_->camera_lost_events;
+    node.set_fault(Fault::kCameraLost, true, static_cast<std::uint32_t>(e));
+    next_retry_ns_ = clock.now_ns() + ms_to_ns(config_.loop.retry_ms);
+  }
+  return false;
+}
+
+void Executive::choose_prior(std::int64_t now_ns) noexcept {
+  JointPrior joints{};
+  if (parts_.node->encoder_prior(now_ns, joints)) {
+    record_.prior = PriorSource::kEncoder;
+    prior_r_ = track_alive_ ? last_r_ : generic_r_;
+    prior_r_[solver::kLambda] = joints.lambda_mm;
+    prior_r_[solver::kPhi] = joints.phi_rad;
+    prior_r_[solver::kTheta] = joints.theta_rad;
+  } else if (track_alive_) {
+    record_.prior = PriorSource::kTemporal;
+    prior_r_ = last_r_;
+  } else {
+    record_.prior = PriorSource::kGeneric;
+    prior_r_ = generic_r_;
+  }
+  ++stats_->prior[static_cast<std::size_t>(record_.prior)];
+}
+
+void Executive::run_pipeline() noexcept {
+  hal::Clock& clock = *parts_.clock;
+  FeaturePipeline& pipeline = *parts_.pipeline;
+  const ImageView image = frame_view_.view();
+  std::int64_t t = clock.now_ns();
+  auto lap = [&](Step step) noexcept {
+    const std::int64_t now = clock.now_ns();
+    record_.step_ns[static_cast<std::size_t>(index_of(step))] += now - t;
+    t = now;
+  };
+  choose_prior(t);
+  pipeline.begin_frame(info_);
+  corners_ = solver::CornerObservation{};
+  Status<StageError> stage = pipeline.classify(image);
+  lap(Step::kClassify);
+  if (stage.ok()) {
+    stage = pipeline.interpret(record_.prior, prior_r_);
+    lap(Step::kInterpret);
+    if (stage.ok()) {
+      stage = pipeline.borders(image);
+      lap(Step::kBorders);
+      if (stage.ok()) {
+        stage = pipeline.corners(image, corners_);
+        lap(Step::kCorners);
+        if (!stage.ok()) {
+          record_.failed_stage = index_of(Step::kCorners);
+        }
+      } else {
+        record_.failed_stage = index_of(Step::kBorders);
+      }
+    } else {
+      record_.failed_stage = index_of(Step::kInterpret);
+    }
+  } else {
+    record_.failed_stage = index_of(Step::kClassify);
+  }
+  if (!stage.ok()) {
+    record_.stage_error = stage.error().code;
+  }
+  record_.publication.corners_detected = static_cast<std::uint8_t>(corners_.count_visible());
+  if (stage.ok()) {
+    step_solve();
+    lap(Step::kSolve);
+  }
+  pipeline.end_frame(record_.solved);
+  if (record_.solved) {
+    track_alive_ = true;
+    have_estimate_ = true;
+    failed_frames_ = 0;
+  } else {
+    ++failed_frames_;
+  }
+}
+
+void Executive::step_solve() noexcept {
+  solver::PoseVector r = prior_r_;
+  const solver::SolveMode mode = config_.loop.solve_mode == SolveModeSetting::kFixedModel
+                                     ? solver::SolveMode::FixedModel
+                                     : solver::SolveMode::Adaptive;
+  const solver::SolveSummary summary = solver_->solve(corners_, mode, r);
+  record_.solve_status = summary.status;
+  record_.publication.corners_used = static_cast<std::uint8_t>(summary.corners_used);
+  record_.publication.rms_px = summary.rms_px;
+  const bool usable = solver::is_converged(summary.status) ||
+                      (summary.status == solver::SolveStatus::MaxIterations && std::isfinite(summary.final_cost));
+  if (usable && r.allFinite()) {
+    record_.solved = true;
+    last_r_ = r;
+  }
+}
+
+bool Executive::camera_cycle() const noexcept {
+  return record_.have_frame || camera_lost_ ||
+         (record_.frame_error != hal::CameraError::kNone && record_.frame_error != hal::CameraError::kEndOfStream);
+}
+
+void Executive::reset_track() noexcept {
+  if (track_alive_) {
+    ++stats_->track_drops;
+  }
+  track_alive_ = false;
+  failed_frames_ = 0;
+  parts_.pipeline->drop_track();
+}
+
+void Executive::make_publication() noexcept {
+  Publication& p = record_.publication;
+  if (!record_.solved && track_alive_ && failed_frames_ >= config_.loop.track_drop_after) {
+    reset_track();
+  }
+  p.frame_timestamp_ns = record_.have_frame ? record_.frame_timestamp_ns : record_.trigger_ns;
+  p.frame_counter = frame_counter_;
+  if (record_.solved) {
+    const bool good = p.corners_used >= config_.loop.min_corners_valid && p.rms_px <= config_.loop.max_rms_valid_px &&
+                      solver::is_converged(record_.solve_status);
+    p.status = good ? EstimateStatus::kValid : EstimateStatus::kDegraded;
+  } else if (!camera_lost_ && have_estimate_ && track_alive_) {
+    p.status = EstimateStatus::kHeld;
+  } else {
+    p.status = EstimateStatus::kInvalid;
+  }
+  if (have_estimate_) {
+    p.r = last_r_;
+    const solver::Vec3 tcp = parts_.instrument->tcp(last_r_);
+    p.tcp_mm[0] = tcp.x();
+    p.tcp_mm[1] = tcp.y();
+    p.tcp_mm[2] = tcp.z();
+  }
+  if (camera_cycle()) {
+    // One frame counter step per camera cycle (a dropped frame counts: the robot sees the gap).
+    ++frame_counter_;
+    last_publication_ = p;
+    have_pending_ = true;
+  }
+}
+
+void Executive::step_housekeeping() noexcept {
+  NodePort& node = *parts_.node;
+  hal::Clock& clock = *parts_.clock;
+  const std::int64_t now = clock.now_ns();
+  const auto kept = node.housekeeping(now);
+  if (!kept.ok() && kept.error() == PortError::kBusDown && !bus_lost_) {
+    bus_lost_ = true;
+    ++stats_->bus_lost_events;
+    node.set_fault(Fault::kBusLost, true, 2U);
+  }
+  if ((camera_lost_ || bus_lost_) && now >= next_retry_ns_) {
+    next_retry_ns_ = now + ms_to_ns(config_.loop.retry_ms);
+    if (camera_lost_ && parts_.source->reopen().ok()) {
+      camera_lost_ = false;
+      not_ready_run_ = 0;
+      ++stats_->camera_recoveries;
+      node.set_fault(Fault::kCameraLost, false, 0U);
+    }
+    if (bus_lost_ && node.recover().ok()) {
+      bus_lost_ = false;
+      ++stats_->bus_recoveries;
+      node.set_fault(Fault::kBusLost, false, 0U);
+    }
+  }
+}
+
+}  // namespace loop
+}  // namespace tcpest

@@ -1,0 +1,74 @@
+#include "tcpest/loop/config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <memory>
+
+namespace tcpest {
+namespace loop {
+namespace {
+
+Status<Diagnostic> parse(const char* text, LoopConfig& config) {
+  static yaml::Document doc;
+  const auto parsed = doc.parse(text, std::strlen(text), "test.yaml");
+  if (!parsed.ok()) {
+    return parsed;
+  }
+  return read_loop_config(doc, config);
+}
+
+TEST(LoopConfig, DefaultsWithoutSections) {
+  LoopConfig config;
+  ASSERT_TRUE(parse("instrument:\n  radius_mm: 1.81\n", config).ok());
+  EXPECT_EQ(config.loop.trigger, Trigger::kFrame);
+  EXPECT_EQ(config.loop.period_us, 40000);
+  EXPECT_STREQ(config.loop.source, "sim");
+  EXPECT_EQ(config.can.node_id, 0x10U);
+  EXPECT_EQ(config.can.heartbeat_ms, 100);
+  EXPECT_FALSE(config.rt.lock_memory);
+}
+
+TEST(LoopConfig, ReadsEverySection) {
+  LoopConfig config;
+  const char* text =
+      "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
+      "  solve_mode: fixed\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
+      "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
+      "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n";
+  const auto s = parse(text, config);
+  ASSERT_TRUE(s.ok());
+  EXPECT_EQ(config.loop.trigger, Trigger::kPeriod);
+  EXPECT_EQ(config.loop.period_us, 20000);
+  EXPECT_FALSE(config.loop.pacing);
+  EXPECT_EQ(config.loop.frames, 100U);
+  EXPECT_STREQ(config.loop.source, "/dev/video0");
+  EXPECT_EQ(config.loop.solve_mode, SolveModeSetting::kFixedModel);
+  EXPECT_EQ(config.loop.track_drop_after, 3);
+  EXPECT_EQ(config.loop.min_corners_valid, 8);
+  EXPECT_DOUBLE_EQ(config.loop.max_rms_valid_px, 1.5);
+  EXPECT_STREQ(config.can.bus, "vcan0");
+  EXPECT_EQ(config.can.node_id, 33U);
+  EXPECT_FALSE(config.can.autostart);
+  EXPECT_TRUE(config.rt.lock_memory);
+  EXPECT_EQ(config.rt.fifo_priority, 80);
+  EXPECT_EQ(config.rt.cpu, 1);
+}
+
+TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
+  LoopConfig config;
+  auto s = parse("loop:\n  trigger: frame\n  peroid_us: 100\n", config);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().line, 3U);
+  s = parse("can:\n  node_id: 300\n", config);
+  ASSERT_FALSE(s.ok());
+  EXPECT_STREQ(s.error().field, "can.node_id");
+  s = parse("loop:\n  trigger: sometimes\n", config);
+  ASSERT_FALSE(s.ok());
+  s = parse("rt:\n  lock_memory: maybe\n", config);
+  ASSERT_FALSE(s.ok());
+}
+
+}  // namespace
+}  // namespace loop
+}  // namespace tcpest

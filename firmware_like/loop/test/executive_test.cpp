@@ -1,0 +1,360 @@
+#include "tcpest/loop/executive.hpp"
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "tcpest/hal/camera/file_sources.hpp"
+#include "tcpest/loop/memory_node.hpp"
+#include "tcpest/loop/motion.hpp"
+#include "tcpest/loop/oracle_pipeline.hpp"
+#include "tcpest/test/alloc_counter.hpp"
+
+namespace tcpest {
+namespace loop {
+namespace {
+
+solver::CameraModel pal_camera() {
+  const auto camera = solver::CameraModel::create(solver::default_pal_camera());
+  EXPECT_TRUE(camera.ok());
+  return camera.value();
+}
+
+solver::InstrumentModel default_model() {
+  const auto model = solver::InstrumentModel::create(solver::InstrumentGeometry{});
+  EXPECT_TRUE(model.ok());
+  return model.value();
+}
+
+// The loop on the truth-only scene, a simulated clock and the in-memory node.
+struct Rig {
+  solver::CameraModel camera = pal_camera();
+  solver::InstrumentModel model = default_model();
+  MotionSequence motion;
+  std::unique_ptr<ModelScene> scene;
+  std::unique_ptr<hal::SimCamera> source;
+  hal::SimulatedClock clock{1000000000};
+  OraclePipeline pipeline;
+  MemoryNode node{clock, true, 100 * hal::kNsPerMs, 100 * hal::kNsPerMs};
+  LoopConfig config;
+  std::unique_ptr<Executive> loop;
+
+  explicit Rig(std::uint32_t frames = 250U, hal::FrameSource* other_source = nullptr) {
+    motion.frames = frames;
+    scene = std::make_unique<ModelScene>(camera, model, motion);
+    source = std::make_unique<hal::SimCamera>(*scene, 25.0, false);
+    build(other_source != nullptr ? other_source : source.get());
+  }
+  void build(hal::FrameSource* s) {
+    LoopParts parts;
+    parts.source = s;
+    parts.clock = &clock;
+    parts.pipeline = &pipeline;
+    parts.node = &node;
+    parts.camera = &camera;
+    parts.instrument = &model;
+    auto created = Executive::create(config, parts);
+    ASSERT_TRUE(created.ok());
+    loop = std::move(created.value());
+    loop->start();
+  }
+};
+
+TEST(Executive, TracksTheSimulatedMotionAndPublishesEveryFrame) {
+  Rig rig(50U);
+  ASSERT_EQ(rig.loop->run(nullptr), CycleOutcome::kFinished);
+  const LoopStats& s = rig.loop->stats();
+  EXPECT_EQ(s.frames, 50U);
+  EXPECT_EQ(s.published, 50U);
+  EXPECT_EQ(s.status[static_cast<std::size_t>(EstimateStatus::kValid)], 50U);
+  EXPECT_EQ(s.prior[static_cast<std::size_t>(PriorSource::kGeneric)], 1U);
+  EXPECT_EQ(s.prior[static_cast<std::size_t>(PriorSource::kTemporal)], 49U);
+  // The last estimate is the truth of the last frame.
+  const Publication& p = rig.node.publication(0);
+  const auto truth_r = rig.motion.pose(rig.model.geometry(), 49U);
+  const auto tcp = rig.model.tcp(truth_r);
+  EXPECT_NEAR(p.tcp_mm[0], tcp.x(), 1e-3);
+  EXPECT_NEAR(p.tcp_mm[1], tcp.y(), 1e-3);
+  EXPECT_NEAR(p.tcp_mm[2], tcp.z(), 1e-3);
+  EXPECT_EQ(p.frame_counter, 49U);
+  EXPECT_GT(rig.node.heartbeats(), 0U);
+}
+
+TEST(Executive, NoHeapAllocationPerCycleWithTheSimulatedCamera) {
+  Rig rig(3000U);
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  test::AllocationScope scope;
+  for (int i = 0; i < 2990; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_EQ(scope.count(), 0U);
+  EXPECT_EQ(rig.loop->stats().status[0], 3000U);
+}
+
+TEST(Executive, NoHeapAllocationPerCycleWithRawY4mFrames) {
+  // A PAL clip of raw frames, replayed in a loop through the real decoder path.
+  std::string dir = std::string(::testing::TempDir()) + "tcpest_loop_y4m_XXXXXX";
+  ASSERT_NE(::mkdtemp(&dir[0]), nullptr);
+  const std::string path = dir + "/clip.y4m";
+  {
+    hal::Y4mWriter writer;
+    ASSERT_TRUE(writer.open(path.c_str(), 720, 576, 25, 1).ok());
+    std::vector<std::uint8_t> rgb(720U * 576U * 3U);
+    for (int f = 0; f < 8; ++f) {
+      for (std::size_t i = 0; i < rgb.size(); ++i) {
+        rgb[i] = static_cast<std::uint8_t>((i * 7U + static_cast<std::size_t>(f) * 13U) & 0xFFU);
+      }
+      ASSERT_TRUE(writer.write(ImageView{rgb.data(), 720, 576, 720U * 3U}).ok());
+    }
+    ASSERT_TRUE(writer.close().ok());
+  }
+  hal::ReplayOptions options;
+  options.loop = true;
+  auto source = hal::Y4mSource::open(path.c_str(), options);
+  ASSERT_TRUE(source.ok());
+  Rig rig(1U, source.value().get());
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  test::AllocationScope scope;
+  for (int i = 0; i < 2000; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_EQ(scope.count(), 0U);
+  EXPECT_EQ(rig.loop->stats().frames, 2010U);
+  // No truth on raw frames: the oracle finds nothing, so never a valid estimate.
+  EXPECT_EQ(rig.loop->stats().status[static_cast<std::size_t>(EstimateStatus::kInvalid)], 2010U);
+}
+
+TEST(Executive, TrackIsHeldThenDroppedThenReacquiredFromTheGenericPrior) {
+  Rig rig(60U);
+  rig.scene->blind(20U, 30U);  // ten frames without corners
+  ASSERT_EQ(rig.loop->run(nullptr), CycleOutcome::kFinished);
+  const LoopStats& s = rig.loop->stats();
+  const int drop_after = rig.config.loop.track_drop_after;  // 5
+  EXPECT_EQ(s.track_drops, 1U);
+  EXPECT_EQ(s.status[static_cast<std::size_t>(EstimateStatus::kHeld)], static_cast<std::uint64_t>(drop_after - 1));
+  EXPECT_EQ(s.status[static_cast<std::size_t>(EstimateStatus::kInvalid)], static_cast<std::uint64_t>(10 - drop_after + 1));
+  EXPECT_EQ(s.status[static_cast<std::size_t>(EstimateStatus::kValid)], 50U);
+  // Generic at the first frame and again after the drop (frames 20+drop_after .. 30).
+  EXPECT_EQ(s.prior[static_cast<std::size_t>(PriorSource::kGeneric)], static_cast<std::uint64_t>(1 + 10 - drop_after + 1));
+}
+
+TEST(Executive, FreshEncoderPriorIsUsedAndAStaleOneIsNot) {
+  Rig rig(10U);
+  const auto r = rig.motion.pose(rig.model.geometry(), 0U);
+  rig.node.inject_prior(JointPrior{r[solver::kLambda], r[solver::kPhi], r[solver::kTheta]}, rig.clock.now_ns());
+  ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  EXPECT_EQ(rig.loop->last().prior, PriorSource::kEncoder);
+  // The replay is paced at 25 Hz on the simulated clock: after 3 frames the prior is 120 ms old.
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_EQ(rig.loop->last().prior, PriorSource::kTemporal);
+}
+
+TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
+  Rig rig(40U);
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_EQ(rig.node.published(), 5U);
+  rig.node.inject_stop();
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_EQ(rig.node.published(), 5U);
+  EXPECT_EQ(rig.loop->stats().frames, 5U);  // stopped: no processing either
+  rig.node.inject_pre_operational();
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_EQ(rig.node.published(), 5U);
+  EXPECT_EQ(rig.loop->stats().frames, 10U);  // pre-operational: processing goes on
+  rig.node.inject_start();
+  ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  EXPECT_EQ(rig.node.published(), 6U);
+  EXPECT_EQ(rig.node.publication(0).status, EstimateStatus::kValid);
+  rig.node.inject_reset();
+  ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  EXPECT_EQ(rig.loop->stats().resets, 1U);
+  EXPECT_EQ(rig.loop->last().prior, PriorSource::kGeneric);
+}
+
+// A live camera that disappears and comes back.
+class FlakyCamera final : public hal::FrameSource {
+ public:
+  explicit FlakyCamera(hal::SimCamera& inner) : inner_(inner) {}
+  const char* kind() const noexcept override { return "flaky"; }
+  int width() const noexcept override { return inner_.width(); }
+  int height() const noexcept override { return inner_.height(); }
+  double rate_hz() const noexcept override { return 25.0; }
+  bool live() const noexcept override { return true; }
+  Status<hal::CameraError> acquire(const MutableImageView& out, hal::FrameInfo& info) noexcept override {
+    if (!present) {
+      return Status<hal::CameraError>::failure(hal::CameraError::kDeviceLost);
+    }
+    return inner_.acquire(out, info);
+  }
+  Status<hal::CameraError> reopen() noexcept override {
+    ++reopen_attempts;
+    return present ? ok_status<hal::CameraError>() : Status<hal::CameraError>::failure(hal::CameraError::kNotFound);
+  }
+  bool present = true;
+  int reopen_attempts = 0;
+
+ private:
+  hal::SimCamera& inner_;
+};
+
+TEST(Executive, LostCameraDegradesAndRecoversByItself) {
+  Rig rig(100U);
+  FlakyCamera flaky(*rig.source);
+  rig.build(&flaky);
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  flaky.present = false;
+  for (int i = 0; i < 60; ++i) {  // 60 cycles at the 40 ms fallback period: 2.4 s
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_TRUE(rig.loop->last().camera_lost);
+  EXPECT_TRUE(rig.node.fault_active(Fault::kCameraLost));
+  EXPECT_EQ(rig.node.publication(0).status, EstimateStatus::kInvalid);
+  EXPECT_GE(flaky.reopen_attempts, 2);
+  EXPECT_LE(flaky.reopen_attempts, 3);  // once per retry_ms (1 s)
+  flaky.present = true;
+  for (int i = 0; i < 40; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_FALSE(rig.loop->last().camera_lost);
+  EXPECT_FALSE(rig.node.fault_active(Fault::kCameraLost));
+  EXPECT_EQ(rig.loop->stats().camera_lost_events, 1U);
+  EXPECT_EQ(rig.loop->stats().camera_recoveries, 1U);
+  EXPECT_EQ(rig.node.publication(0).status, EstimateStatus::kValid);
+}
+
+TEST(Executive, LostBusDegradesAndRecoversByItself) {
+  Rig rig(200U);
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  rig.node.set_bus_up(false);
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_TRUE(rig.loop->last().bus_lost);
+  EXPECT_EQ(rig.loop->stats().frames, 15U);  // processing goes on
+  rig.node.set_bus_up(true);
+  for (int i = 0; i < 40; ++i) {  // retry_ms = 1 s = 25 frames
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  EXPECT_FALSE(rig.loop->last().bus_lost);
+  EXPECT_EQ(rig.loop->stats().bus_recoveries, 1U);
+  EXPECT_FALSE(rig.node.fault_active(Fault::kBusLost));
+}
+
+// A pipeline stage that takes simulated time: overruns and slips.
+class SlowOracle final : public FeaturePipeline {
+ public:
+  SlowOracle(hal::SimulatedClock& clock, OraclePipeline& inner) : clock_(clock), inner_(inner) {}
+  const char* name() const noexcept override { return "slow"; }
+  void begin_frame(const hal::FrameInfo& info) noexcept override { inner_.begin_frame(info); }
+  Status<StageError> classify(const ImageView& image) noexcept override {
+    clock_.advance_ns(next_ns);
+    return inner_.classify(image);
+  }
+  Status<StageError> interpret(PriorSource s, const solver::PoseVector& r) noexcept override {
+    return inner_.interpret(s, r);
+  }
+  Status<StageError> borders(const ImageView& image) noexcept override { return inner_.borders(image); }
+  Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept override {
+    return inner_.corners(image, out);
+  }
+  void end_frame(bool success) noexcept override { inner_.end_frame(success); }
+  void drop_track() noexcept override { inner_.drop_track(); }
+  bool has_temporal_prior() const noexcept override { return inner_.has_temporal_prior(); }
+  const char* describe(StageError e) const noexcept override { return inner_.describe(e); }
+  std::int64_t next_ns = 0;
+
+ private:
+  hal::SimulatedClock& clock_;
+  OraclePipeline& inner_;
+};
+
+TEST(Executive, PeriodTriggerPublishesAtTheTickAndCountsOverrunsAndSlips) {
+  Rig rig(100U);
+  rig.config.loop.trigger = Trigger::kPeriod;
+  rig.config.loop.period_us = 10000;
+  SlowOracle slow(rig.clock, rig.pipeline);
+  LoopParts parts;
+  parts.source = rig.source.get();
+  parts.clock = &rig.clock;
+  parts.pipeline = &slow;
+  parts.node = &rig.node;
+  parts.camera = &rig.camera;
+  parts.instrument = &rig.model;
+  auto created = Executive::create(rig.config, parts);
+  ASSERT_TRUE(created.ok());
+  Executive& loop = *created.value();
+  EXPECT_TRUE(loop.publishes_first());
+  loop.start();
+  slow.next_ns = 500 * hal::kNsPerUs;  // within the classify budget
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_EQ(loop.run_cycle(), CycleOutcome::kContinue);
+    // Sent exactly at the tick (simulated clock); nothing in the first cycle (boot-up).
+    EXPECT_EQ(loop.last().send_offset_ns, i == 0 ? -1 : 0);
+    EXPECT_FALSE(loop.last().overrun);
+  }
+  // The previous cycle's frame is sent: latency = one period.
+  EXPECT_EQ(loop.last().latency_ns, 10 * hal::kNsPerMs);
+  slow.next_ns = 25 * hal::kNsPerMs;  // 2.5 periods
+  ASSERT_EQ(loop.run_cycle(), CycleOutcome::kContinue);
+  EXPECT_TRUE(loop.last().overrun);
+  EXPECT_EQ(loop.stats().step_overruns[static_cast<std::size_t>(index_of(Step::kClassify))], 1U);
+  slow.next_ns = 0;
+  ASSERT_EQ(loop.run_cycle(), CycleOutcome::kContinue);
+  EXPECT_EQ(loop.last().slipped, 2U);
+  EXPECT_EQ(loop.stats().slips, 2U);
+  EXPECT_EQ(loop.stats().cycle_overruns, 1U);
+  EXPECT_TRUE(rig.node.fault_active(Fault::kCycleOverrun) == false);  // reset after a good cycle
+  EXPECT_EQ(rig.node.emcy_count(), 2U);                              // raised once, reset once
+}
+
+TEST(Executive, FrameLimitAndMismatchedCameraSize) {
+  Rig rig(100U);
+  rig.config.loop.frames = 7U;
+  rig.build(rig.source.get());
+  ASSERT_EQ(rig.loop->run(nullptr), CycleOutcome::kFinished);
+  EXPECT_EQ(rig.loop->stats().cycles, 7U);
+  // A camera calibrated for another size than the source's frames is refused.
+  auto other = solver::default_pal_camera();
+  other.width = 640;
+  const auto camera = solver::CameraModel::create(other);
+  ASSERT_TRUE(camera.ok());
+  LoopParts parts;
+  parts.source = rig.source.get();
+  parts.clock = &rig.clock;
+  parts.pipeline = &rig.pipeline;
+  parts.node = &rig.node;
+  parts.camera = &camera.value();
+  parts.instrument = &rig.model;
+  EXPECT_EQ(Executive::create(rig.config, parts).error(), LoopError::kBadConfig);
+}
+
+TEST(Executive, StopFlagEndsTheRun) {
+  Rig rig(100U);
+  std::atomic<bool> stop{true};
+  EXPECT_EQ(rig.loop->run(&stop), CycleOutcome::kInterrupted);
+}
+
+}  // namespace
+}  // namespace loop
+}  // namespace tcpest
