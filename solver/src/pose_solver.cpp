@@ -1,0 +1,261 @@
+#include "tcpest/solver/pose_solver.hpp"
+
+#include <cmath>
+
+namespace tcpest {
+namespace solver {
+
+namespace {
+
+// Penalty residual e(u) = sqrt(2k/3) |u/a|^1.5 sign(u): 0.5 e^2 = (k/3)|u/a|^3.
+double penalty_residual(double u, double k, double a) noexcept {
+  const double scaled = u / a;
+  const double magnitude = std::sqrt(2.0 * k / 3.0) * std::pow(std::fabs(scaled), 1.5);
+  return std::copysign(magnitude, scaled);
+}
+
+// de/du = 1.5 sqrt(2k/3) |u/a|^0.5 / a.
+double penalty_derivative(double u, double k, double a) noexcept {
+  return 1.5 * std::sqrt(2.0 * k / 3.0) * std::sqrt(std::fabs(u / a)) / a;
+}
+
+}  // namespace
+
+const char* to_string(SolveStatus status) noexcept {
+  switch (status) {
+    case SolveStatus::ConvergedGradient: return "converged_gradient";
+    case SolveStatus::ConvergedStep: return "converged_step";
+    case SolveStatus::ConvergedCostChange: return "converged_cost_change";
+    case SolveStatus::MaxIterations: return "max_iterations";
+    case SolveStatus::NonFiniteResidual: return "non_finite_residual";
+    case SolveStatus::NonFiniteJacobian: return "non_finite_jacobian";
+    case SolveStatus::SingularSystem: return "singular_system";
+    case SolveStatus::TooFewCorners: return "too_few_corners";
+    case SolveStatus::NonFiniteCorner: return "non_finite_corner";
+    case SolveStatus::CornerFarOutsideImage: return "corner_far_outside_image";
+    case SolveStatus::InvalidInput: return "invalid_input";
+  }
+  return "unknown";
+}
+
+const char* describe(SolveStatus status) noexcept {
+  switch (status) {
+    case SolveStatus::ConvergedGradient: return "converged: the gradient vanished";
+    case SolveStatus::ConvergedStep: return "converged: the step became negligible";
+    case SolveStatus::ConvergedCostChange: return "converged: the cost stopped decreasing";
+    case SolveStatus::MaxIterations: return "stopped at the iteration limit without converging";
+    case SolveStatus::NonFiniteResidual: return "a residual or the cost at the start is not finite";
+    case SolveStatus::NonFiniteJacobian: return "the Jacobian at the start is not finite";
+    case SolveStatus::SingularSystem: return "the damped normal equations are singular";
+    case SolveStatus::TooFewCorners: return "fewer than 4 usable corners";
+    case SolveStatus::NonFiniteCorner: return "a visible corner is NaN or infinite";
+    case SolveStatus::CornerFarOutsideImage: return "a visible corner lies far outside the image";
+    case SolveStatus::InvalidInput: return "invalid solver options or start configuration";
+  }
+  return "unknown status";
+}
+
+bool is_converged(SolveStatus status) noexcept {
+  return status == SolveStatus::ConvergedGradient || status == SolveStatus::ConvergedStep ||
+         status == SolveStatus::ConvergedCostChange;
+}
+
+bool valid(const SolverOptions& o) noexcept {
+  const bool finite = std::isfinite(o.gradient_tolerance) && std::isfinite(o.step_tolerance) &&
+                      std::isfinite(o.cost_change_tolerance) && std::isfinite(o.initial_damping);
+  return finite && o.max_iterations >= 1 && o.max_iterations <= kMaxIterationsCap && o.gradient_tolerance >= 0.0 &&
+         o.step_tolerance >= 0.0 && o.cost_change_tolerance >= 0.0 && o.initial_damping > 0.0;
+}
+
+const char* to_string(SolveMode mode) noexcept {
+  switch (mode) {
+    case SolveMode::Adaptive: return "adaptive";
+    case SolveMode::FixedModel: return "fixed_model";
+  }
+  return "unknown";
+}
+
+int CornerObservation::count_visible() const noexcept {
+  int n = 0;
+  for (bool v : visible) {
+    n += v ? 1 : 0;
+  }
+  return n;
+}
+
+// ---------------------------------------------------------------------------
+
+template <int kParams>
+PoseResidual<kParams>::PoseResidual(const CameraModel& camera, const InstrumentModel& model,
+                                    const CornerObservation& observed,
+                                    const std::array<bool, kNumCorners>& used) noexcept
+    : camera_(camera), model_(model), observed_(observed), used_(used) {}
+
+template <int kParams>
+PoseVector PoseResidual<kParams>::pose(const Params& x) const noexcept {
+  if constexpr (kParams == kNumParams) {
+    return x;
+  } else {
+    static_assert(kParams == kNumFixedModelParams, "7 (Adaptive) or 3 (FixedModel) parameters");
+    return model_.geometry().nominal_pose(x[0], x[1], x[2]);
+  }
+}
+
+template <int kParams>
+bool PoseResidual<kParams>::operator()(const Params& x, Residuals& residuals, Jacobian* jacobian) noexcept {
+  const PoseVector r = pose(x);
+  model_.corners(camera_, r, corners_, (jacobian != nullptr) ? &corner_jacobians_ : nullptr);
+  residuals.setZero();
+  if (jacobian != nullptr) {
+    jacobian->setZero();
+  }
+  for (int k = 0; k < kNumCorners; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    if (!used_[ku]) {
+      continue;
+    }
+    if (!corners_.present[ku]) {
+      return false;  // a corner in use has no model counterpart here
+    }
+    residuals.template segment<2>(2 * k) = corners_.pixel[ku] - observed_.pixel[ku];
+    if (jacobian != nullptr) {
+      if constexpr (kParams == kNumParams) {
+        jacobian->template block<2, kNumParams>(2 * k, 0) = corner_jacobians_[ku];
+      } else {
+        jacobian->template block<2, kNumFixedModelParams>(2 * k, 0) =
+            corner_jacobians_[ku].template rightCols<kNumFixedModelParams>();
+      }
+    }
+  }
+  if constexpr (kParams == kNumParams) {
+    const InstrumentGeometry& g = model_.geometry();
+    const double nominal[kNumPenalties] = {g.nominal_x_ch_mm, g.nominal_y_ch_mm, g.nominal_psi_rad, g.nominal_mu_rad};
+    const double stiffness[kNumPenalties] = {g.penalty.position_k, g.penalty.position_k, g.penalty.angle_k,
+                                             g.penalty.angle_k};
+    const double scale[kNumPenalties] = {g.penalty.position_scale_mm, g.penalty.position_scale_mm,
+                                         g.penalty.angle_scale_rad, g.penalty.angle_scale_rad};
+    for (int i = 0; i < kNumPenalties; ++i) {
+      const double u = x[i] - nominal[i];
+      const int row = 2 * kNumCorners + i;
+      residuals[row] = penalty_residual(u, stiffness[i], scale[i]);
+      if (jacobian != nullptr) {
+        (*jacobian)(row, i) = penalty_derivative(u, stiffness[i], scale[i]);
+      }
+    }
+  }
+  return true;
+}
+
+template class PoseResidual<kNumParams>;
+template class PoseResidual<kNumFixedModelParams>;
+
+// ---------------------------------------------------------------------------
+
+PoseSolver::PoseSolver(const CameraModel& camera, const InstrumentModel& model, const SolverOptions& options) noexcept
+    : camera_(camera), model_(model), options_(options) {}
+
+bool PoseSolver::check_input(const CornerObservation& observed, const PoseVector& r,
+                             SolveSummary& summary) const noexcept {
+  if (!valid(options_) || !r.allFinite()) {
+    summary.status = SolveStatus::InvalidInput;
+    return false;
+  }
+  const double width = static_cast<double>(camera_.width());
+  const double height = static_cast<double>(camera_.height());
+  const double margin_u = kFarOutsideImageFraction * width;
+  const double margin_v = kFarOutsideImageFraction * height;
+  for (int k = 0; k < kNumCorners; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    if (!observed.visible[ku]) {
+      continue;
+    }
+    const Vec2& f = observed.pixel[ku];
+    if (!f.allFinite()) {
+      summary.status = SolveStatus::NonFiniteCorner;
+      return false;
+    }
+    if (f.x() < -margin_u || f.x() > width - 1.0 + margin_u || f.y() < -margin_v || f.y() > height - 1.0 + margin_v) {
+      summary.status = SolveStatus::CornerFarOutsideImage;
+      return false;
+    }
+  }
+  if (observed.count_visible() < kMinCorners) {
+    summary.status = SolveStatus::TooFewCorners;
+    return false;
+  }
+  return true;
+}
+
+void PoseSolver::finish(const CornerObservation& observed, const PoseVector& r, SolveSummary& summary) noexcept {
+  model_.corners(camera_, r, corners_, nullptr);
+  double sum_sq = 0.0;
+  int n = 0;
+  for (int k = 0; k < kNumCorners; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    if (summary.used[ku] && corners_.present[ku]) {
+      sum_sq += (corners_.pixel[ku] - observed.pixel[ku]).squaredNorm();
+      ++n;
+    }
+  }
+  summary.rms_px = (n > 0) ? std::sqrt(sum_sq / static_cast<double>(n)) : 0.0;
+}
+
+SolveSummary PoseSolver::solve(const CornerObservation& observed, SolveMode mode, PoseVector& r) noexcept {
+  SolveSummary summary;
+  summary.mode = mode;
+  if (mode == SolveMode::FixedModel) {
+    const InstrumentGeometry& g = model_.geometry();
+    r[kXch] = g.nominal_x_ch_mm;
+    r[kYch] = g.nominal_y_ch_mm;
+    r[kPsi] = g.nominal_psi_rad;
+    r[kMu] = g.nominal_mu_rad;
+  }
+  if (!check_input(observed, r, summary)) {
+    return summary;
+  }
+  // The corners in use: visible ones the model gives at the start.
+  model_.corners(camera_, r, corners_, nullptr);
+  for (int k = 0; k < kNumCorners; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    summary.used[ku] = observed.visible[ku] && corners_.present[ku];
+    summary.corners_used += summary.used[ku] ? 1 : 0;
+  }
+  if (summary.corners_used < kMinCorners) {
+    summary.status = SolveStatus::TooFewCorners;
+    return summary;
+  }
+
+  LmOutcome outcome;
+  if (mode == SolveMode::Adaptive) {
+    PoseResidual<kNumParams> residual(camera_, model_, observed, summary.used);
+    PoseVector x = r;
+    outcome = adaptive_lm_.minimise(residual, x, options_);
+    r = x;
+  } else {
+    PoseResidual<kNumFixedModelParams> residual(camera_, model_, observed, summary.used);
+    Eigen::Matrix<double, kNumFixedModelParams, 1> x(r[kLambda], r[kPhi], r[kTheta]);
+    outcome = fixed_lm_.minimise(residual, x, options_);
+    r = residual.pose(x);
+  }
+  summary.status = outcome.status;
+  summary.iterations = outcome.iterations;
+  summary.initial_cost = outcome.initial_cost;
+  summary.final_cost = outcome.final_cost;
+  finish(observed, r, summary);
+  return summary;
+}
+
+double PoseSolver::cost(const CornerObservation& observed, const PoseVector& r) noexcept {
+  std::array<bool, kNumCorners> used{};
+  model_.corners(camera_, r, corners_, nullptr);
+  for (std::size_t k = 0; k < used.size(); ++k) {
+    used[k] = observed.visible[k] && corners_.present[k];
+  }
+  PoseResidual<kNumParams> residual(camera_, model_, observed, used);
+  Eigen::Matrix<double, kNumResiduals, 1> values;
+  static_cast<void>(residual(r, values, nullptr));  // every used corner is present at r by construction
+  return 0.5 * values.squaredNorm();
+}
+
+}  // namespace solver
+}  // namespace tcpest
