@@ -81,6 +81,8 @@ const char* to_string(Fault fault) noexcept {
       return "cycle overrun";
     case Fault::kFrameErrors:
       return "frame errors";
+    case Fault::kTrackingLost:
+      return "tracking lost";
   }
   return "?";
 }
@@ -360,6 +362,16 @@ bool Executive::step_acquire() noexcept {
     reset_track();
     have_estimate_ = false;
     have_pending_ = false;
+    // A reset node forgot its faults: say again those that still hold.
+    if (camera_lost_) {
+      node.set_fault(Fault::kCameraLost, true, 0U);
+    }
+    if (bus_lost_) {
+      node.set_fault(Fault::kBusLost, true, 0U);
+    }
+    overrun_reported_ = false;
+    frame_error_reported_ = false;
+    tracking_lost_reported_ = false;
   }
   if (node.mode() == NodeMode::kStopped || camera_lost_) {
     return false;
@@ -474,6 +486,10 @@ void Executive::run_pipeline() noexcept {
     track_alive_ = true;
     have_estimate_ = true;
     failed_frames_ = 0;
+    if (tracking_lost_reported_) {
+      parts_.node->set_fault(Fault::kTrackingLost, false, 0U);
+      tracking_lost_reported_ = false;
+    }
   } else {
     ++failed_frames_;
   }
@@ -504,6 +520,10 @@ bool Executive::camera_cycle() const noexcept {
 void Executive::reset_track() noexcept {
   if (track_alive_) {
     ++stats_->track_drops;
+    if (!tracking_lost_reported_) {
+      parts_.node->set_fault(Fault::kTrackingLost, true, static_cast<std::uint32_t>(failed_frames_));
+      tracking_lost_reported_ = true;
+    }
   }
   track_alive_ = false;
   failed_frames_ = 0;

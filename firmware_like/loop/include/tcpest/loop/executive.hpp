@@ -194,6 +194,7 @@ class Executive {
   std::int64_t next_retry_ns_ = 0;
   bool overrun_reported_ = false;
   bool frame_error_reported_ = false;
+  bool tracking_lost_reported_ = false;
 };
 
 }  // namespace loop

@@ -86,6 +86,7 @@ enum class Fault : std::uint8_t {
   kBusLost = 2,       // sends or receives fail
   kCycleOverrun = 3,  // a cycle ran past its period (reported once per run of overruns)
   kFrameErrors = 4,   // frames dropped as corrupt (reported once per run of errors)
+  kTrackingLost = 5,  // the track was dropped after the configured failed frames (until re-acquired)
 };
 const char* to_string(Fault fault) noexcept;
 
