@@ -72,3 +72,26 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
 }  // namespace
 }  // namespace loop
 }  // namespace tcpest
+
+#include "tcpest/loop/rt_setup.hpp"
+
+namespace tcpest {
+namespace loop {
+namespace {
+
+TEST(RtSetup, FailuresAreReportedNotFatal) {
+  RtSettings settings;
+  settings.cpu = 1023;           // no such CPU here
+  settings.prefault_stack_kb = 64;
+  const RtReport report = apply_rt_settings(settings);
+  EXPECT_FALSE(report.pinned);
+  EXPECT_TRUE(report.stack_prefaulted);
+  ASSERT_EQ(report.message_count, 1U);
+  EXPECT_NE(std::strstr(report.messages[0], "rt.cpu"), nullptr);
+  const RtReport nothing = apply_rt_settings(RtSettings{0 != 0, 0, -1, 0});
+  EXPECT_EQ(nothing.message_count, 0U);
+}
+
+}  // namespace
+}  // namespace loop
+}  // namespace tcpest

@@ -1,0 +1,78 @@
+#include "tcpest/loop/rt_setup.hpp"
+
+#include <alloca.h>
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+
+namespace tcpest {
+namespace loop {
+
+namespace {
+
+void note(RtReport& report, const char* what, int error) noexcept {
+  if (report.message_count >= RtReport::kMaxMessages) {
+    return;
+  }
+  char reason[96] = {};
+  // strerror_r (GNU) returns the message, possibly not in `reason`.
+  const char* text = strerror_r(error, reason, sizeof reason);
+  static_cast<void>(std::snprintf(report.messages[report.message_count], RtReport::kMessageLength,
+                                  "%s: %s (continuing without it)", what, text));  // truncation is harmless
+  ++report.message_count;
+}
+
+// Touches `bytes` of stack below the caller so that the pages are mapped
+// (and locked, after mlockall) before the first cycle needs them.
+__attribute__((noinline)) void prefault_stack(std::size_t bytes) noexcept {
+  auto* block = static_cast<volatile unsigned char*>(alloca(bytes));  // start-up only, bounded by the config (64 MiB)
+  for (std::size_t i = 0; i < bytes; i += 4096U) {
+    block[i] = 0U;
+  }
+}
+
+}  // namespace
+
+RtReport apply_rt_settings(const RtSettings& settings) noexcept {
+  RtReport report;
+  if (settings.lock_memory) {
+    if (::mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+      report.memory_locked = true;
+    } else {
+      note(report, "rt.lock_memory: mlockall", errno);
+    }
+  }
+  if (settings.cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(static_cast<std::size_t>(settings.cpu), &set);
+    const int rc = ::pthread_setaffinity_np(::pthread_self(), sizeof set, &set);
+    if (rc == 0) {
+      report.pinned = true;
+    } else {
+      note(report, "rt.cpu: pthread_setaffinity_np", rc);
+    }
+  }
+  if (settings.fifo_priority > 0) {
+    sched_param param{};
+    param.sched_priority = settings.fifo_priority;
+    const int rc = ::pthread_setschedparam(::pthread_self(), SCHED_FIFO, &param);
+    if (rc == 0) {
+      report.fifo = true;
+    } else {
+      note(report, "rt.fifo_priority: pthread_setschedparam(SCHED_FIFO)", rc);
+    }
+  }
+  if (settings.prefault_stack_kb > 0) {
+    prefault_stack(static_cast<std::size_t>(settings.prefault_stack_kb) * 1024U);
+    report.stack_prefaulted = true;
+  }
+  return report;
+}
+
+}  // namespace loop
+}  // namespace tcpest
