@@ -167,10 +167,10 @@ int LoopRig::open_source() noexcept {
   return kExitOk;
 }
 
-int LoopRig::open_bus() noexcept {
+int LoopRig::open_bus(const char* extra_log) noexcept {
   const char* spec = config.can.bus;
   hal::CanBus* bus = nullptr;
-  const char* log_path = nullptr;
+  const char* log_path = extra_log;
   const char* log_interface = "sim0";
   if (std::strncmp(spec, "log:", 4) == 0 || std::strcmp(spec, "sim") == 0) {
     sim_bus.reset(new (std::nothrow) hal::SimBus());
@@ -178,7 +178,7 @@ int LoopRig::open_bus() noexcept {
       return kExitFailure;
     }
     bus = &sim_bus->endpoint(0);
-    if (spec[0] == 'l') {
+    if (spec[0] == 'l' && log_path == nullptr) {
       log_path = spec + 4;
     }
     static_cast<void>(std::snprintf(bus_label, sizeof bus_label, "simulated bus%s%s", log_path ? ", log " : "",
@@ -230,6 +230,7 @@ int LoopRig::build() noexcept {
                  vision::to_string(vision_pipeline.error()));
     return kExitFailure;
   }
+  vision = vision_pipeline.value().get();
   pipeline = std::move(vision_pipeline.value());
   if (source->width() != models.camera.width() || source->height() != models.camera.height()) {
     std::fprintf(stderr, "tcpest %s: the source's frames are %dx%d, the camera calibration is %dx%d\n",

@@ -48,8 +48,9 @@ class LoopRig {
   int load(const RigRequest& request) noexcept;
   // The frame source named by config.loop.source.
   int open_source() noexcept;
-  // The bus named by config.can.bus, and the CAN node on it.
-  int open_bus() noexcept;
+  // The bus named by config.can.bus, and the CAN node on it; `log_path`
+  // (optional) records every frame in candump format whatever the bus.
+  int open_bus(const char* log_path = nullptr) noexcept;
   // The vision pipeline and the executive (after the source and the bus).
   int build() noexcept;
   // All four.
@@ -68,6 +69,7 @@ class LoopRig {
   char bus_label[320] = {};
   std::unique_ptr<loop::CanNodePort> node;
   std::unique_ptr<loop::FeaturePipeline> pipeline;
+  loop::VisionPipeline* vision = nullptr;  // the pipeline, typed (overlays)
   std::unique_ptr<loop::Executive> executive;
 };
 
