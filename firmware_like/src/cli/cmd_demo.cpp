@@ -4,7 +4,7 @@
 // it exists, else on the in-process simulated bus; a simulated robot sends
 // NMT start and its encoder readings (ENCODER_PRIOR). At the end: accuracy
 // against the ground truth and timing, and in DIR: can.log (candump format),
-// cycles.csv, overlays/*.jpg, tcp.svg (estimate vs truth), latency.svg.
+// cycles.csv, overlays/*.png, tcp.svg (estimate vs truth), latency.svg.
 #include <net/if.h>
 #include <sys/stat.h>
 
@@ -204,8 +204,8 @@ class DemoObserver final : public loop::CycleObserver {
       }
     }
     char path[512];
-    static_cast<void>(std::snprintf(path, sizeof path, "%s/frame_%04u.jpg", overlay_dir_, r.frame_sequence));  // short paths
-    if (!encoder_->write_file(out.view(), 90, path).ok()) {
+    static_cast<void>(std::snprintf(path, sizeof path, "%s/frame_%04u.png", overlay_dir_, r.frame_sequence));  // short paths
+    if (!render::write_png_file(out.view(), path).ok()) {
       std::fprintf(stderr, "tcpest demo: could not write %s\n", path);
     }
   }
