@@ -182,7 +182,8 @@ int jitter(const RigRequest& request, std::int64_t period_us, double seconds, co
 }  // namespace
 
 int cmd_bench(int argc, char** argv) {
-  static Args args;
+  auto args_owner = std::make_unique<Args>();  // large (positional table): not on the stack
+  Args& args = *args_owner;
   char error[256];
   if (!args.parse(argc, argv, 1, kOptions, kOptionCount, error, sizeof error)) {
     std::fprintf(stderr, "tcpest bench: %s (see --help)\n", error);

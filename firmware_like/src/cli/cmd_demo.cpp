@@ -360,7 +360,8 @@ bool write_latency_svg(const char* path, const std::vector<Sample>& samples) {
 }  // namespace
 
 int cmd_demo(int argc, char** argv) {
-  static Args args;
+  auto args_owner = std::make_unique<Args>();  // large (positional table): not on the stack
+  Args& args = *args_owner;
   char error[256];
   if (!args.parse(argc, argv, 1, kOptions, kOptionCount, error, sizeof error)) {
     std::fprintf(stderr, "tcpest demo: %s (see --help)\n", error);
@@ -414,7 +415,8 @@ int cmd_demo(int argc, char** argv) {
   request.bus = bus;
   request.sim_frames = static_cast<std::uint32_t>(frames);
   const std::atomic<bool>* stop = install_stop_signals();
-  static LoopRig rig;
+  auto rig_owner = std::make_unique<LoopRig>();  // the loop's buffers: allocated once, here
+  LoopRig& rig = *rig_owner;
   int code = rig.load(request);
   if (code != kExitOk) {
     return code;

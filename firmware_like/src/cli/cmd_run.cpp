@@ -6,6 +6,7 @@
 // 4 stopped by a signal).
 #include <cstdio>
 #include <cstring>
+#include <memory>
 
 #include "cli/args.hpp"
 #include "cli/commands.hpp"
@@ -60,7 +61,8 @@ class StatusLine final : public loop::CycleObserver {
 }  // namespace
 
 int cmd_run(int argc, char** argv) {
-  static Args args;  // large (positional table): static storage
+  auto args_owner = std::make_unique<Args>();  // large (positional table): not on the stack
+  Args& args = *args_owner;
   char error[256];
   if (!args.parse(argc, argv, 1, kOptions, kOptionCount, error, sizeof error)) {
     std::fprintf(stderr, "tcpest run: %s (see --help)\n", error);
@@ -96,7 +98,8 @@ int cmd_run(int argc, char** argv) {
     request.frames = static_cast<long long>(frames);
   }
   const std::atomic<bool>* stop = install_stop_signals();
-  static LoopRig rig;  // holds the loop's buffers: static storage, built once
+  auto rig_owner = std::make_unique<LoopRig>();  // the loop's buffers: allocated once, here
+  LoopRig& rig = *rig_owner;
   const int code = rig.open_all(request);
   if (code != kExitOk) {
     return code;

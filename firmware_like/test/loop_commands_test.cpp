@@ -1,0 +1,78 @@
+// tcpest run end to end on a small raw clip: exit codes and the candump log.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli/commands.hpp"
+#include "tcpest/hal/camera/file_sources.hpp"
+
+namespace tcpest {
+namespace cli {
+namespace {
+
+int run(std::vector<std::string> words) {
+  std::vector<char*> argv;
+  for (std::string& w : words) {
+    argv.push_back(&w[0]);
+  }
+  return cmd_run(static_cast<int>(argv.size()), argv.data());
+}
+
+std::string temp_dir() {
+  std::string dir = std::string(::testing::TempDir()) + "tcpest_run_XXXXXX";
+  EXPECT_NE(::mkdtemp(&dir[0]), nullptr);
+  return dir;
+}
+
+void write_clip(const std::string& path, int w, int h, int frames) {
+  hal::Y4mWriter writer;
+  ASSERT_TRUE(writer.open(path.c_str(), w, h, 25, 1).ok());
+  std::vector<std::uint8_t> rgb(static_cast<std::size_t>(w * h * 3), 90U);
+  for (int i = 0; i < frames; ++i) {
+    ASSERT_TRUE(writer.write(ImageView{rgb.data(), w, h, static_cast<std::size_t>(w) * 3U}).ok());
+  }
+  ASSERT_TRUE(writer.close().ok());
+}
+
+TEST(RunCommand, ReplaysAClipOntoTheSimulatedBusAndLogsInCandumpFormat) {
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 5);
+  const std::string log = dir + "/can.log";
+  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet"}), kExitOk);
+  std::ifstream in(log);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string s = text.str();
+  EXPECT_NE(s.find(" sim0 710#00\n"), std::string::npos) << s;  // boot-up
+  std::size_t tcp = 0U;
+  for (std::size_t at = s.find(" sim0 190#"); at != std::string::npos; at = s.find(" sim0 190#", at + 1U)) {
+    ++tcp;
+  }
+  EXPECT_EQ(tcp, 5U);  // one TCP message per frame
+}
+
+TEST(RunCommand, ExitCodes) {
+  const std::string dir = temp_dir();
+  EXPECT_EQ(run({"run", "--bogus"}), kExitUsage);
+  EXPECT_EQ(run({"run", "--frames", "-3"}), kExitUsage);
+  EXPECT_EQ(run({"run", "--source", dir + "/missing", "--quiet"}), kExitConfig);
+  write_clip(dir + "/small.y4m", 64, 48, 1);
+  EXPECT_EQ(run({"run", "--source", dir + "/small.y4m", "--quiet"}), kExitConfig);  // not the camera's size
+  {
+    std::ofstream cfg(dir + "/bad.yaml");
+    cfg << "loop:\n  trigger: frame\n  peroid_us: 100\n";
+  }
+  EXPECT_EQ(run({"run", "--config", dir + "/bad.yaml", "--quiet"}), kExitConfig);
+  EXPECT_EQ(run({"run", "--source", dir + "/missing.y4m", "--bus", "no-such-can0", "--quiet"}), kExitConfig);
+  write_clip(dir + "/ok.y4m", 720, 576, 1);
+  EXPECT_EQ(run({"run", "--source", dir + "/ok.y4m", "--bus", "no-such-can0", "--quiet"}), kExitFailure);
+}
+
+}  // namespace
+}  // namespace cli
+}  // namespace tcpest
