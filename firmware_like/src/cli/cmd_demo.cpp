@@ -228,7 +228,7 @@ double percentile(std::vector<double> v, double q) {
     return 0.0;
   }
   std::sort(v.begin(), v.end());
-  const auto i = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1U) + 0.5);
+  const auto i = static_cast<std::size_t>(std::lround(q * static_cast<double>(v.size() - 1U)));
   return v[std::min(i, v.size() - 1U)];
 }
 

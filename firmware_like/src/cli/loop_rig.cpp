@@ -17,7 +17,7 @@ namespace cli {
 
 namespace {
 
-std::atomic<bool> g_stop{false};
+std::atomic<bool> g_stop{false};  // NOLINT(cppcoreguidelines-avoid-non-const-global-variables): a signal handler can only reach a global
 
 extern "C" void on_stop_signal(int /*signal*/) { g_stop.store(true, std::memory_order_relaxed); }
 
@@ -167,10 +167,9 @@ int LoopRig::open_source() noexcept {
   return kExitOk;
 }
 
-int LoopRig::open_bus(const char* extra_log) noexcept {
+int LoopRig::open_bus(const char* log_path) noexcept {
   const char* spec = config.can.bus;
   hal::CanBus* bus = nullptr;
-  const char* log_path = extra_log;
   const char* log_interface = "sim0";
   if (std::strncmp(spec, "log:", 4) == 0 || std::strcmp(spec, "sim") == 0) {
     sim_bus.reset(new (std::nothrow) hal::SimBus());

@@ -450,7 +450,7 @@ Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path
       (options.height > 0 && options.height != source->header_.height)) {
     return R::failure(CameraError::kWrongSize);
   }
-  source->data_offset_ = static_cast<long long>(length + 1U);
+  source->data_offset_ = static_cast<long long>(length) + 1;
   source->frame_bytes_ = planar_frame_bytes(source->header_.width, source->header_.height, source->header_.layout);
   source->frame_.reset(new (std::nothrow) std::uint8_t[source->frame_bytes_]);
   if (!source->frame_) {

@@ -93,7 +93,7 @@ void on_message(j_common_ptr cinfo, int msg_level) {
 
 void arena_exhausted(j_common_ptr cinfo) {
   cinfo->err->msg_code = JERR_OUT_OF_MEMORY;
-  cinfo->err->msg_parm.i[0] = 0;
+  cinfo->err->msg_parm.i[0] = 0;  // NOLINT(cppcoreguidelines-pro-type-union-access): libjpeg's message parameters are a union
   on_fatal(cinfo);
 }
 

@@ -85,15 +85,15 @@ void planar_yuv_to_rgb(const std::uint8_t* frame, int width, int height, ChromaL
     const std::uint8_t* row_y = plane_y + static_cast<std::size_t>(y) * w;
     const std::size_t chroma_row = static_cast<std::size_t>(y >> shift_y) * chroma_w;
     std::uint8_t* dst = out.row(y);
-    for (int x = 0; x < width; ++x) {
+    for (std::size_t x = 0; x < w; ++x) {
       int cb = 128;
       int cr = 128;
       if (layout != ChromaLayout::kMono) {
-        const std::size_t c = chroma_row + static_cast<std::size_t>(x >> shift_x);
+        const std::size_t c = chroma_row + (x >> static_cast<unsigned>(shift_x));
         cb = plane_cb[c];
         cr = plane_cr[c];
       }
-      yuv_pixel(k, row_y[x], cb, cr, dst + 3 * x);
+      yuv_pixel(k, row_y[x], cb, cr, dst + 3U * x);
     }
   }
 }
@@ -104,15 +104,16 @@ void yuyv_to_rgb(const std::uint8_t* frame, std::size_t stride_bytes, int width,
   for (int y = 0; y < height; ++y) {
     const std::uint8_t* src = frame + static_cast<std::size_t>(y) * stride_bytes;
     std::uint8_t* dst = out.row(y);
-    for (int x = 0; x + 1 < width; x += 2) {
-      const int cb = src[2 * x + 1];
-      const int cr = src[2 * x + 3];
-      yuv_pixel(k, src[2 * x], cb, cr, dst + 3 * x);
-      yuv_pixel(k, src[2 * x + 2], cb, cr, dst + 3 * (x + 1));
+    const auto w = static_cast<std::size_t>(width);
+    for (std::size_t x = 0; x + 1U < w; x += 2U) {
+      const int cb = src[2U * x + 1U];
+      const int cr = src[2U * x + 3U];
+      yuv_pixel(k, src[2U * x], cb, cr, dst + 3U * x);
+      yuv_pixel(k, src[2U * x + 2U], cb, cr, dst + 3U * (x + 1U));
     }
-    if ((width & 1) != 0) {
-      const int x = width - 1;
-      yuv_pixel(k, src[2 * x], src[2 * x + 1], 128, dst + 3 * x);
+    if ((w & 1U) != 0U) {
+      const std::size_t x = w - 1U;
+      yuv_pixel(k, src[2U * x], src[2U * x + 1U], 128, dst + 3U * x);
     }
   }
 }
@@ -142,11 +143,11 @@ void rgb_to_planar_yuv420(const ImageView& in, YuvRange range, std::uint8_t* fra
   const int kc_scale_num = full ? 256 : 224;  // chroma excursion per 256
   for (int y = 0; y < in.height; ++y) {
     const std::uint8_t* src = in.row(y);
-    for (int x = 0; x < in.width; ++x) {
-      const int r = src[3 * x];
-      const int g = src[3 * x + 1];
-      const int b = src[3 * x + 2];
-      plane_y[static_cast<std::size_t>(y) * w + static_cast<std::size_t>(x)] =
+    for (std::size_t x = 0; x < w; ++x) {
+      const int r = src[3U * x];
+      const int g = src[3U * x + 1U];
+      const int b = src[3U * x + 2U];
+      plane_y[static_cast<std::size_t>(y) * w + x] =
           clamp_u8(((ky_r * r + ky_g * g + ky_b * b + 32768) >> 16) + y_off);
     }
   }

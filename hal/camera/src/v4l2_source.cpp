@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <new>
@@ -119,6 +120,8 @@ Result<std::unique_ptr<V4l2Source>, CameraError> V4l2Source::open(const char* de
 
 V4l2Source::~V4l2Source() { stop(); }
 
+// The V4L2 structs are unions by the kernel's design (fmt, parm, m).
+// NOLINTBEGIN(cppcoreguidelines-pro-type-union-access)
 Status<CameraError> V4l2Source::start() noexcept {
   using S = Status<CameraError>;
   fd_ = ::open(device_, O_RDWR | O_NONBLOCK | O_CLOEXEC);
@@ -159,7 +162,7 @@ Status<CameraError> V4l2Source::start() noexcept {
     v4l2_streamparm parm{};
     parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     parm.parm.capture.timeperframe.numerator = 1000U;
-    parm.parm.capture.timeperframe.denominator = static_cast<std::uint32_t>(options_.rate_hz * 1000.0 + 0.5);
+    parm.parm.capture.timeperframe.denominator = static_cast<std::uint32_t>(std::lround(options_.rate_hz * 1000.0));
     static_cast<void>(xioctl(fd_, VIDIOC_S_PARM, &parm));  // optional: many grabbers have a fixed rate
   }
   v4l2_requestbuffers request{};
@@ -206,6 +209,8 @@ Status<CameraError> V4l2Source::start() noexcept {
   have_driver_sequence_ = false;
   return ok_status<CameraError>();
 }
+
+// NOLINTEND(cppcoreguidelines-pro-type-union-access)
 
 void V4l2Source::stop() noexcept {
   if (fd_ >= 0) {
