@@ -113,10 +113,15 @@ Status<PortError> CanNodePort::receive(std::int64_t now_ns) noexcept {
   if (summary.nmt_changed && node_.state() == can::NmtState::kBootUp && before != can::NmtState::kBootUp) {
     reset_ = true;
   }
-  // Boot-up (and a reset's new boot-up) goes out at once.
-  const auto flushed = flush(now_ns);
-  if (!flushed.ok() && status.ok()) {
-    status = flushed;
+  // Only a pending boot-up goes out here (the node leaves boot-up with it, and
+  // ignores SYNC until then). Anything else that became due, the PDOs a SYNC
+  // asked for in particular, goes out at this cycle's publish or housekeeping,
+  // so that a SYNC's PDOs carry the estimate handed over at the publish step.
+  if (node_.state() == can::NmtState::kBootUp) {
+    const auto flushed = flush(now_ns);
+    if (!flushed.ok() && status.ok()) {
+      status = flushed;
+    }
   }
   return status;
 }

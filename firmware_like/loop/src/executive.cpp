@@ -197,6 +197,7 @@ CycleOutcome Executive::wait_trigger() noexcept {
     if (!synced.ok() && synced.error() == PortError::kInterrupted) {
       return CycleOutcome::kInterrupted;
     }
+    sync_missed_ = !synced.ok();
     // A timeout still runs the cycle (heartbeat, recovery); it publishes nothing.
     record_.trigger_ns = clock.now_ns();
     return CycleOutcome::kContinue;
@@ -312,8 +313,8 @@ void Executive::step_publish(std::int64_t trigger_ns) noexcept {
   }
   Publication p{};
   if (publish_first_) {
-    if (config_.loop.trigger == Trigger::kSync && record_.trigger_ns == 0) {
-      return;
+    if (sync_missed_) {
+      return;  // no SYNC: nothing to answer
     }
     if (!have_pending_) {
       // Nothing finished yet: an invalid estimate, so the robot sees the node is alive.

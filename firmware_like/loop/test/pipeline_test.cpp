@@ -15,6 +15,8 @@
 #include "tcpest/hal/can/sim_bus.hpp"
 #include "tcpest/loop/can_node_port.hpp"
 #include "tcpest/loop/executive.hpp"
+#include "tcpest/loop/motion.hpp"
+#include "tcpest/loop/oracle_pipeline.hpp"
 #include "tcpest/loop/rendered_scene.hpp"
 #include "tcpest/loop/vision_pipeline.hpp"
 #include "tcpest/test/alloc_counter.hpp"
@@ -167,6 +169,69 @@ TEST(LoopWithUnits, NoHeapAllocationPerCycleWithVisionOnRawFrames) {
   EXPECT_EQ(scope.count(), 0U);
   const LoopStats& s = loop.value()->stats();
   EXPECT_EQ(s.frames, 2020U);
+}
+
+}  // namespace
+}  // namespace loop
+}  // namespace tcpest
+
+namespace tcpest {
+namespace loop {
+namespace {
+
+// The SYNC trigger: the PDOs follow each SYNC and carry the latest finished
+// cycle's estimate; without SYNC nothing is published.
+TEST(LoopWithUnits, SyncTriggerAnswersEachSyncWithTheLatestEstimate) {
+  Models m;
+  MotionSequence motion;
+  motion.frames = 100U;
+  ModelScene scene(m.camera, m.model, motion);
+  hal::SimCamera source(scene, 25.0, false);
+  OraclePipeline pipeline;
+  hal::SimulatedClock clock(hal::kNsPerS);
+  auto bus = std::make_unique<hal::SimBus>();
+  LoopConfig config;
+  config.loop.trigger = Trigger::kSync;
+  CanNodePort node(clock, bus->endpoint(0), bus.get(), nullptr, "sim0");
+  ASSERT_TRUE(node.configure(node_config(config)).ok());
+  LoopParts parts{&source, &clock, &pipeline, &node, &m.camera, &m.model};
+  auto created = Executive::create(config, parts);
+  ASSERT_TRUE(created.ok());
+  Executive& loop = *created.value();
+  EXPECT_TRUE(loop.publishes_first());
+  loop.start();
+  can::Frame sync;
+  ASSERT_TRUE(can::encode_sync(sync).ok());
+  std::array<hal::ReceivedFrame, 64> rx{};
+  int tcp_frames = 0;
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_TRUE(bus->endpoint(1).send(sync).ok());
+    ASSERT_EQ(loop.run_cycle(), CycleOutcome::kContinue);
+    const auto got = bus->endpoint(1).receive(rx.data(), rx.size());
+    ASSERT_TRUE(got.ok());
+    for (std::size_t k = 0; k < got.value(); ++k) {
+      if (rx[k].frame.id == can::tcp_id(0x10U)) {
+        ++tcp_frames;
+        const auto tcp = can::decode_tcp(0x10U, rx[k].frame);
+        ASSERT_TRUE(tcp.ok());
+        if (i >= 2) {
+          // The previous cycle's estimate (the oracle's is exact).
+          const auto r = motion.pose(m.model.geometry(), static_cast<std::uint32_t>(i - 1));
+          EXPECT_NEAR(tcp.value().x_mm, m.model.tcp(r).x(), 0.01);
+          EXPECT_EQ(tcp.value().status, can::EstimateStatus::kValid);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(tcp_frames, 9);  // the first SYNC comes before the node is operational (boot-up)
+  // No SYNC: the cycle times out (sync_timeout_ms) and publishes nothing.
+  ASSERT_EQ(loop.run_cycle(), CycleOutcome::kContinue);
+  const auto got = bus->endpoint(1).receive(rx.data(), rx.size());
+  ASSERT_TRUE(got.ok());
+  for (std::size_t k = 0; k < got.value(); ++k) {
+    EXPECT_NE(rx[k].frame.id, can::tcp_id(0x10U));
+  }
+  EXPECT_EQ(loop.last().latency_ns, -1);
 }
 
 }  // namespace

@@ -174,6 +174,7 @@ class Executive {
   hal::FrameInfo info_{};
   std::uint64_t cycle_ = 0U;
   bool finished_ = false;
+  bool sync_missed_ = false;  // the SYNC trigger's wait timed out
 
   // The track and the estimate.
   solver::CornerObservation corners_{};
