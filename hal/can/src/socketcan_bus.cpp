@@ -198,18 +198,31 @@ Status<CanBusError> SocketCanBus::open_socket() noexcept {
   return S::success(Unit{});
 }
 
+bool SocketCanBus::interface_up() const noexcept {
+  if (fd_ < 0) {
+    return false;
+  }
+  ifreq request{};
+  std::memcpy(request.ifr_name, name_, sizeof name_);
+  return ::ioctl(fd_, SIOCGIFFLAGS, &request) == 0 && (static_cast<unsigned>(request.ifr_flags) & IFF_UP) != 0U;
+}
+
 void SocketCanBus::mark_down(int error_number) noexcept {
   stats_.last_errno = error_number;
-  if (state_ == BusState::kDown && fd_ < 0) {
-    return;
+  // Down but still there: the bound socket survives and works again once the
+  // interface is up. Gone (unregistered): the kernel unbound it, open anew.
+  if (error_number != ENETDOWN) {
+    close();
   }
-  close();
-  ++stats_.down_events;
+  if (state_ != BusState::kDown) {
+    ++stats_.down_events;
+  }
+  state_ = BusState::kDown;
   next_reopen_us_ = monotonic_us() + config_.reopen_interval_us;
 }
 
 bool SocketCanBus::ensure_open() noexcept {
-  if (fd_ >= 0) {
+  if (fd_ >= 0 && state_ != BusState::kDown) {
     return true;
   }
   if (!configured_) {
@@ -220,10 +233,15 @@ bool SocketCanBus::ensure_open() noexcept {
     return false;
   }
   next_reopen_us_ = now_us + config_.reopen_interval_us;
-  if (!open_socket()) {
+  if (fd_ >= 0) {
+    if (!interface_up()) {
+      return false;
+    }
+    state_ = BusState::kUp;
+  } else if (!open_socket()) {
     return false;
   }
-  ++stats_.reopens;
+  ++stats_.recoveries;
   return true;
 }
 
@@ -238,7 +256,7 @@ Status<CanBusError> SocketCanBus::send(const can::Frame& frame) noexcept {
   }
   if (!ensure_open()) {
     ++stats_.tx_dropped;
-    return S::failure(CanBusError::kInterfaceDown);
+    return S::failure(fd_ >= 0 ? CanBusError::kInterfaceDown : CanBusError::kNoSuchInterface);
   }
   if (state_ == BusState::kBusOff) {
     ++stats_.tx_dropped;
@@ -327,6 +345,9 @@ Result<std::size_t, CanBusError> SocketCanBus::receive(ReceivedFrame* out, std::
         break;
       }
       stats_.last_errno = error_number;
+      if (error_number == ENETDOWN && interface_up()) {
+        continue;  // the notification of a down that is already over: keep reading
+      }
       if (is_gone(error_number)) {
         mark_down(error_number);
         return count > 0U ? R::success(count) : R::failure(CanBusError::kInterfaceDown);
