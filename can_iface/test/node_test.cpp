@@ -255,6 +255,18 @@ TEST_F(NodeTest, EncoderPriorAcceptedAndRejectedAsTheProtocolSays) {
   EXPECT_NEAR(node.encoder_prior(2000).value().lambda_mm, 10.0, 1e-9);
   EXPECT_EQ(node.prior_counters().bad_crc, 1U);
   EXPECT_TRUE(node.fault_active(Fault::kPriorE2eError));
+  {
+    TxBatch batch;
+    ASSERT_TRUE(node.collect(2001, batch).ok());
+    ASSERT_EQ(batch.size(), 1U);
+    const auto emcy = decode_emcy(kNode, batch[0]);
+    EXPECT_EQ(emcy.value().error_code, 0x8200U);
+    EXPECT_EQ(emcy.value().detail, 4U);  // docs/can-protocol.md: 4 = bad CRC
+  }
+  static_assert(static_cast<int>(CanError::kWrongLength) == 3 && static_cast<int>(CanError::kBadCrc) == 4 &&
+                    static_cast<int>(CanError::kBadCounter) == 5 && static_cast<int>(CanError::kCounterRepeated) == 6 &&
+                    static_cast<int>(CanError::kCounterJump) == 7,
+                "EMCY detail numbers are part of the protocol");
 
   feed(prior(0, 98.0), 3000);  // repeated
   EXPECT_EQ(node.prior_counters().repeated, 1U);
