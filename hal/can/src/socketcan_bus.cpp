@@ -36,6 +36,15 @@ bool is_gone(int error_number) noexcept {
   return error_number == ENETDOWN || error_number == ENODEV || error_number == ENXIO;
 }
 
+// struct can_frame keeps `len` in a union with the deprecated `can_dlc`:
+// the kernel's ABI, read and written in these two places only.
+std::uint8_t frame_length(const can_frame& raw) noexcept {
+  return raw.len;  // NOLINT(cppcoreguidelines-pro-type-union-access): kernel ABI union (len / can_dlc)
+}
+void set_frame_length(can_frame& raw, std::uint8_t length) noexcept {
+  raw.len = length;  // NOLINT(cppcoreguidelines-pro-type-union-access): kernel ABI union (len / can_dlc)
+}
+
 // The error classes the backend wants to see.
 constexpr can_err_mask_t kErrorMask = CAN_ERR_BUSOFF | CAN_ERR_CRTL | CAN_ERR_RESTARTED | CAN_ERR_TX_TIMEOUT;
 
@@ -264,7 +273,7 @@ Status<CanBusError> SocketCanBus::send(const can::Frame& frame) noexcept {
   }
   can_frame raw{};
   raw.can_id = frame.id;
-  raw.len = frame.length;
+  set_frame_length(raw, frame.length);
   std::memcpy(raw.data, frame.data.data(), frame.length);
   for (std::uint32_t attempt = 0U;; ++attempt) {
     const ssize_t written = ::write(fd_, &raw, sizeof raw);
@@ -377,15 +386,15 @@ Result<std::size_t, CanBusError> SocketCanBus::receive(ReceivedFrame* out, std::
       handle_error_frame(raw.can_id, raw.data);
       continue;
     }
-    if ((raw.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG)) != 0U || raw.len > can::kMaxDataLength) {
+    if ((raw.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG)) != 0U || frame_length(raw) > can::kMaxDataLength) {
       ++stats_.rx_ignored;
       continue;
     }
     ReceivedFrame& slot = out[count];
     slot.frame = can::Frame{};
     slot.frame.id = raw.can_id & CAN_SFF_MASK;
-    slot.frame.length = raw.len;
-    std::memcpy(slot.frame.data.data(), raw.data, raw.len);
+    slot.frame.length = frame_length(raw);
+    std::memcpy(slot.frame.data.data(), raw.data, slot.frame.length);
     slot.timestamp_us = timestamp_us;
     ++count;
     ++stats_.rx_frames;
