@@ -77,7 +77,7 @@ job="$(mktemp -d /tmp/tcpest-vcan.XXXXXX)"
 printf '%q ' "$@" >"$job/cmd"
 pwd >"$job/cwd"
 # The guest reports before the host gives up on it.
-echo $((timeout_s > 40 ? timeout_s - 20 : timeout_s)) >"$job/timeout"
+echo $((timeout_s > 40 ? timeout_s - 20 : timeout_s * 2 / 3)) >"$job/timeout"
 echo "$iface" >"$job/iface"
 
 log "booting user-mode-linux ($uml) for: $*"
