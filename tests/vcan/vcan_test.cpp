@@ -798,6 +798,69 @@ TEST_F(Vcan, ErrorFramesChangeTheBusState) {
   close(raw);
 }
 
+TEST_F(Vcan, FloodIsBoundedPerCycleAndKernelDropsCounted) {
+  // A small receive buffer so that the kernel has to drop part of the flood.
+  SocketCanConfig config = node_rx_config();
+  config.receive_buffer_bytes = 4096;
+  SocketCanBus bus;
+  ASSERT_TRUE(bus.open(iface(), config).ok());
+  SocketCanBus flooder;
+  ASSERT_TRUE(flooder.open(iface(), SocketCanConfig{}).ok());
+  Frame sync;
+  ASSERT_TRUE(can::encode_sync(sync).ok());
+  Frame other;
+  other.id = 0x555;
+  other.length = 8;
+  constexpr int kFlood = 5000;
+  int sent = 0;
+  for (int i = 0; i < kFlood; ++i) {
+    sent += flooder.send(i % 2 == 0 ? sync : other).ok() ? 1 : 0;  // half of it filtered by the kernel
+  }
+  can::NodeConfig node_config;
+  node_config.start_operational = true;
+  node_config.sync_mode = true;
+  can::Node node;
+  ASSERT_TRUE(node.configure(node_config).ok());
+  can::TxBatch boot;
+  ASSERT_TRUE(node.collect(0, boot).ok());  // boot-up: the node listens from now on
+  std::uint64_t received = 0;
+  std::size_t largest_batch = 0;
+  bool probe_sent = false;
+  for (int cycle = 1; cycle < 400; ++cycle) {
+    ReceivedFrame rx[can::kMaxRxPerCycle];
+    const auto n = bus.receive(rx, can::kMaxRxPerCycle);
+    ASSERT_TRUE(n.ok());
+    largest_batch = std::max(largest_batch, n.value());
+    received += n.value();
+    Frame frames[can::kMaxRxPerCycle];
+    for (std::size_t i = 0; i < n.value(); ++i) {
+      frames[i] = rx[i].frame;
+    }
+    static_cast<void>(node.receive(frames, n.value(), cycle * 1000));
+    can::TxBatch batch;
+    ASSERT_TRUE(node.collect(cycle * 1000, batch).ok());
+    EXPECT_LE(batch.size(), can::kMaxTxPerCycle);
+    if (n.value() == 0) {
+      if (probe_sent) {
+        break;
+      }
+      // The kernel reports its drop count with the next frame it queues.
+      ASSERT_TRUE(flooder.send(sync).ok());
+      probe_sent = true;
+      sleep_ms(20);
+    }
+  }
+  std::printf("flood: %d sent, %llu SYNC received (at most %zu per cycle), %llu dropped by the kernel\n", sent,
+              static_cast<unsigned long long>(received), largest_batch,
+              static_cast<unsigned long long>(bus.stats().rx_kernel_dropped));
+  EXPECT_EQ(sent, kFlood);
+  EXPECT_LE(largest_batch, can::kMaxRxPerCycle);
+  EXPECT_GT(bus.stats().rx_kernel_dropped, 0U) << "SO_RXQ_OVFL should report the overflow";
+  EXPECT_EQ(received + bus.stats().rx_kernel_dropped, static_cast<std::uint64_t>(kFlood / 2 + 1));
+  EXPECT_EQ(node.counters().rx_unknown_id, 0U) << "0x555 is filtered in the kernel";
+  EXPECT_EQ(node.counters().sync_received, received);
+}
+
 TEST_F(Vcan, CandumpLogReplaysWithCanplayer) {
   const std::string path = temp_path("replay") + ".log";
   hal::CandumpLogWriter writer;
