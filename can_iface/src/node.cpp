@@ -203,6 +203,7 @@ Result<EncoderPrior, CanError> Node::encoder_prior(std::int64_t now_us) noexcept
     return R::failure(CanError::kNoData);
   }
   if (now_us - prior_.received_us > config_.prior_e2e.timeout_us) {
+    static_cast<void>(prior_rx_.freshness(now_us));  // called for its count of timeouts; the verdict is kStale anyway
     return R::failure(CanError::kStale);
   }
   return R::success(prior_);

@@ -286,7 +286,9 @@ TEST_F(NodeTest, EncoderPriorAcceptedAndRejectedAsTheProtocolSays) {
   EXPECT_EQ(node.counters().prior_invalid_status, 1U);
   EXPECT_NEAR(node.encoder_prior(6000).value().lambda_mm, 11.0, 1e-9);
 
-  EXPECT_EQ(node.encoder_prior(5000 + 50001).error(), CanError::kStale);
+  EXPECT_EQ(node.encoder_prior(6000 + 50001).error(), CanError::kStale);
+  EXPECT_EQ(node.encoder_prior(6000 + 60000).error(), CanError::kStale);
+  EXPECT_EQ(node.prior_counters().timeouts, 1U);
 }
 
 TEST_F(NodeTest, FaultsRaiseAndClearEmcyWithErrorRegister) {
