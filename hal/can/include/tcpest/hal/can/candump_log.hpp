@@ -1,0 +1,52 @@
+// A writer of candump's log format, one frame a line:
+//   (1700000000.123456) vcan0 190#0102030405060708
+// so that any run can be replayed with `canplayer -I file` and read with the
+// usual can-utils. Buffered in a fixed 4 KB block, written with write(2).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
+#include "tcpest/can_iface/frame.hpp"
+#include "tcpest/hal/can/bus.hpp"
+
+namespace tcpest {
+namespace hal {
+
+// Longest line: "(" 20 digits "." 6 ") " 15-char name " " 3 "#" 16 "\n" < 80.
+constexpr std::size_t kCandumpMaxLine = 80U;
+
+// Formats one line into `out` (with its '\n', NUL-terminated). Returns the
+// length without the NUL, or 0 if the frame or name is invalid.
+std::size_t format_candump_line(const can::Frame& frame, std::int64_t timestamp_us, const char* interface_name,
+                                char* out, std::size_t capacity) noexcept;
+
+class CandumpLogWriter {
+ public:
+  CandumpLogWriter() noexcept = default;
+  ~CandumpLogWriter();
+  CandumpLogWriter(const CandumpLogWriter&) = delete;
+  CandumpLogWriter& operator=(const CandumpLogWriter&) = delete;
+  CandumpLogWriter(CandumpLogWriter&&) = delete;
+  CandumpLogWriter& operator=(CandumpLogWriter&&) = delete;
+
+  // Creates (truncates) the file; interface_name is written on every line.
+  Status<CanBusError> open(const char* path, const char* interface_name) noexcept;
+  // timestamp_us: microseconds since the epoch (candump uses CLOCK_REALTIME).
+  Status<CanBusError> write(const can::Frame& frame, std::int64_t timestamp_us) noexcept;
+  Status<CanBusError> flush() noexcept;
+  // Flushes and closes; safe to call twice.
+  Status<CanBusError> close() noexcept;
+  std::uint64_t lines_written() const noexcept { return lines_; }
+
+ private:
+  int fd_ = -1;
+  char interface_name_[16] = {};
+  std::array<char, 4096> buffer_{};
+  std::size_t used_ = 0U;
+  std::uint64_t lines_ = 0U;
+};
+
+}  // namespace hal
+}  // namespace tcpest
