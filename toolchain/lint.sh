@@ -17,7 +17,7 @@ if ! printf '%s\n' "${sources[@]}" | xargs -P "$(nproc)" -n 4 clang-tidy -p "$bu
 fi
 echo "cppcheck: ${#sources[@]} files"
 includes=()
-for dir in common/include solver/include vision/include can_iface/include hal/include firmware_like/src; do
+for dir in common/include solver/include vision/include can_iface/include hal/*/include firmware_like/src; do
   [ -d "$dir" ] && includes+=("-I$dir")
 done
 # Eigen and system headers are not analysed (missingIncludeSystem): they are

@@ -54,6 +54,7 @@ void Node::reset_communication() noexcept {
   have_prior_ = false;
   prior_ = EncoderPrior{};
   pdos_pending_ = false;
+  rx_lost_this_cycle_ = 0U;
   heartbeat_scheduled_ = false;
   state_ = NmtState::kBootUp;
   boot_pending_ = true;
@@ -117,8 +118,7 @@ RxSummary Node::receive(const Frame* frames, std::size_t count, std::int64_t now
       ++summary.ignored;
     }
   }
-  // A cycle that had to drop frames is an overrun; the next clean one clears it.
-  static_cast<void>(set_fault(Fault::kCanRxOverrun, summary.dropped > 0U, summary.dropped));  // valid fault id
+  rx_lost_this_cycle_ += summary.dropped;
   return summary;
 }
 
@@ -172,17 +172,17 @@ void Node::handle_prior(const Frame& frame, std::int64_t now_us, RxSummary& summ
     if (decoded.error() == CanError::kWrongLength) {
       ++counters_.prior_wrong_length;
     }
-    static_cast<void>(set_fault(Fault::kPriorE2eError, true, static_cast<std::uint32_t>(decoded.error())));  // valid id
+    static_cast<void>(apply_fault(Fault::kPriorE2eError, true, static_cast<std::uint32_t>(decoded.error())));  // valid id
     ++summary.ignored;
     return;
   }
   const Status<CanError> sequence = prior_rx_.check_counter(decoded.value().counter, now_us);
   if (!sequence) {
-    static_cast<void>(set_fault(Fault::kPriorE2eError, true, static_cast<std::uint32_t>(sequence.error())));  // valid id
+    static_cast<void>(apply_fault(Fault::kPriorE2eError, true, static_cast<std::uint32_t>(sequence.error())));  // valid id
     ++summary.ignored;
     return;
   }
-  static_cast<void>(set_fault(Fault::kPriorE2eError, false, 0U));  // valid fault id
+  static_cast<void>(apply_fault(Fault::kPriorE2eError, false, 0U));  // valid fault id
   if (decoded.value().status == EstimateStatus::kInvalid) {
     ++counters_.prior_invalid_status;
     ++summary.ignored;
@@ -203,6 +203,7 @@ Result<EncoderPrior, CanError> Node::encoder_prior(std::int64_t now_us) noexcept
     return R::failure(CanError::kNoData);
   }
   if (now_us - prior_.received_us > config_.prior_e2e.timeout_us) {
+    static_cast<void>(prior_rx_.freshness(now_us));  // called for its count of timeouts; the verdict is kStale anyway
     return R::failure(CanError::kStale);
   }
   return R::success(prior_);
@@ -239,7 +240,21 @@ Status<CanError> Node::publish(const Estimate& estimate) noexcept {
   return ok_status<CanError>();
 }
 
+bool node_owned(Fault fault) noexcept {
+  return fault == Fault::kPriorTimeout || fault == Fault::kPriorE2eError || fault == Fault::kCanRxOverrun;
+}
+
 Status<CanError> Node::set_fault(Fault fault, bool active, std::uint32_t detail) noexcept {
+  if (fault_info(fault) == nullptr) {
+    return Status<CanError>::failure(CanError::kInvalidArgument);
+  }
+  if (node_owned(fault)) {
+    return Status<CanError>::failure(CanError::kNotAllowed);
+  }
+  return apply_fault(fault, active, detail);
+}
+
+Status<CanError> Node::apply_fault(Fault fault, bool active, std::uint32_t detail) noexcept {
   if (fault_info(fault) == nullptr) {
     return Status<CanError>::failure(CanError::kInvalidArgument);
   }
@@ -287,35 +302,40 @@ bool Node::push(TxBatch& out, const Frame& frame) noexcept {
   return true;
 }
 
+bool Node::emit_emcy_edge(TxBatch& out, std::uint8_t id, bool raise) noexcept {
+  const std::uint32_t bit = 1U << (id - 1U);
+  std::uint32_t& pending = raise ? pending_raise_ : pending_clear_;
+  if ((pending & bit) == 0U) {
+    return true;
+  }
+  const FaultInfo* info = fault_info(static_cast<Fault>(id));
+  EmcyMessage message;
+  message.fault_id = id;
+  if (raise) {
+    message.error_code = info->error_code;
+    // The register with this fault in it, even if it has already cleared again.
+    message.error_register = static_cast<std::uint8_t>(error_register() | info->register_bits);
+    message.detail = fault_detail_[id - 1U];
+  } else {
+    message.error_code = 0x0000U;  // CiA 301 "error reset or no error"
+    message.error_register = error_register();
+  }
+  Frame frame;
+  if (!encode_emcy(config_.node_id, message, frame) || !push(out, frame)) {
+    return false;
+  }
+  pending &= ~bit;
+  ++counters_.emcy_sent;
+  return true;
+}
+
 bool Node::emit_emcy(TxBatch& out) noexcept {
   for (std::uint8_t id = 1U; id <= kFaultCount; ++id) {
-    const std::uint32_t bit = 1U << (id - 1U);
-    const FaultInfo* info = fault_info(static_cast<Fault>(id));
-    if ((pending_raise_ & bit) != 0U) {
-      EmcyMessage message;
-      message.error_code = info->error_code;
-      // The register as it was when the fault came up (it may already be gone).
-      message.error_register = static_cast<std::uint8_t>(error_register() | info->register_bits);
-      message.fault_id = id;
-      message.detail = fault_detail_[id - 1U];
-      Frame frame;
-      if (!encode_emcy(config_.node_id, message, frame) || !push(out, frame)) {
-        return false;
-      }
-      pending_raise_ &= ~bit;
-      ++counters_.emcy_sent;
-    }
-    if ((pending_clear_ & bit) != 0U) {
-      EmcyMessage message;
-      message.error_code = 0x0000U;  // CiA 301 "error reset or no error"
-      message.error_register = error_register();
-      message.fault_id = id;
-      Frame frame;
-      if (!encode_emcy(config_.node_id, message, frame) || !push(out, frame)) {
-        return false;
-      }
-      pending_clear_ &= ~bit;
-      ++counters_.emcy_sent;
+    // Both edges since the last collect: the one that leaves the fault in
+    // its current state goes last, so the receiver ends in the right state.
+    const bool active = (active_faults_ & (1U << (id - 1U))) != 0U;
+    if (!emit_emcy_edge(out, id, !active) || !emit_emcy_edge(out, id, active)) {
+      return false;
     }
   }
   return true;
@@ -396,11 +416,19 @@ void Node::update_prior_timeout(std::int64_t now_us) noexcept {
   if (!fresh) {
     missing = fresh.error() == CanError::kStale || now_us - boot_us_ > config_.prior_e2e.timeout_us;
   }
-  static_cast<void>(set_fault(Fault::kPriorTimeout, missing, 0U));  // valid fault id
+  static_cast<void>(apply_fault(Fault::kPriorTimeout, missing, 0U));  // valid fault id
+}
+
+Status<CanError> Node::report_rx_lost(std::uint32_t frames) noexcept {
+  rx_lost_this_cycle_ += frames;
+  return ok_status<CanError>();
 }
 
 Status<CanError> Node::collect(std::int64_t now_us, TxBatch& out) noexcept {
   const auto full = Status<CanError>::failure(CanError::kFull);
+  // A cycle that lost received frames is an overrun; the next clean one clears it.
+  static_cast<void>(apply_fault(Fault::kCanRxOverrun, rx_lost_this_cycle_ > 0U, rx_lost_this_cycle_));  // valid id
+  rx_lost_this_cycle_ = 0U;
   if (boot_pending_) {
     Frame boot;
     if (!encode_heartbeat(config_.node_id, NmtState::kBootUp, boot) || !push(out, boot)) {

@@ -42,7 +42,7 @@ TEST(Messages, TcpLayoutAndRoundTrip) {
   EXPECT_EQ(frame.data[4], 0xD8);
   EXPECT_EQ(frame.data[5], 0x11);
   EXPECT_EQ(frame.data[6], 0x17);  // counter 7, status 1
-  EXPECT_EQ(frame.data[7], e2e_crc(0x190, frame));
+  EXPECT_EQ(frame.data[7], 0xFA);  // the worked example of docs/can-protocol.md
   const auto out = decode_tcp(kNode, frame);
   ASSERT_TRUE(out.ok());
   EXPECT_NEAR(out.value().x_mm, -13.30, 1e-9);
@@ -50,6 +50,18 @@ TEST(Messages, TcpLayoutAndRoundTrip) {
   EXPECT_NEAR(out.value().z_mm, 45.68, 1e-9);
   EXPECT_EQ(out.value().status, EstimateStatus::kDegraded);
   EXPECT_EQ(out.value().counter, 7U);
+}
+
+TEST(Messages, EncoderPriorWorkedExample) {
+  // docs/can-protocol.md: lambda 15.5 mm, phi 0.125 rad, theta -0.25 rad, counter 0, valid.
+  EncoderPriorMessage in{15.5, 0.125, -0.25, EstimateStatus::kValid, 0};
+  Frame frame;
+  ASSERT_TRUE(encode_encoder_prior(kNode, in, frame).ok());
+  const std::uint8_t expected[8] = {0x0E, 0x06, 0xE2, 0x04, 0x3C, 0xF6, 0x00, 0xC6};
+  EXPECT_EQ(frame.id, 0x210U);
+  for (int i = 0; i < 8; ++i) {
+    EXPECT_EQ(frame.data[i], expected[i]) << i;
+  }
 }
 
 TEST(Messages, SaturationClampsAndForcesInvalidStatus) {

@@ -13,6 +13,21 @@ SimEndpoint& SimBus::endpoint(std::size_t index) noexcept {
   return endpoints_[index < kMaxEndpoints ? index : kMaxEndpoints - 1U];
 }
 
+void SimBus::set_bus_off(bool bus_off) noexcept {
+  if (bus_off == faults_.bus_off) {
+    return;
+  }
+  faults_.bus_off = bus_off;
+  for (SimEndpoint& endpoint : endpoints_) {
+    ++endpoint.stats_.error_frames;
+    if (bus_off) {
+      ++endpoint.stats_.bus_off;
+    } else {
+      ++endpoint.stats_.restarts;
+    }
+  }
+}
+
 void SimBus::transmit(const SimEndpoint& sender, const can::Frame& frame) noexcept {
   ++frames_on_wire_;
   if (faults_.drop_next > 0U) {

@@ -36,6 +36,15 @@ bool is_gone(int error_number) noexcept {
   return error_number == ENETDOWN || error_number == ENODEV || error_number == ENXIO;
 }
 
+// struct can_frame keeps `len` in a union with the deprecated `can_dlc`:
+// the kernel's ABI, read and written in these two places only.
+std::uint8_t frame_length(const can_frame& raw) noexcept {
+  return raw.len;  // NOLINT(cppcoreguidelines-pro-type-union-access): kernel ABI union (len / can_dlc)
+}
+void set_frame_length(can_frame& raw, std::uint8_t length) noexcept {
+  raw.len = length;  // NOLINT(cppcoreguidelines-pro-type-union-access): kernel ABI union (len / can_dlc)
+}
+
 // The error classes the backend wants to see.
 constexpr can_err_mask_t kErrorMask = CAN_ERR_BUSOFF | CAN_ERR_CRTL | CAN_ERR_RESTARTED | CAN_ERR_TX_TIMEOUT;
 
@@ -198,18 +207,31 @@ Status<CanBusError> SocketCanBus::open_socket() noexcept {
   return S::success(Unit{});
 }
 
+bool SocketCanBus::interface_up() const noexcept {
+  if (fd_ < 0) {
+    return false;
+  }
+  ifreq request{};
+  std::memcpy(request.ifr_name, name_, sizeof name_);
+  return ::ioctl(fd_, SIOCGIFFLAGS, &request) == 0 && (static_cast<unsigned>(request.ifr_flags) & IFF_UP) != 0U;
+}
+
 void SocketCanBus::mark_down(int error_number) noexcept {
   stats_.last_errno = error_number;
-  if (state_ == BusState::kDown && fd_ < 0) {
-    return;
+  // Down but still there: the bound socket survives and works again once the
+  // interface is up. Gone (unregistered): the kernel unbound it, open anew.
+  if (error_number != ENETDOWN) {
+    close();
   }
-  close();
-  ++stats_.down_events;
+  if (state_ != BusState::kDown) {
+    ++stats_.down_events;
+  }
+  state_ = BusState::kDown;
   next_reopen_us_ = monotonic_us() + config_.reopen_interval_us;
 }
 
 bool SocketCanBus::ensure_open() noexcept {
-  if (fd_ >= 0) {
+  if (fd_ >= 0 && state_ != BusState::kDown) {
     return true;
   }
   if (!configured_) {
@@ -220,10 +242,15 @@ bool SocketCanBus::ensure_open() noexcept {
     return false;
   }
   next_reopen_us_ = now_us + config_.reopen_interval_us;
-  if (!open_socket()) {
+  if (fd_ >= 0) {
+    if (!interface_up()) {
+      return false;
+    }
+    state_ = BusState::kUp;
+  } else if (!open_socket()) {
     return false;
   }
-  ++stats_.reopens;
+  ++stats_.recoveries;
   return true;
 }
 
@@ -238,7 +265,7 @@ Status<CanBusError> SocketCanBus::send(const can::Frame& frame) noexcept {
   }
   if (!ensure_open()) {
     ++stats_.tx_dropped;
-    return S::failure(CanBusError::kInterfaceDown);
+    return S::failure(fd_ >= 0 ? CanBusError::kInterfaceDown : CanBusError::kNoSuchInterface);
   }
   if (state_ == BusState::kBusOff) {
     ++stats_.tx_dropped;
@@ -246,7 +273,7 @@ Status<CanBusError> SocketCanBus::send(const can::Frame& frame) noexcept {
   }
   can_frame raw{};
   raw.can_id = frame.id;
-  raw.len = frame.length;
+  set_frame_length(raw, frame.length);
   std::memcpy(raw.data, frame.data.data(), frame.length);
   for (std::uint32_t attempt = 0U;; ++attempt) {
     const ssize_t written = ::write(fd_, &raw, sizeof raw);
@@ -327,6 +354,9 @@ Result<std::size_t, CanBusError> SocketCanBus::receive(ReceivedFrame* out, std::
         break;
       }
       stats_.last_errno = error_number;
+      if (error_number == ENETDOWN && interface_up()) {
+        continue;  // the notification of a down that is already over: keep reading
+      }
       if (is_gone(error_number)) {
         mark_down(error_number);
         return count > 0U ? R::success(count) : R::failure(CanBusError::kInterfaceDown);
@@ -356,15 +386,15 @@ Result<std::size_t, CanBusError> SocketCanBus::receive(ReceivedFrame* out, std::
       handle_error_frame(raw.can_id, raw.data);
       continue;
     }
-    if ((raw.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG)) != 0U || raw.len > can::kMaxDataLength) {
+    if ((raw.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG)) != 0U || frame_length(raw) > can::kMaxDataLength) {
       ++stats_.rx_ignored;
       continue;
     }
     ReceivedFrame& slot = out[count];
     slot.frame = can::Frame{};
     slot.frame.id = raw.can_id & CAN_SFF_MASK;
-    slot.frame.length = raw.len;
-    std::memcpy(slot.frame.data.data(), raw.data, raw.len);
+    slot.frame.length = frame_length(raw);
+    std::memcpy(slot.frame.data.data(), raw.data, slot.frame.length);
     slot.timestamp_us = timestamp_us;
     ++count;
     ++stats_.rx_frames;

@@ -7,6 +7,8 @@
 namespace tcpest {
 namespace can {
 
+// The numbers of kWrongLength..kCounterJump (3..7) are sent in EMCY details
+// (docs/can-protocol.md): do not renumber.
 enum class CanError : std::uint8_t {
   kInvalidArgument,   // a caller-supplied value outside its documented domain
   kWrongId,           // the frame's COB-ID is not the message asked for

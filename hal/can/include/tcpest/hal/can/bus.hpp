@@ -58,7 +58,7 @@ struct CanBusStats {
   std::uint64_t controller_problems = 0U;
   std::uint64_t restarts = 0U;
   std::uint64_t down_events = 0U;       // times the interface was found down or gone
-  std::uint64_t reopens = 0U;           // successful reopen after a down event
+  std::uint64_t recoveries = 0U;        // back up after a down event (reopened if it had gone)
   int last_errno = 0;                   // the last errno seen, for diagnostics
 };
 

@@ -23,7 +23,7 @@ struct SimFaults {
   std::uint8_t corrupt_byte = 0U;
   std::uint8_t corrupt_mask = 0x01U;
   std::int64_t delay_us = 0;          // delivery delay (constant: order is kept)
-  bool bus_off = false;               // sends fail with kBusOff, states read kBusOff
+  bool bus_off = false;               // sends fail with kBusOff, states read kBusOff (use SimBus::set_bus_off)
 };
 
 struct SimFaultCounters {
@@ -86,6 +86,9 @@ class SimBus {
   std::int64_t time_us() const noexcept { return now_us_; }
 
   SimFaults& faults() noexcept { return faults_; }
+  // Bus-off and recovery as a controller reports them: counted in every
+  // endpoint's bus_off / restarts.
+  void set_bus_off(bool bus_off) noexcept;
   const SimFaultCounters& fault_counters() const noexcept { return fault_counters_; }
 
  private:

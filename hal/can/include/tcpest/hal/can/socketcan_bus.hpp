@@ -55,7 +55,9 @@ class SocketCanBus final : public CanBus {
  private:
   Status<CanBusError> open_socket() noexcept;
   void mark_down(int error_number) noexcept;
-  // While down: reopens if the interface is back (rate limited). True when up.
+  bool interface_up() const noexcept;
+  // While down: back to up if the interface is (rate limited), reopening
+  // the socket if the interface had gone. True when usable.
   bool ensure_open() noexcept;
   void handle_error_frame(std::uint32_t can_id, const std::uint8_t* data) noexcept;
 
