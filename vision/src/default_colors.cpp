@@ -8,8 +8,8 @@ namespace vision {
 ColorModel default_color_model() noexcept {
   ColorModel m;
   m.min_lightness = 8.0;
-  m.blue = ColorGaussian{21.766150, -49.065541, 20.292616, -29.867263, 52.827461, 3.3200};
-  m.yellow = ColorGaussian{-1.282914, 54.793367, 6.843494, -1.354576, 55.745274, 3.4200};
+  m.blue = ColorGaussian{4.87894, -45.203866, 20.584684, -13.051775, 28.716138, 6.0};
+  m.yellow = ColorGaussian{-11.563884, 58.979005, 9.725526, -26.885446, 141.256348, 4.88};
   return m;
 }
 

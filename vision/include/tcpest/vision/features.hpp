@@ -169,7 +169,7 @@ struct ExtractorConfig {
   // the colour boundary meets the border tangentially, so its position is
   // extrapolated to inset 0 (see find_corners).
   std::array<double, 5> profile_insets_px{{1.0, 1.75, 2.5, 3.25, 4.0}};
-  double orientation_weight = 6.0;          // log-likelihood of the dark-shaft / bright-grasper cue
+  double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
 };
 
 class FeatureExtractor {
