@@ -16,19 +16,42 @@ std::size_t idx(std::int32_t i) noexcept { return static_cast<std::size_t>(i); }
 }  // namespace
 
 bool ClassifierLut::build(const ColorModel& model) noexcept {
+  model_ = model;
   table_.reset(new (std::nothrow) std::uint8_t[kEntries]);
-  if (table_ == nullptr) {
+  constexpr int kLevels = 1 << kBitsPerChannel;
+  constexpr int kCell = 1 << kShift;
+  // Class at both ends of every cell, per channel: values q*kCell and
+  // q*kCell + kCell - 1 (start-up scratch, 2 MiB).
+  constexpr int kEnds = 2 * kLevels;
+  std::unique_ptr<std::uint8_t[]> ends(new (std::nothrow) std::uint8_t[static_cast<std::size_t>(kEnds * kEnds * kEnds)]);
+  if (table_ == nullptr || ends == nullptr) {
+    table_.reset();
     return false;
   }
-  constexpr int kLevels = 1 << kBitsPerChannel;
-  constexpr int kHalfCell = (1 << kShift) / 2;
+  const auto value = [](int e) noexcept { return static_cast<std::uint8_t>((e / 2) * kCell + (e % 2) * (kCell - 1)); };
+  const auto at = [](int r, int g, int b) noexcept {
+    return static_cast<std::size_t>((r * kEnds + g) * kEnds + b);
+  };
+  for (int r = 0; r < kEnds; ++r) {
+    for (int g = 0; g < kEnds; ++g) {
+      for (int b = 0; b < kEnds; ++b) {
+        ends[at(r, g, b)] = static_cast<std::uint8_t>(model.classify(value(r), value(g), value(b)));
+      }
+    }
+  }
   for (int r = 0; r < kLevels; ++r) {
     for (int g = 0; g < kLevels; ++g) {
       for (int b = 0; b < kLevels; ++b) {
-        const auto red = static_cast<std::uint8_t>((r << kShift) + kHalfCell);
-        const auto green = static_cast<std::uint8_t>((g << kShift) + kHalfCell);
-        const auto blue = static_cast<std::uint8_t>((b << kShift) + kHalfCell);
-        table_[index(red, green, blue)] = static_cast<std::uint8_t>(model.classify(red, green, blue));
+        const std::uint8_t first = ends[at(2 * r, 2 * g, 2 * b)];
+        std::uint8_t cls = first;
+        for (int corner = 1; corner < 8; ++corner) {
+          if (ends[at(2 * r + (corner & 1), 2 * g + ((corner >> 1) & 1), 2 * b + ((corner >> 2) & 1))] != first) {
+            cls = kAmbiguous;
+            break;
+          }
+        }
+        table_[(static_cast<std::size_t>(r) << (2 * kBitsPerChannel)) | (static_cast<std::size_t>(g) << kBitsPerChannel) |
+               static_cast<std::size_t>(b)] = cls;
       }
     }
   }
@@ -159,7 +182,11 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
     const std::uint8_t* px = image.row(y);
     std::uint8_t* cls_row = classes_.get() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width_);
     for (int x = 0; x < width_; ++x) {
-      cls_row[x] = table[ClassifierLut::index(px[0], px[1], px[2])];
+      std::uint8_t c = table[ClassifierLut::index(px[0], px[1], px[2])];
+      if (c == ClassifierLut::kAmbiguous) {
+        c = static_cast<std::uint8_t>(colors_.classify(px[0], px[1], px[2]));
+      }
+      cls_row[x] = c;
       px += 3;
     }
     const std::int32_t row_begin = run_count;
