@@ -89,8 +89,19 @@ PixelClass ColorModel::classify(std::uint8_t red, std::uint8_t green, std::uint8
 }
 
 double ColorModel::yellow_minus_blue(std::uint8_t red, std::uint8_t green, std::uint8_t blue_value) const noexcept {
+  // Position along the line from the blue mean to the yellow mean, -1 at
+  // blue, +1 at yellow: linear in the chroma, so a pixel mixed with the
+  // background (at the silhouette) keeps its sign.
   const Lab lab = srgb_to_lab(red, green, blue_value);
-  return clamp_score(blue.distance(lab.a, lab.b) - yellow.distance(lab.a, lab.b));
+  const double ua = yellow.mean_a - blue.mean_a;
+  const double ub = yellow.mean_b - blue.mean_b;
+  const double len2 = ua * ua + ub * ub;
+  if (!(len2 > 0.0)) {
+    return 0.0;
+  }
+  const double da = lab.a - 0.5 * (yellow.mean_a + blue.mean_a);
+  const double db = lab.b - 0.5 * (yellow.mean_b + blue.mean_b);
+  return clamp_score(2.0 * (da * ua + db * ub) / len2);
 }
 
 double ColorModel::blue_margin(std::uint8_t red, std::uint8_t green, std::uint8_t blue_value) const noexcept {

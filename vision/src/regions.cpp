@@ -125,7 +125,7 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   if (config.max_width <= 0 || config.max_height <= 0 || config.max_width > 8192 || config.max_height > 8192 ||
       config.skeleton_samples < 8 || config.skeleton_samples > static_cast<int>(kMaxSkeletonSamples) ||
       config.irls_iterations < 1 || config.irls_iterations > 50 || config.profile_samples < 16 ||
-      config.profile_samples > 1024 || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0)) {
+      config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0)) {
     return R::failure(VisionError::BadParameter);
   }
   std::unique_ptr<FeatureExtractor> e(new (std::nothrow) FeatureExtractor());

@@ -116,6 +116,8 @@ struct Bezier {
 };
 
 constexpr std::size_t kMaxSkeletonSamples = 64U;
+constexpr std::size_t kProfileInsets = 8U;
+constexpr std::size_t kMaxProfileSamples = 512U;
 
 struct EdgePoint {
   Point pixel{};
@@ -165,10 +167,10 @@ struct ExtractorConfig {
   int irls_iterations = 10;
   int irls_scale_iterations = 4;            // the MAD scale is re-estimated during the first ones only
   int profile_samples = 160;                // chroma profile samples along each border
-  // The profile is read along curves parallel to the border, this far inside;
-  // the colour boundary meets the border tangentially, so its position is
-  // extrapolated to inset 0 (see find_corners).
-  std::array<double, 5> profile_insets_px{{1.0, 1.75, 2.5, 3.25, 4.0}};
+  // The profiles are read along curves parallel to the border, from this far
+  // inside to profile_max_inset times the tube's half width (see find_corners).
+  double profile_min_inset_px = 1.5;
+  double profile_max_inset = 1.1;
   double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
 };
 
@@ -228,6 +230,10 @@ class FeatureExtractor {
   int height_ = 0;
   Extraction result_{};
   ImageView image_{};  // the frame of find_regions(), for the orientation cue
+  // Stage 4's chroma profiles [side][inset][sample].
+  std::array<std::array<std::array<double, kMaxProfileSamples>, kProfileInsets>, 2> profile_score_{};
+  std::array<std::array<std::array<double, kMaxProfileSamples>, kProfileInsets>, 2> profile_margin_{};
+  std::array<std::array<std::array<bool, kMaxProfileSamples>, kProfileInsets>, 2> profile_valid_{};
 };
 
 // Stage-2 priors. `generic`: the documented prior of the very first frame
