@@ -245,12 +245,12 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
     double dx = poly[2].x - poly[1].x;
     double dy = poly[2].y - poly[1].y;
     double d = std::hypot(dx, dy);
-    double reach = 1.3 * first.extent_along(dx / d, dy / d);
+    double reach = config_.skeleton_extension * first.extent_along(dx / d, dy / d);
     poly[0] = Point{poly[1].x - dx / d * reach, poly[1].y - dy / d * reach};
     dx = poly[count].x - poly[count - 1U].x;
     dy = poly[count].y - poly[count - 1U].y;
     d = std::hypot(dx, dy);
-    reach = 1.3 * last.extent_along(dx / d, dy / d);
+    reach = config_.skeleton_extension * last.extent_along(dx / d, dy / d);
     poly[count + 1U] = Point{poly[count].x + dx / d * reach, poly[count].y + dy / d * reach};
   }
   const std::size_t vertices = count + 2U;
@@ -379,7 +379,7 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
         offset = 0.5 * (peak_left - peak_right) / denom;
         offset = offset > 0.5 ? 0.5 : (offset < -0.5 ? -0.5 : offset);
       }
-      const double r_edge = best_r + offset * kStep;
+      const double r_edge = best_r + offset * kStep + config_.edge_offset_px;
       static_cast<void>(e.borders[static_cast<std::size_t>(side)].points.push_back(
           EdgePoint{Point{p.x + r_edge * nx, p.y + r_edge * ny}, 1.0, 0.0}));  // capacity = max samples
     }
@@ -708,9 +708,41 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
     if (e.borders[0].valid && e.borders[1].valid && first_q[0] >= 0 && first_q[1] >= 0 && arc_count >= 5U) {
       std::array<double, 2> t_corner{{crossing_t[0][static_cast<std::size_t>(first_q[0])],
                                       crossing_t[1][static_cast<std::size_t>(first_q[1])]}};
-      if (fit_boundary_arc(e.borders, arc.data(), arc_count, t_corner)) {
+      // Local borders: the edge points around the boundary, fitted again (one
+      // quadratic over the whole tube is too coarse at a corner's scale).
+      std::array<Border, 2>& local = local_borders_;
+      bool local_ok = true;
+      for (std::size_t side = 0U; side < 2U; ++side) {
+        const Border& global = e.borders[side];
+        local[side] = Border{};
+        const Point approx = global.curve.at(t_corner[side]);
+        const double window = config_.local_border_window * 2.0 * half_width;
+        for (const EdgePoint& ep : global.points) {
+          if (std::hypot(ep.pixel.x - approx.x, ep.pixel.y - approx.y) <= window) {
+            static_cast<void>(local[side].points.push_back(ep));  // same capacity as the global border
+          }
+        }
+        if (local[side].points.size() < 6U ||
+            !fit_bezier(local[side], config_.tukey_c, config_.irls_iterations, config_.irls_scale_iterations)) {
+          local[side] = global;
+        } else {
+          double best = 1e30;
+          double start = 0.5;
+          for (int i = -4; i <= 24; ++i) {
+            const Point q = local[side].curve.at(i / 20.0);
+            const double d = std::hypot(q.x - approx.x, q.y - approx.y);
+            if (d < best) {
+              best = d;
+              start = i / 20.0;
+            }
+          }
+          t_corner[side] = nearest_t(local[side].curve, approx, start);
+        }
+        local_ok = local_ok && local[side].valid;
+      }
+      if (local_ok && fit_boundary_arc(local, arc.data(), arc_count, t_corner)) {
         for (std::size_t side = 0U; side < 2U; ++side) {
-          const Point p = e.borders[side].curve.at(t_corner[side]);
+          const Point p = local[side].curve.at(t_corner[side]);
           const Point near = e.borders[side].curve.at(crossing_t[side][static_cast<std::size_t>(first_q[side])]);
           if (std::hypot(p.x - near.x, p.y - near.y) < 3.0 * half_width + 3.0) {
             corner_px[side] = p;

@@ -216,7 +216,7 @@ int eval_render(int count, int every, bool verbose, const ExtractorConfig& confi
   std::vector<std::uint8_t> pixels(static_cast<std::size_t>(camera.width() * camera.height() * 3));
   const MutableImageView out{pixels.data(), camera.width(), camera.height(), static_cast<std::size_t>(camera.width()) * 3U};
   long visible = 0, ok = 0, found = 0;
-  std::vector<double> along, across, errs;
+  std::vector<double> along, across, errs, signed_across, scales;
   for (int index = 0; index < count; index += every) {
     const render::LabSample ls = render::lab_sample(model.geometry(), index, 1U);
     render::SceneSpec spec;
@@ -230,6 +230,11 @@ int eval_render(int count, int every, bool verbose, const ExtractorConfig& confi
     const solver::PoseVector prior_r = model.geometry().nominal_pose(ls.prior.joints[0], ls.prior.joints[1], ls.prior.joints[2]);
     const auto status = fx.extract(out.view(), model_priors(camera, model, prior_r));
     const Extraction& e = fx.result();
+    for (const Border& b : e.borders) {
+      if (b.valid) {
+        scales.push_back(b.scale_px);
+      }
+    }
     for (std::size_t k = 0U; k < 12U; ++k) {
       if (!t.visible[k]) {
         continue;
@@ -258,6 +263,15 @@ int eval_render(int count, int every, bool verbose, const ExtractorConfig& confi
           bt = i / 1000.0;
         }
       }
+      {
+        const Point dd = b.curve.derivative(bt);
+        const double dl = std::hypot(dd.x, dd.y);
+        const double sgn = (k % 2U) == 1U ? 1.0 : -1.0;
+        const double onx = sgn * (-dd.y / dl), ony = sgn * (dd.x / dl);
+        const Point pc = b.curve.at(bt);
+        // > 0: the truth lies outside the fitted border.
+        signed_across.push_back((t.corners[k].x() - pc.x) * onx + (t.corners[k].y() - pc.y) * ony);
+      }
       across.push_back(best);
       const Point p = b.curve.at(bt);
       along.push_back(std::hypot(e.corners[k].pixel.x - p.x, e.corners[k].pixel.y - p.y));
@@ -273,6 +287,12 @@ int eval_render(int count, int every, bool verbose, const ExtractorConfig& confi
   std::sort(across.begin(), across.end());
   std::sort(errs.begin(), errs.end());
   const auto med = [](const std::vector<double>& v) { return v.empty() ? 0.0 : v[v.size() / 2U]; };
+  std::sort(signed_across.begin(), signed_across.end());
+  std::sort(scales.begin(), scales.end());
+  std::printf("Bezier MAD scale median %.3f px\n", med(scales));
+  std::printf("signed across (truth outside > 0): median %.3f, q25 %.3f, q75 %.3f\n", med(signed_across),
+              signed_across.empty() ? 0.0 : signed_across[signed_across.size() / 4U],
+              signed_across.empty() ? 0.0 : signed_across[3U * signed_across.size() / 4U]);
   std::printf("render lab: visible %ld, found %ld, within 1.5 px %.1f %%, median error %.2f, across-border median %.2f, along %.2f\n",
               visible, found, 100.0 * static_cast<double>(ok) / static_cast<double>(visible > 0 ? visible : 1), med(errs), med(across), med(along));
   return 0;
@@ -294,6 +314,16 @@ int main(int argc, char** argv) {
         config.profile_max_inset = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--every") == 0 && i + 1 < argc) {
         every = std::atoi(argv[++i]);
+      } else if (std::strcmp(argv[i], "--extension") == 0 && i + 1 < argc) {
+        config.skeleton_extension = std::atof(argv[++i]);
+      } else if (std::strcmp(argv[i], "--samples") == 0 && i + 1 < argc) {
+        config.skeleton_samples = std::atoi(argv[++i]);
+      } else if (std::strcmp(argv[i], "--tukey") == 0 && i + 1 < argc) {
+        config.tukey_c = std::atof(argv[++i]);
+      } else if (std::strcmp(argv[i], "--local") == 0 && i + 1 < argc) {
+        config.local_border_window = std::atof(argv[++i]);
+      } else if (std::strcmp(argv[i], "--edge-offset") == 0 && i + 1 < argc) {
+        config.edge_offset_px = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--count") == 0 && i + 1 < argc) {
         count = std::atoi(argv[++i]);
       } else if (std::strcmp(argv[i], "--verbose") == 0) {

@@ -161,8 +161,15 @@ struct ExtractorConfig {
   double adjacency_slack_px = 3.0;
   double level_reward = 9.0;                // log-likelihood credit of one more labelled level
   int skeleton_samples = 40;
+  // The skeleton runs past the end markers' centroids by this many of their
+  // half extents (a stripe's end lies at ~0.87): just past the end boundaries.
+  double skeleton_extension = 1.3;
   double edge_search_min = 0.35;            // edge search window along the normal, in local half widths
   double edge_search_max = 1.9;
+  // Outward correction of the gradient maximum: the tube's shading falls off
+  // towards the silhouette, which pulls the maximum inwards (measured on
+  // rendered frames, docs/vision.md).
+  double edge_offset_px = 0.3;
   double tukey_c = 1.5;
   int irls_iterations = 10;
   int irls_scale_iterations = 4;            // the MAD scale is re-estimated during the first ones only
@@ -171,6 +178,9 @@ struct ExtractorConfig {
   // inside to profile_max_inset times the tube's half width (see find_corners).
   double profile_min_inset_px = 1.5;
   double profile_max_inset = 1.1;
+  // Stage 4 refits each border locally, on the edge points within this many
+  // tube widths of the corner.
+  double local_border_window = 1.5;
   double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
 };
 
@@ -229,6 +239,7 @@ class FeatureExtractor {
   int width_ = 0;
   int height_ = 0;
   Extraction result_{};
+  std::array<Border, 2> local_borders_{};  // stage 4's borders around one boundary
   ImageView image_{};  // the frame of find_regions(), for the orientation cue
   // Stage 4's chroma profiles [side][inset][sample].
   std::array<std::array<std::array<double, kMaxProfileSamples>, kProfileInsets>, 2> profile_score_{};
