@@ -717,7 +717,16 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
         local[side] = Border{};
         const Point approx = global.curve.at(t_corner[side]);
         const double window = config_.local_border_window * 2.0 * half_width;
+        // At an end boundary only the marker's side: beyond it the shaft or
+        // the grasper has another radius.
+        const Point dir = global.curve.derivative(t_corner[side]);
+        const double dir_len = std::hypot(dir.x, dir.y);
+        const double end_sign = !internal ? (j == in.first_marker ? 1.0 : -1.0) : 0.0;
         for (const EdgePoint& ep : global.points) {
+          const double along = dir_len > 0.0 ? ((ep.pixel.x - approx.x) * dir.x + (ep.pixel.y - approx.y) * dir.y) / dir_len : 0.0;
+          if (end_sign * along < -config_.end_margin_px) {
+            continue;
+          }
           if (std::hypot(ep.pixel.x - approx.x, ep.pixel.y - approx.y) <= window) {
             static_cast<void>(local[side].points.push_back(ep));  // same capacity as the global border
           }

@@ -105,8 +105,15 @@ double ColorModel::yellow_minus_blue(std::uint8_t red, std::uint8_t green, std::
 }
 
 double ColorModel::blue_margin(std::uint8_t red, std::uint8_t green, std::uint8_t blue_value) const noexcept {
+  // Blue chroma fraction: the a*b* projected on the blue mean's direction
+  // from neutral grey, 1 at the blue mean, 0 on grey; minus one half. Linear
+  // in the chroma, so a pixel half blue, half grey (or dark) is near 0.
   const Lab lab = srgb_to_lab(red, green, blue_value);
-  return clamp_score(blue.threshold - blue.distance(lab.a, lab.b));
+  const double len2 = blue.mean_a * blue.mean_a + blue.mean_b * blue.mean_b;
+  if (!(len2 > 0.0)) {
+    return 0.0;
+  }
+  return clamp_score((lab.a * blue.mean_a + lab.b * blue.mean_b) / len2 - 0.5);
 }
 
 bool ColorModel::valid() const noexcept {

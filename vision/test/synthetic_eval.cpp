@@ -13,6 +13,7 @@
 #include "synthetic_scene.hpp"
 #include "tcpest/render/dataset.hpp"
 #include "tcpest/render/renderer.hpp"
+#include "tcpest/render/image_io.hpp"
 #include "tcpest/vision/features.hpp"
 #include "tcpest/vision/overlay.hpp"
 
@@ -83,6 +84,7 @@ int train() {
 }
 
 const char* g_dump = nullptr;
+int g_dump_index = -1;
 
 int eval(bool hard, bool use_prior, int every, bool verbose) {
   const auto camera = solver::CameraModel::create(solver::default_pal_camera()).value();
@@ -230,6 +232,18 @@ int eval_render(int count, int every, bool verbose, const ExtractorConfig& confi
     const solver::PoseVector prior_r = model.geometry().nominal_pose(ls.prior.joints[0], ls.prior.joints[1], ls.prior.joints[2]);
     const auto status = fx.extract(out.view(), model_priors(camera, model, prior_r));
     const Extraction& e = fx.result();
+    if (index == g_dump_index) {
+      std::vector<std::uint8_t> copy = pixels;
+      const MutableImageView mv{copy.data(), camera.width(), camera.height(), static_cast<std::size_t>(camera.width()) * 3U};
+      ReprojectedModel rm;
+      rm.valid = true;
+      for (std::size_t k = 0U; k < 12U; ++k) {
+        rm.present[k] = t.in_image[k];
+        rm.corners[k] = Point{t.corners[k].x(), t.corners[k].y()};
+      }
+      draw_extraction(mv, e, rm);
+      static_cast<void>(render::write_png_file(mv.view(), "/tmp/dump.png"));
+    }
     for (const Border& b : e.borders) {
       if (b.valid) {
         scales.push_back(b.scale_px);
@@ -320,6 +334,10 @@ int main(int argc, char** argv) {
         config.skeleton_samples = std::atoi(argv[++i]);
       } else if (std::strcmp(argv[i], "--tukey") == 0 && i + 1 < argc) {
         config.tukey_c = std::atof(argv[++i]);
+      } else if (std::strcmp(argv[i], "--dump-index") == 0 && i + 1 < argc) {
+        g_dump_index = std::atoi(argv[++i]);
+      } else if (std::strcmp(argv[i], "--end-margin") == 0 && i + 1 < argc) {
+        config.end_margin_px = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--local") == 0 && i + 1 < argc) {
         config.local_border_window = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--edge-offset") == 0 && i + 1 < argc) {

@@ -181,6 +181,9 @@ struct ExtractorConfig {
   // Stage 4 refits each border locally, on the edge points within this many
   // tube widths of the corner.
   double local_border_window = 1.5;
+  // At an end boundary the local fit keeps the edge points on the marker's
+  // side, and at most this far beyond.
+  double end_margin_px = 2.0;
   double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
 };
 
