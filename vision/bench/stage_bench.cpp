@@ -81,10 +81,15 @@ BENCHMARK(BM_Stage1_Ours_720x576)->Unit(benchmark::kMicrosecond);
 void run_all_stages(benchmark::State& state, const Frame& f) {
   auto fx = make_extractor();
   const vision::MarkerPriors priors = vision::model_priors(f.camera, f.model, f.r);
+  int failure = -1;
   for (auto _ : state) {
-    benchmark::DoNotOptimize(fx->extract(f.view(), priors).ok());
+    const auto status = fx->extract(f.view(), priors);
+    failure = status.ok() ? -1 : static_cast<int>(status.error());
+    benchmark::DoNotOptimize(failure);
   }
   state.counters["corners"] = fx->result().corner_count;
+  state.counters["markers"] = fx->result().interpretation.found_count;
+  state.counters["error"] = failure;
 }
 
 void BM_Stages1to4_720x576(benchmark::State& state) { run_all_stages(state, pal_frame()); }
