@@ -75,6 +75,9 @@ void BM_Stage1_Ours_720x576(benchmark::State& state) {
   for (auto _ : state) {
     benchmark::DoNotOptimize(fx->find_regions(f.view()).ok());
   }
+  state.counters["runs"] = fx->result().regions.run_count;
+  state.counters["regions"] = static_cast<double>(fx->result().regions.regions.size());
+  state.counters["ambiguous_cells"] = fx->lut().ambiguous_cells();
 }
 BENCHMARK(BM_Stage1_Ours_720x576)->Unit(benchmark::kMicrosecond);
 

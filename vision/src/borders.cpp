@@ -345,8 +345,15 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
       double prev_g = 0.0, prev_prev_g = 0.0;
       double peak_left = 0.0, peak_right = 0.0;
       bool have_prev = false;
-      const double r0 = config_.edge_search_min * w;
-      for (double r = r0; r <= r_max; r += kStep) {
+      // Near the labelled region's boundary when there is one, else the
+      // whole window.
+      double r0 = config_.edge_search_min * w;
+      double r1 = r_max;
+      if (region_edge >= 0.0) {
+        r0 = std::max(r0, region_edge - 3.5);
+        r1 = std::min(r1, region_edge + 3.5);
+      }
+      for (double r = r0; r <= r1; r += kStep) {
         const double cx = p.x + r * nx;
         const double cy = p.y + r * ny;
         Rgb in_px, out_px, left_px, right_px;
