@@ -1,5 +1,6 @@
 #include "cli/vision_run.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -82,6 +83,11 @@ std::size_t parse_ppm(const std::vector<std::uint8_t>& data, int& width, int& he
   height = static_cast<int>(values[1]);
   return i + 1U;
 }
+
+// Outlier rejection after the solve (see process()).
+constexpr int kOutlierRounds = 2;
+constexpr double kOutlierRmsPx = 1.0;
+constexpr double kOutlierMinPx = 2.5;
 
 double elapsed_us(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) noexcept {
   return std::chrono::duration<double, std::micro>(b - a).count();
@@ -240,7 +246,45 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   vision::corners_to_arrays(e, observed.pixel, observed.visible);
   solver::PoseVector r = start;
   const auto t5 = std::chrono::steady_clock::now();
-  out.summary = solver_->solve(observed, fixed_model_ ? solver::SolveMode::FixedModel : solver::SolveMode::Adaptive, r);
+  const solver::SolveMode mode = fixed_model_ ? solver::SolveMode::FixedModel : solver::SolveMode::Adaptive;
+  out.summary = solver_->solve(observed, mode, r);
+  // Misplaced corners (a boundary read off along a flat tangency, a shaft
+  // hiding the base stripe) would pull the pose: drop the corners far from
+  // the model at the estimate and solve again, at most twice.
+  for (int round = 0; round < kOutlierRounds && out.summary.rms_px > kOutlierRmsPx; ++round) {
+    solver::CornerSet predicted;
+    setup_.instrument.corners(setup_.camera, r, predicted);
+    std::array<double, solver::kNumCorners> residual{};
+    std::array<double, solver::kNumCorners> sorted{};
+    std::size_t n = 0U;
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+      if (observed.visible[k] && predicted.present[k]) {
+        residual[k] = (observed.pixel[k] - predicted.pixel[k]).norm();
+        sorted[n++] = residual[k];
+      }
+    }
+    if (n < 7U) {
+      break;
+    }
+    std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n));
+    const double limit = std::max(kOutlierMinPx, 3.0 * sorted[n / 2U]);
+    int removed = 0;
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+      if (observed.visible[k] && (!predicted.present[k] || residual[k] > limit)) {
+        observed.visible[k] = false;
+        ++removed;
+      }
+    }
+    if (removed == 0 || observed.count_visible() < 6) {
+      break;
+    }
+    solver::PoseVector retry = r;
+    const solver::SolveSummary again = solver_->solve(observed, mode, retry);
+    if (again.rms_px < out.summary.rms_px) {
+      out.summary = again;
+      r = retry;
+    }
+  }
   const auto t6 = std::chrono::steady_clock::now();
   out.times.solve_us = elapsed_us(t5, t6);
   out.total_us = elapsed_us(t0, t6);
