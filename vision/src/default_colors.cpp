@@ -8,8 +8,8 @@ namespace vision {
 ColorModel default_color_model() noexcept {
   ColorModel m;
   m.min_lightness = 8.0;
-  m.blue = ColorGaussian{4.87894, -45.203866, 20.584684, -13.051775, 28.716138, 6.0};
-  m.yellow = ColorGaussian{-11.563884, 58.979005, 9.725526, -26.885446, 141.256348, 4.88};
+  m.blue = ColorGaussian{4.320735, -44.864997, 23.093389, -16.173945, 34.959442, 6.0};
+  m.yellow = ColorGaussian{-11.72294, 58.703289, 9.804949, -27.692832, 149.177529, 4.76};
   return m;
 }
 

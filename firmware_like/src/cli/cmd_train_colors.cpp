@@ -42,9 +42,16 @@ struct Polygon {
   std::vector<vision::Point> points;
 };
 
+struct MarkedPixel {
+  int x = 0;
+  int y = 0;
+  vision::PixelClass cls = vision::PixelClass::Blue;
+};
+
 struct Frame {
   std::string image;
   std::vector<Polygon> polygons;
+  std::vector<MarkedPixel> pixels;  // marked pixels (from sidecars)
 };
 
 bool inside(const std::vector<vision::Point>& poly, double x, double y) noexcept {
@@ -176,11 +183,11 @@ bool load_sidecars(const char* dir, const ModelSetup& setup, std::vector<Frame>&
                                          : vision::PixelClass::Yellow;
       const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
       const double s1 = g.boundaries_mm[static_cast<std::size_t>(m + 1)];
-      for (int i = 0; i <= 12; ++i) {
-        const double s_mm = s0 + (s1 - s0) * (0.25 + 0.5 * i / 12.0);
+      for (int i = 0; i <= 24; ++i) {
+        const double s_mm = s0 + (s1 - s0) * (0.25 + 0.5 * i / 24.0);
         const solver::CentrelineFrame c = setup.instrument.centreline(pf, s_mm);
-        for (int a = 0; a < 48; ++a) {
-          const double angle = 2.0 * solver::kPi * a / 48.0;
+        for (int a = 0; a < 120; ++a) {
+          const double angle = 2.0 * solver::kPi * a / 120.0;
           const solver::Vec3 normal = std::cos(angle) * c.normal + std::sin(angle) * c.binormal;
           const solver::Vec3 x = c.position + g.radius_mm * normal;
           if (normal.dot(x.normalized()) > -0.35) {
@@ -190,15 +197,11 @@ bool load_sidecars(const char* dir, const ModelSetup& setup, std::vector<Frame>&
           if (!setup.camera.project(x, px)) {
             continue;
           }
-          Polygon square;
-          square.cls = cls;
-          square.points = {vision::Point{px.x() - 0.5, px.y() - 0.5}, vision::Point{px.x() + 0.5, px.y() - 0.5},
-                           vision::Point{px.x() + 0.5, px.y() + 0.5}, vision::Point{px.x() - 0.5, px.y() + 0.5}};
-          frame.polygons.push_back(square);
+          frame.pixels.push_back(MarkedPixel{static_cast<int>(std::lround(px.x())), static_cast<int>(std::lround(px.y())), cls});
         }
       }
     }
-    if (!frame.polygons.empty()) {
+    if (!frame.pixels.empty()) {
       frames.push_back(frame);
     }
   }
@@ -255,34 +258,63 @@ int cmd_train_colors(int argc, char** argv) {
         continue;
       }
       // Labels: 1 blue, 2 yellow, 0 background, 3 unused (near the marks).
+      constexpr std::uint8_t kUnused = 3U;
+      label.assign(static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height), 0U);
       double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+      const auto grow = [&](double x, double y) {
+        x0 = std::min(x0, x);
+        y0 = std::min(y0, y);
+        x1 = std::max(x1, x);
+        y1 = std::max(y1, y);
+      };
       for (const Polygon& p : frame.polygons) {
         for (const vision::Point& q : p.points) {
-          x0 = std::min(x0, q.x);
-          y0 = std::min(y0, q.y);
-          x1 = std::max(x1, q.x);
-          y1 = std::max(y1, q.y);
+          grow(q.x, q.y);
         }
+      }
+      for (const MarkedPixel& m : frame.pixels) {
+        grow(m.x, m.y);
       }
       const double gx = 0.5 * (x1 - x0) + 10.0;
       const double gy = 0.5 * (y1 - y0) + 10.0;
-      for (int y = 0; y < view.height; ++y) {
-        const std::uint8_t* row = view.row(y);
-        for (int x = 0; x < view.width; ++x) {
-          const double px = x;
-          const double py = y;
-          vision::PixelClass cls = vision::PixelClass::Background;
-          bool unused = px >= x0 - gx && px <= x1 + gx && py >= y0 - gy && py <= y1 + gy;
-          for (const Polygon& p : frame.polygons) {
-            if (inside(p.points, px, py)) {
-              cls = p.cls;
-              unused = false;
-              break;
+      const auto clamp_x = [&view](double v) { return std::max(0, std::min(view.width - 1, static_cast<int>(v))); };
+      const auto clamp_y = [&view](double v) { return std::max(0, std::min(view.height - 1, static_cast<int>(v))); };
+      for (int y = clamp_y(y0 - gy); y <= clamp_y(y1 + gy); ++y) {
+        for (int x = clamp_x(x0 - gx); x <= clamp_x(x1 + gx); ++x) {
+          label[static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x)] = kUnused;
+        }
+      }
+      for (const Polygon& p : frame.polygons) {
+        double px0 = 1e30, py0 = 1e30, px1 = -1e30, py1 = -1e30;
+        for (const vision::Point& q : p.points) {
+          px0 = std::min(px0, q.x);
+          py0 = std::min(py0, q.y);
+          px1 = std::max(px1, q.x);
+          py1 = std::max(py1, q.y);
+        }
+        for (int y = clamp_y(py0); y <= clamp_y(py1 + 1.0); ++y) {
+          for (int x = clamp_x(px0); x <= clamp_x(px1 + 1.0); ++x) {
+            if (inside(p.points, x, y)) {
+              label[static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x)] =
+                  static_cast<std::uint8_t>(p.cls);
             }
           }
-          if (unused) {
+        }
+      }
+      for (const MarkedPixel& m : frame.pixels) {
+        if (m.x >= 0 && m.y >= 0 && m.x < view.width && m.y < view.height) {
+          label[static_cast<std::size_t>(m.y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(m.x)] =
+              static_cast<std::uint8_t>(m.cls);
+        }
+      }
+      for (int y = 0; y < view.height; ++y) {
+        const std::uint8_t* row = view.row(y);
+        const std::uint8_t* lab_row = label.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width);
+        for (int x = 0; x < view.width; ++x) {
+          if (lab_row[x] == kUnused) {
             continue;
           }
+          const auto cls = static_cast<vision::PixelClass>(lab_row[x]);
           const std::uint8_t* c = row + 3 * x;
           if (pass == 0) {
             trainer.add_sample(cls, c[0], c[1], c[2]);
