@@ -787,12 +787,16 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
         }
         corner_ok[side] = true;
       }
+      const double conf = (strength[side] / static_cast<double>(kProfileInsets)) / 2.0 * (corner_fitted[side] ? 1.0 : 0.5);
+      const double confidence = conf > 1.0 ? 1.0 : (conf < 0.0 ? 0.0 : conf);
+      if (confidence < config_.min_corner_confidence) {
+        continue;  // weak or unfitted: more often misplaced than not
+      }
       const int k = 2 * j + static_cast<int>(side);
       Corner& c = e.corners[static_cast<std::size_t>(k)];
       c.found = true;
       c.pixel = corner_px[side];
-      const double conf = (strength[side] / static_cast<double>(kProfileInsets)) / 2.0 * (corner_fitted[side] ? 1.0 : 0.5);
-      c.confidence = conf > 1.0 ? 1.0 : (conf < 0.0 ? 0.0 : conf);
+      c.confidence = confidence;
       ++e.corner_count;
     }
   }

@@ -290,7 +290,7 @@ int eval_render(int count, int every, bool verbose, const ExtractorConfig& confi
       const Point p = b.curve.at(bt);
       along.push_back(std::hypot(e.corners[k].pixel.x - p.x, e.corners[k].pixel.y - p.y));
       if (verbose) {
-        std::printf("img %d k %zu err %.2f across %.2f along %.2f\n", index, k, err, best, along.back());
+        std::printf("img %d k %zu err %.2f across %.2f along %.2f conf %.3f\n", index, k, err, best, along.back(), e.corners[k].confidence);
       }
     }
     if (verbose && !status.ok()) {
@@ -336,6 +336,8 @@ int main(int argc, char** argv) {
         config.tukey_c = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--dump-index") == 0 && i + 1 < argc) {
         g_dump_index = std::atoi(argv[++i]);
+      } else if (std::strcmp(argv[i], "--min-confidence") == 0 && i + 1 < argc) {
+        config.min_corner_confidence = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--end-margin") == 0 && i + 1 < argc) {
         config.end_margin_px = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--local") == 0 && i + 1 < argc) {
