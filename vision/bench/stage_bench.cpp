@@ -66,7 +66,8 @@ const Frame& hd_frame() {
 
 std::unique_ptr<vision::FeatureExtractor> make_extractor() {
   auto created = vision::FeatureExtractor::create(vision::ExtractorConfig{}, vision::default_color_model());
-  return std::move(created.value());
+  std::unique_ptr<vision::FeatureExtractor> extractor = std::move(created.value());
+  return extractor;
 }
 
 void BM_Stage1_Ours_720x576(benchmark::State& state) {
@@ -116,7 +117,7 @@ void BM_Stage1_OpenCV_720x576(benchmark::State& state) {
     ib = -g.cov_ab / det;
     ic = g.cov_aa / det;
   };
-  double b0, b1, b2, y0, y1, y2;
+  double b0 = 0.0, b1 = 0.0, b2 = 0.0, y0 = 0.0, y1 = 0.0, y2 = 0.0;
   inverse(m.blue, b0, b1, b2);
   inverse(m.yellow, y0, y1, y2);
   const float tb = static_cast<float>(m.blue.threshold * m.blue.threshold);

@@ -34,8 +34,8 @@ bool sample(const ImageView& image, double x, double y, Rgb& out) noexcept {
   }
   const double fx = x - static_cast<double>(x0);
   const double fy = y - static_cast<double>(y0);
-  const std::uint8_t* a = image.row(y0) + 3 * x0;
-  const std::uint8_t* b = image.row(y0 + 1) + 3 * x0;
+  const std::uint8_t* a = image.row(y0) + static_cast<std::ptrdiff_t>(3) * x0;
+  const std::uint8_t* b = image.row(y0 + 1) + static_cast<std::ptrdiff_t>(3) * x0;
   const double w00 = (1.0 - fx) * (1.0 - fy);
   const double w10 = fx * (1.0 - fy);
   const double w01 = (1.0 - fx) * fy;
@@ -48,7 +48,7 @@ bool sample(const ImageView& image, double x, double y, Rgb& out) noexcept {
 
 std::uint8_t to_byte(double v) noexcept {
   const double c = v < 0.0 ? 0.0 : (v > 255.0 ? 255.0 : v);
-  return static_cast<std::uint8_t>(c + 0.5);
+  return static_cast<std::uint8_t>(std::lround(c));
 }
 
 double dist2(const Rgb& a, const Rgb& b) noexcept {
@@ -324,7 +324,9 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
       // pixel before the background, searched outwards.
       double region_edge = -1.0;
       const double r_max = config_.edge_search_max * w + 2.0;
-      for (double r = 0.0; r <= r_max; r += 1.0) {
+      const int region_steps = static_cast<int>(r_max);
+      for (int step = 0; step <= region_steps; ++step) {
+        const double r = static_cast<double>(step);
         const int xi = static_cast<int>(std::lround(p.x + r * nx));
         const int yi = static_cast<int>(std::lround(p.y + r * ny));
         if (xi < 0 || yi < 0 || xi >= width_ || yi >= height_) {
@@ -353,7 +355,9 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
         r0 = std::max(r0, region_edge - 3.5);
         r1 = std::min(r1, region_edge + 3.5);
       }
-      for (double r = r0; r <= r1; r += kStep) {
+      const int edge_steps = r1 >= r0 ? static_cast<int>((r1 - r0) / kStep) : -1;
+      for (int step = 0; step <= edge_steps; ++step) {
+        const double r = r0 + kStep * static_cast<double>(step);
         const double cx = p.x + r * nx;
         const double cy = p.y + r * ny;
         Rgb in_px, out_px, left_px, right_px;
@@ -779,10 +783,10 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
         // tangency law t(d) ~ t0 + a sqrt(d) when a second one exists.
         const double t_near = crossing_t[side][static_cast<std::size_t>(fq)];
         corner_px[side] = border.curve.at(t_near);
-        if (fq + 1 < static_cast<int>(kProfileInsets) && crossing_ok[side][static_cast<std::size_t>(fq + 1)]) {
+        if (fq + 1 < static_cast<int>(kProfileInsets) && crossing_ok[side][static_cast<std::size_t>(fq) + 1U]) {
           const double d0 = std::sqrt(insets[static_cast<std::size_t>(fq)]);
-          const double d1 = std::sqrt(insets[static_cast<std::size_t>(fq + 1)]);
-          const double t1 = crossing_t[side][static_cast<std::size_t>(fq + 1)];
+          const double d1 = std::sqrt(insets[static_cast<std::size_t>(fq) + 1U]);
+          const double t1 = crossing_t[side][static_cast<std::size_t>(fq) + 1U];
           corner_px[side] = border.curve.at(t_near - (t1 - t_near) * d0 / (d1 - d0));
         }
         corner_ok[side] = true;

@@ -30,7 +30,7 @@ bool ClassifierLut::build(const ColorModel& model) noexcept {
   }
   const auto value = [](int e) noexcept { return static_cast<std::uint8_t>((e / 2) * kCell + (e % 2) * (kCell - 1)); };
   const auto at = [](int r, int g, int b) noexcept {
-    return static_cast<std::size_t>((r * kEnds + g) * kEnds + b);
+    return (static_cast<std::size_t>(r) * kEnds + static_cast<std::size_t>(g)) * kEnds + static_cast<std::size_t>(b);
   };
   for (int r = 0; r < kEnds; ++r) {
     for (int g = 0; g < kEnds; ++g) {

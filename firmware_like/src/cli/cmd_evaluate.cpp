@@ -112,10 +112,12 @@ int cmd_evaluate(int argc, char** argv) {
   double tcp_sq[3] = {0.0, 0.0, 0.0};
   bool sequence = false;
   for (const std::string& name : sidecars) {
-    if (static_cast<unsigned long long>(frames + unreadable) >= max_images) {
+    if (static_cast<unsigned long long>(frames) + static_cast<unsigned long long>(unreadable) >= max_images) {
       break;
     }
-    const std::string sidecar_path = dir + "/" + name;
+    std::string sidecar_path = dir;
+    sidecar_path += "/";
+    sidecar_path += name;
     const auto parsed = render::read_sidecar_file(sidecar_path.c_str());
     if (!parsed.ok()) {
       parsed.error().format(error, sizeof error);
@@ -124,7 +126,9 @@ int cmd_evaluate(int argc, char** argv) {
       continue;
     }
     const render::Sidecar& truth = parsed.value();
-    const std::string image_path = dir + "/" + truth.image;
+    std::string image_path = dir;
+    image_path += "/";
+    image_path += truth.image;
     ImageView view;
     if (!reader.read(image_path.c_str(), pixels, view, error, sizeof error)) {
       std::fprintf(stderr, "tcpest evaluate: %s: %s\n", image_path.c_str(), error);

@@ -182,7 +182,7 @@ bool load_sidecars(const char* dir, const ModelSetup& setup, std::vector<Frame>&
                                          ? vision::PixelClass::Blue
                                          : vision::PixelClass::Yellow;
       const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
-      const double s1 = g.boundaries_mm[static_cast<std::size_t>(m + 1)];
+      const double s1 = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
       for (int i = 0; i <= 24; ++i) {
         const double s_mm = s0 + (s1 - s0) * (0.25 + 0.5 * i / 24.0);
         const solver::CentrelineFrame c = setup.instrument.centreline(pf, s_mm);
@@ -315,7 +315,7 @@ int cmd_train_colors(int argc, char** argv) {
             continue;
           }
           const auto cls = static_cast<vision::PixelClass>(lab_row[x]);
-          const std::uint8_t* c = row + 3 * x;
+          const std::uint8_t* c = row + static_cast<std::ptrdiff_t>(3) * x;
           if (pass == 0) {
             trainer.add_sample(cls, c[0], c[1], c[2]);
           } else {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <new>
 
 #include "tcpest/vision/overlay.hpp"
 
@@ -12,7 +13,7 @@ namespace tcpest {
 namespace cli {
 namespace {
 
-constexpr std::size_t kMaxFileBytes = 64U * 1024U * 1024U;
+constexpr std::size_t kMaxFileBytes = std::size_t{64U} * 1024U * 1024U;
 
 bool read_file(const char* path, std::vector<std::uint8_t>& out, char* error, std::size_t capacity) noexcept {
   std::FILE* f = std::fopen(path, "rb");
@@ -98,7 +99,7 @@ double elapsed_us(std::chrono::steady_clock::time_point a, std::chrono::steady_c
 bool ImageReader::init(int max_width, int max_height) noexcept {
   max_width_ = max_width;
   max_height_ = max_height;
-  file_.reserve(4U * 1024U * 1024U);
+  file_.reserve(std::size_t{4U} * 1024U * 1024U);
   return decoder_.init(max_width, max_height).ok();
 }
 
@@ -194,7 +195,11 @@ bool EstimatePipeline::init(const char* command, const ModelSetup& setup, const 
     return false;
   }
   extractor_ = std::move(created.value());
-  solver_.reset(new solver::PoseSolver(setup_.camera, setup_.instrument));
+  solver_.reset(new (std::nothrow) solver::PoseSolver(setup_.camera, setup_.instrument));
+  if (solver_ == nullptr) {
+    std::fprintf(stderr, "tcpest %s: out of memory\n", command);
+    return false;
+  }
   fixed_model_ = fixed_model;
   reset_sequence();
   return true;
@@ -328,48 +333,52 @@ void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableI
 
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,
                           char* out, std::size_t capacity) noexcept {
+  if (capacity == 0U) {
+    return;
+  }
+  out[0] = '\0';
   std::size_t used = 0U;
-  const auto append = [&](const char* fmt, auto... values) noexcept {
-    if (used >= capacity) {
-      return;
-    }
-    const int n = std::snprintf(out + used, capacity - used, fmt, values...);
+  // Each snprintf below writes at out + used; a truncated line stays terminated.
+  const auto advance = [&used, capacity](int n) noexcept {
     if (n > 0) {
-      used += static_cast<std::size_t>(n);
+      used = std::min(capacity - 1U, used + static_cast<std::size_t>(n));
     }
   };
-  // The image path is written as a JSON string (quotes and backslashes escaped).
-  append("{\"image\": \"");
+  advance(std::snprintf(out + used, capacity - used, "{\"image\": \""));
+  // The image path as a JSON string (quotes, backslashes and controls escaped).
   for (const char* c = image; *c != '\0' && used + 8U < capacity; ++c) {
+    const auto byte = static_cast<unsigned char>(*c);
     if (*c == '"' || *c == '\\') {
-      append("\\%c", *c);
-    } else if (static_cast<unsigned char>(*c) < 0x20U) {
-      append("\\u%04x", static_cast<unsigned>(static_cast<unsigned char>(*c)));
+      advance(std::snprintf(out + used, capacity - used, "\\%c", *c));
+    } else if (byte < 0x20U) {
+      advance(std::snprintf(out + used, capacity - used, "\\u%04x", static_cast<unsigned>(byte)));
     } else {
-      append("%c", *c);
+      advance(std::snprintf(out + used, capacity - used, "%c", *c));
     }
   }
-  append("\", \"status\": \"%s\"", to_string(result.status));
+  advance(std::snprintf(out + used, capacity - used, "\", \"status\": \"%s\"", to_string(result.status)));
   if (result.status != EstimateStatus::None) {
-    append(", \"tcp\": [%.4f, %.4f, %.4f], \"r\": [", result.tcp.x(), result.tcp.y(), result.tcp.z());
+    advance(std::snprintf(out + used, capacity - used, ", \"tcp\": [%.4f, %.4f, %.4f], \"r\": [", result.tcp.x(),
+                          result.tcp.y(), result.tcp.z()));
     for (int i = 0; i < solver::kNumParams; ++i) {
-      append(i == 0 ? "%.6f" : ", %.6f", result.r[i]);
+      advance(std::snprintf(out + used, capacity - used, i == 0 ? "%.6f" : ", %.6f", result.r[i]));
     }
-    append("]");
+    advance(std::snprintf(out + used, capacity - used, "]"));
   } else {
-    append(", \"tcp\": null, \"r\": null");
+    advance(std::snprintf(out + used, capacity - used, ", \"tcp\": null, \"r\": null"));
   }
-  append(", \"corners\": [");
+  advance(std::snprintf(out + used, capacity - used, ", \"corners\": ["));
   for (std::size_t k = 0U; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
     const vision::Corner& c = extraction.corners[k];
+    const char* separator = k == 0U ? "" : ", ";
     if (c.found && result.extraction_ok) {
-      append(k == 0U ? "[%.3f, %.3f]" : ", [%.3f, %.3f]", c.pixel.x, c.pixel.y);
+      advance(std::snprintf(out + used, capacity - used, "%s[%.3f, %.3f]", separator, c.pixel.x, c.pixel.y));
     } else {
-      append(k == 0U ? "null" : ", null");
+      advance(std::snprintf(out + used, capacity - used, "%snull", separator));
     }
   }
-  append("], \"rms_px\": %.4f, \"iterations\": %d, \"time_us\": %.0f}", result.summary.rms_px,
-         result.summary.iterations, result.total_us);
+  advance(std::snprintf(out + used, capacity - used, "], \"rms_px\": %.4f, \"iterations\": %d, \"time_us\": %.0f}",
+                        result.summary.rms_px, result.summary.iterations, result.total_us));
 }
 
 }  // namespace cli
