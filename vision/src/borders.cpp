@@ -2,6 +2,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
+
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -31,8 +34,8 @@ bool sample(const ImageView& image, double x, double y, Rgb& out) noexcept {
   }
   const double fx = x - static_cast<double>(x0);
   const double fy = y - static_cast<double>(y0);
-  const std::uint8_t* a = image.row(y0) + 3 * x0;
-  const std::uint8_t* b = image.row(y0 + 1) + 3 * x0;
+  const std::uint8_t* a = image.row(y0) + static_cast<std::ptrdiff_t>(3) * x0;
+  const std::uint8_t* b = image.row(y0 + 1) + static_cast<std::ptrdiff_t>(3) * x0;
   const double w00 = (1.0 - fx) * (1.0 - fy);
   const double w10 = fx * (1.0 - fy);
   const double w01 = (1.0 - fx) * fy;
@@ -45,7 +48,7 @@ bool sample(const ImageView& image, double x, double y, Rgb& out) noexcept {
 
 std::uint8_t to_byte(double v) noexcept {
   const double c = v < 0.0 ? 0.0 : (v > 255.0 ? 255.0 : v);
-  return static_cast<std::uint8_t>(c + 0.5);
+  return static_cast<std::uint8_t>(std::lround(c));
 }
 
 double dist2(const Rgb& a, const Rgb& b) noexcept {
@@ -242,12 +245,12 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
     double dx = poly[2].x - poly[1].x;
     double dy = poly[2].y - poly[1].y;
     double d = std::hypot(dx, dy);
-    double reach = 1.3 * first.extent_along(dx / d, dy / d);
+    double reach = config_.skeleton_extension * first.extent_along(dx / d, dy / d);
     poly[0] = Point{poly[1].x - dx / d * reach, poly[1].y - dy / d * reach};
     dx = poly[count].x - poly[count - 1U].x;
     dy = poly[count].y - poly[count - 1U].y;
     d = std::hypot(dx, dy);
-    reach = 1.3 * last.extent_along(dx / d, dy / d);
+    reach = config_.skeleton_extension * last.extent_along(dx / d, dy / d);
     poly[count + 1U] = Point{poly[count].x + dx / d * reach, poly[count].y + dy / d * reach};
   }
   const std::size_t vertices = count + 2U;
@@ -321,7 +324,9 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
       // pixel before the background, searched outwards.
       double region_edge = -1.0;
       const double r_max = config_.edge_search_max * w + 2.0;
-      for (double r = 0.0; r <= r_max; r += 1.0) {
+      const int region_steps = static_cast<int>(r_max);
+      for (int step = 0; step <= region_steps; ++step) {
+        const double r = static_cast<double>(step);
         const int xi = static_cast<int>(std::lround(p.x + r * nx));
         const int yi = static_cast<int>(std::lround(p.y + r * ny));
         if (xi < 0 || yi < 0 || xi >= width_ || yi >= height_) {
@@ -342,8 +347,17 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
       double prev_g = 0.0, prev_prev_g = 0.0;
       double peak_left = 0.0, peak_right = 0.0;
       bool have_prev = false;
-      const double r0 = config_.edge_search_min * w;
-      for (double r = r0; r <= r_max; r += kStep) {
+      // Near the labelled region's boundary when there is one, else the
+      // whole window.
+      double r0 = config_.edge_search_min * w;
+      double r1 = r_max;
+      if (region_edge >= 0.0) {
+        r0 = std::max(r0, region_edge - 3.5);
+        r1 = std::min(r1, region_edge + 3.5);
+      }
+      const int edge_steps = r1 >= r0 ? static_cast<int>((r1 - r0) / kStep) : -1;
+      for (int step = 0; step <= edge_steps; ++step) {
+        const double r = r0 + kStep * static_cast<double>(step);
         const double cx = p.x + r * nx;
         const double cy = p.y + r * ny;
         Rgb in_px, out_px, left_px, right_px;
@@ -376,7 +390,7 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
         offset = 0.5 * (peak_left - peak_right) / denom;
         offset = offset > 0.5 ? 0.5 : (offset < -0.5 ? -0.5 : offset);
       }
-      const double r_edge = best_r + offset * kStep;
+      const double r_edge = best_r + offset * kStep + config_.edge_offset_px;
       static_cast<void>(e.borders[static_cast<std::size_t>(side)].points.push_back(
           EdgePoint{Point{p.x + r_edge * nx, p.y + r_edge * ny}, 1.0, 0.0}));  // capacity = max samples
     }
@@ -395,6 +409,140 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
 
 // --- stage 4 ----------------------------------------------------------------
 
+namespace {
+
+// Parameter of the point of `curve` nearest to p, from t (Newton, bounded).
+double nearest_t(const Bezier& curve, const Point& p, double t) noexcept {
+  const double ddx = 2.0 * ((curve.p2.x - curve.p1.x) - (curve.p1.x - curve.p0.x));
+  const double ddy = 2.0 * ((curve.p2.y - curve.p1.y) - (curve.p1.y - curve.p0.y));
+  for (int it = 0; it < 8; ++it) {
+    const Point q = curve.at(t);
+    const Point d = curve.derivative(t);
+    const double f = (q.x - p.x) * d.x + (q.y - p.y) * d.y;
+    const double df = d.x * d.x + d.y * d.y + (q.x - p.x) * ddx + (q.y - p.y) * ddy;
+    if (!(std::fabs(df) > 1e-12)) {
+      break;
+    }
+    const double step = f / df;
+    t -= step > 0.2 ? 0.2 : (step < -0.2 ? -0.2 : step);
+  }
+  return t;
+}
+
+using Mat3 = Eigen::Matrix3d;
+using Vec3 = Eigen::Vector3d;
+
+// The visible arc of a marker boundary is half of an ellipse (the projected
+// circle) tangent to both borders at the two corners. A projective map H that
+// sends the intersection of the two borders' tangent lines to infinity makes
+// the lines parallel (v = v_mid -/+ w) and keeps the conic tangent to them;
+// such an ellipse is u = u_c + alpha cos(phi) + beta sin(phi),
+// v = v_mid + w sin(phi), which touches the lines at u = u_c -/+ beta. With
+// sin(phi) from each arc point's v, u is linear in (u_c, alpha, beta): least
+// squares, then the two tangency points mapped back. The tangent lines are
+// taken at the current corner estimates, so the fit is repeated (bounded).
+bool fit_boundary_arc(const std::array<Border, 2>& borders, const Point* arc, std::size_t count,
+                      std::array<double, 2>& t_corner) noexcept {
+  constexpr int kRounds = 4;
+  for (int round = 0; round < kRounds; ++round) {
+    std::array<Vec3, 2> line{};
+    std::array<Point, 2> c{};
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      c[side] = borders[side].curve.at(t_corner[side]);
+      const Point d = borders[side].curve.derivative(t_corner[side]);
+      const Vec3 a(c[side].x, c[side].y, 1.0);
+      const Vec3 b(c[side].x + d.x, c[side].y + d.y, 1.0);
+      line[side] = a.cross(b);
+    }
+    const Point mid{0.5 * (c[0].x + c[1].x), 0.5 * (c[0].y + c[1].y)};
+    Mat3 h = Mat3::Identity();
+    const Vec3 x = line[0].cross(line[1]);
+    if (std::fabs(x.z()) > 1e-12) {
+      const double xx = x.x() / x.z();
+      const double xy = x.y() / x.z();
+      // Line through X perpendicular to (mid - X), scaled to 1 at mid.
+      const double dx = mid.x - xx;
+      const double dy = mid.y - xy;
+      Vec3 h3(dx, dy, -(dx * xx + dy * xy));
+      const double at_mid = h3.x() * mid.x + h3.y() * mid.y + h3.z();
+      if (!(std::fabs(at_mid) > 1e-12)) {
+        return false;
+      }
+      h3 /= at_mid;
+      h.row(2) = h3.transpose();
+    }
+    const auto map = [&h](const Point& p) noexcept {
+      const Vec3 q = h * Vec3(p.x, p.y, 1.0);
+      return Point{q.x() / q.z(), q.y() / q.z()};
+    };
+    // Mapped tangent lines are parallel: a common unit normal n.
+    const Mat3 h_inv_t = h.inverse().transpose();
+    const Vec3 l0 = h_inv_t * line[0];
+    const Vec3 l1 = h_inv_t * line[1];
+    const double n0 = std::hypot(l0.x(), l0.y());
+    const double n1 = std::hypot(l1.x(), l1.y());
+    if (!(n0 > 1e-12) || !(n1 > 1e-12)) {
+      return false;
+    }
+    double nx = l0.x() / n0;
+    double ny = l0.y() / n0;
+    const Point m0 = map(c[0]);
+    const Point m1 = map(c[1]);
+    double v0 = nx * m0.x + ny * m0.y;
+    double v1 = nx * m1.x + ny * m1.y;
+    if (v1 < v0) {  // orient v from side 0 to side 1
+      nx = -nx;
+      ny = -ny;
+      v0 = -v0;
+      v1 = -v1;
+    }
+    const double w = 0.5 * (v1 - v0);
+    const double v_mid = 0.5 * (v1 + v0);
+    if (!(w > 0.5)) {
+      return false;
+    }
+    const double ux = -ny;
+    const double uy = nx;
+    double m[3][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
+    double rhs[3][2] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
+    for (std::size_t i = 0U; i < count; ++i) {
+      const Point q = map(arc[i]);
+      double sn = (nx * q.x + ny * q.y - v_mid) / w;
+      sn = sn > 1.0 ? 1.0 : (sn < -1.0 ? -1.0 : sn);
+      const double basis[3] = {1.0, std::sqrt(1.0 - sn * sn), sn};
+      const double u = ux * q.x + uy * q.y;
+      for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) {
+          m[r][k] += basis[r] * basis[k];
+        }
+        rhs[r][0] += basis[r] * u;
+      }
+    }
+    double sol[3][2] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
+    if (!solve3(m, rhs, sol)) {
+      return false;
+    }
+    const Mat3 h_inv = h.inverse();
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      const double sgn = side == 1U ? 1.0 : -1.0;
+      const double u = sol[0][0] + sgn * sol[2][0];
+      const double v = v_mid + sgn * w;
+      const Vec3 q = h_inv * Vec3(u * ux + v * nx, u * uy + v * ny, 1.0);
+      if (!(std::fabs(q.z()) > 1e-12)) {
+        return false;
+      }
+      const Point p{q.x() / q.z(), q.y() / q.z()};
+      if (!std::isfinite(p.x) || !std::isfinite(p.y)) {
+        return false;
+      }
+      t_corner[side] = nearest_t(borders[side].curve, p, t_corner[side]);
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexcept {
   Extraction& e = result_;
   for (auto& c : e.corners) {
@@ -402,23 +550,38 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
   }
   e.corner_count = 0;
   const Interpretation& in = e.interpretation;
-  if (in.found_count < 2) {
+  if (in.found_count < 2 || (!e.borders[0].valid && !e.borders[1].valid)) {
     return Status<VisionError>::failure(VisionError::NoInstrument);
   }
-  constexpr std::size_t kInsets = 5U;
   const int samples = config_.profile_samples;
-  std::array<std::array<double, 1024>, kInsets> score{};   // yellow - blue
-  std::array<std::array<double, 1024>, kInsets> margin{};  // blue margin (end boundaries)
-  std::array<std::array<bool, 1024>, kInsets> valid{};
   constexpr double kT0 = -0.08;
   constexpr double kT1 = 1.08;
   const double dt = (kT1 - kT0) / static_cast<double>(samples - 1);
+  // Insets: from just inside the border to a little past the tube's middle,
+  // so that the two sides together trace each boundary's visible arc.
+  double half_width = 0.0;
+  int width_count = 0;
+  for (int m = in.first_marker; m <= in.last_marker; ++m) {
+    const MarkerObservation& obs = in.markers[static_cast<std::size_t>(m)];
+    if (obs.found) {
+      half_width += obs.region.half_minor * 0.866;
+      ++width_count;
+    }
+  }
+  half_width = width_count > 0 ? half_width / width_count : 5.0;
+  std::array<double, kProfileInsets> insets{};
+  const double first_inset = config_.profile_min_inset_px;
+  const double last_inset = std::max(first_inset + 1.0, config_.profile_max_inset * half_width);
+  for (std::size_t q = 0U; q < kProfileInsets; ++q) {
+    insets[q] = first_inset + (last_inset - first_inset) * static_cast<double>(q) / static_cast<double>(kProfileInsets - 1U);
+  }
+  // Profiles per side and inset.
+  std::array<double, kNumMarkers> marker_t_side[2]{};
   for (std::size_t side = 0U; side < 2U; ++side) {
     const Border& border = e.borders[side];
     if (!border.valid) {
       continue;
     }
-    // Profiles along curves parallel to the border, at several insets.
     for (int i = 0; i < samples; ++i) {
       const double t = kT0 + dt * static_cast<double>(i);
       const Point p = border.curve.at(t);
@@ -428,22 +591,19 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
       const double sign = side == 1U ? 1.0 : -1.0;
       const double nx = dl > 0.0 ? sign * (-d.y / dl) : 0.0;
       const double ny = dl > 0.0 ? sign * (d.x / dl) : 0.0;
-      for (std::size_t q = 0U; q < kInsets; ++q) {
+      for (std::size_t q = 0U; q < kProfileInsets; ++q) {
         const auto at = static_cast<std::size_t>(i);
-        valid[q][at] = false;
+        profile_valid_[side][q][at] = false;
         Rgb px;
-        const double inset = config_.profile_insets_px[q];
-        if (!(dl > 0.0) || !sample(image, p.x - inset * nx, p.y - inset * ny, px)) {
+        if (!(dl > 0.0) || !sample(image, p.x - insets[q] * nx, p.y - insets[q] * ny, px)) {
           continue;
         }
         const std::uint8_t r8 = to_byte(px.r), g8 = to_byte(px.g), b8 = to_byte(px.b);
-        score[q][at] = colors_.yellow_minus_blue(r8, g8, b8);
-        margin[q][at] = colors_.blue_margin(r8, g8, b8);
-        valid[q][at] = true;
+        profile_score_[side][q][at] = colors_.yellow_minus_blue(r8, g8, b8);
+        profile_margin_[side][q][at] = colors_.blue_margin(r8, g8, b8);
+        profile_valid_[side][q][at] = true;
       }
     }
-    // Parameter of each marker's centroid on this border (nearest sample).
-    std::array<double, kNumMarkers> marker_t{};
     for (int m = in.first_marker; m <= in.last_marker; ++m) {
       const MarkerObservation& obs = in.markers[static_cast<std::size_t>(m)];
       double best = 1e30;
@@ -453,52 +613,56 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
         const double dd = std::hypot(p.x - obs.region.centroid.x, p.y - obs.region.centroid.y);
         if (dd < best) {
           best = dd;
-          marker_t[static_cast<std::size_t>(m)] = t;
+          marker_t_side[side][static_cast<std::size_t>(m)] = t;
         }
       }
     }
-    double marker_span = 0.3;
-    if (in.last_marker > in.first_marker) {
-      marker_span = std::fabs(marker_t[static_cast<std::size_t>(in.last_marker)] -
-                              marker_t[static_cast<std::size_t>(in.first_marker)]) /
-                    static_cast<double>(in.last_marker - in.first_marker);
+  }
+  // Boundary j lies between markers j-1 and j (0-based markers).
+  for (int j = in.first_marker; j <= in.last_marker + 1; ++j) {
+    const bool internal = j > in.first_marker && j <= in.last_marker;
+    bool use_margin = false;
+    double want_sign = 0.0;  // sign of the profile's change from base to tip
+    if (internal) {
+      want_sign = config_.marker_classes[static_cast<std::size_t>(j - 1)] == PixelClass::Blue ? 1.0 : -1.0;
+    } else {
+      const int m = (j == in.first_marker) ? j : j - 1;
+      if (config_.marker_classes[static_cast<std::size_t>(m)] != PixelClass::Blue) {
+        continue;  // only blue end markers have a margin profile
+      }
+      use_margin = true;
+      want_sign = (j == in.first_marker) ? 1.0 : -1.0;
     }
-    // Boundary j lies between markers j-1 and j (0-based markers).
-    for (int j = in.first_marker; j <= in.last_marker + 1; ++j) {
-      const bool internal = j > in.first_marker && j <= in.last_marker;
+    std::array<Point, 2U * kProfileInsets> arc{};
+    std::size_t arc_count = 0U;
+    std::array<std::array<double, kProfileInsets>, 2> crossing_t{};
+    std::array<std::array<bool, kProfileInsets>, 2> crossing_ok{};
+    std::array<double, 2> strength{{0.0, 0.0}};
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      const Border& border = e.borders[side];
+      if (!border.valid) {
+        continue;
+      }
+      const auto& mt = marker_t_side[side];
+      double span = 0.3;
+      if (in.last_marker > in.first_marker) {
+        span = std::fabs(mt[static_cast<std::size_t>(in.last_marker)] - mt[static_cast<std::size_t>(in.first_marker)]) /
+               static_cast<double>(in.last_marker - in.first_marker);
+      }
       double t_lo = 0.0, t_hi = 0.0;
-      double want_sign = 0.0;  // sign of the profile's change from base to tip
-      bool use_margin = false;
       if (internal) {
-        t_lo = marker_t[static_cast<std::size_t>(j - 1)];
-        t_hi = marker_t[static_cast<std::size_t>(j)];
-        const bool from_blue = config_.marker_classes[static_cast<std::size_t>(j - 1)] == PixelClass::Blue;
-        want_sign = from_blue ? 1.0 : -1.0;
+        t_lo = mt[static_cast<std::size_t>(j - 1)] - 0.25 * span;
+        t_hi = mt[static_cast<std::size_t>(j)] + 0.25 * span;
+      } else if (j == in.first_marker) {
+        t_lo = mt[static_cast<std::size_t>(j)] - 1.2 * span;
+        t_hi = mt[static_cast<std::size_t>(j)] + 0.25 * span;
       } else {
-        // End boundary: the end marker's colour margin crosses zero.
-        const int m = (j == in.first_marker) ? j : j - 1;
-        if (config_.marker_classes[static_cast<std::size_t>(m)] != PixelClass::Blue) {
-          continue;  // only blue end markers have a margin profile
-        }
-        use_margin = true;
-        const double tm = marker_t[static_cast<std::size_t>(m)];
-        if (j == in.first_marker) {
-          t_lo = tm - marker_span;
-          t_hi = tm;
-          want_sign = 1.0;
-        } else {
-          t_lo = tm;
-          t_hi = tm + marker_span;
-          want_sign = -1.0;
-        }
+        t_lo = mt[static_cast<std::size_t>(j - 1)] - 0.25 * span;
+        t_hi = mt[static_cast<std::size_t>(j - 1)] + 1.2 * span;
       }
-      // Per inset: the strongest crossing of the right direction in (t_lo, t_hi).
-      std::array<double, kInsets> crossing_t{};
-      std::array<bool, kInsets> crossing_ok{};
-      double strength = 0.0;
-      int crossings = 0;
-      for (std::size_t q = 0U; q < kInsets; ++q) {
-        const double* profile = use_margin ? margin[q].data() : score[q].data();
+      for (std::size_t q = 0U; q < kProfileInsets; ++q) {
+        const double* profile = use_margin ? profile_margin_[side][q].data() : profile_score_[side][q].data();
+        const bool* ok = profile_valid_[side][q].data();
         double best_slope = 0.0;
         for (int i = 0; i + 1 < samples; ++i) {
           const double t = kT0 + dt * static_cast<double>(i);
@@ -506,7 +670,7 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
             continue;
           }
           const auto a = static_cast<std::size_t>(i);
-          if (!valid[q][a] || !valid[q][a + 1U]) {
+          if (!ok[a] || !ok[a + 1U]) {
             continue;
           }
           const double fa = profile[a];
@@ -518,58 +682,125 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
           const std::size_t hi =
               a + 3U < static_cast<std::size_t>(samples) ? a + 3U : static_cast<std::size_t>(samples - 1);
           const double slope = (profile[hi] - profile[lo]) * want_sign;
-          if (!crossing_ok[q] || slope > best_slope) {
-            crossing_t[q] = t + dt * fa / (fa - fb);
-            crossing_ok[q] = true;
+          if (!crossing_ok[side][q] || slope > best_slope) {
+            crossing_t[side][q] = t + dt * fa / (fa - fb);
+            crossing_ok[side][q] = true;
             best_slope = slope;
           }
         }
-        if (crossing_ok[q]) {
-          strength += best_slope;
-          ++crossings;
+        if (crossing_ok[side][q]) {
+          strength[side] += best_slope;
+          const double tc = crossing_t[side][q];
+          const Point p = border.curve.at(tc);
+          const Point d = border.curve.derivative(tc);
+          const double dl = std::hypot(d.x, d.y);
+          const double sign = side == 1U ? 1.0 : -1.0;
+          if (dl > 0.0) {
+            arc[arc_count] = Point{p.x + insets[q] * sign * (d.y / dl), p.y - insets[q] * sign * (d.x / dl)};
+            ++arc_count;
+          }
         }
       }
-      if (crossings == 0) {
-        continue;
+    }
+    // The boundary's visible arc is half of an ellipse (a projected circle)
+    // tangent to both borders at the corners: see fit_boundary_arc().
+    std::array<Point, 2> corner_px{};
+    std::array<bool, 2> corner_ok{{false, false}};
+    std::array<bool, 2> corner_fitted{{false, false}};
+    std::array<int, 2> first_q{{-1, -1}};
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      for (std::size_t q = 0U; q < kProfileInsets; ++q) {
+        if (crossing_ok[side][q]) {
+          first_q[side] = static_cast<int>(q);
+          break;
+        }
       }
-      // Extrapolate the crossing to inset 0: near the border the boundary
-      // curve is tangent to it, t(d) = t0 + a sqrt(d) + c d^1.5.
-      double t0 = 0.0;
-      if (crossings >= 3) {
-        double m[3][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
-        double rhs[3][2] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
-        for (std::size_t q = 0U; q < kInsets; ++q) {
-          if (!crossing_ok[q]) {
+    }
+    if (e.borders[0].valid && e.borders[1].valid && first_q[0] >= 0 && first_q[1] >= 0 && arc_count >= 5U) {
+      std::array<double, 2> t_corner{{crossing_t[0][static_cast<std::size_t>(first_q[0])],
+                                      crossing_t[1][static_cast<std::size_t>(first_q[1])]}};
+      // Local borders: the edge points around the boundary, fitted again (one
+      // quadratic over the whole tube is too coarse at a corner's scale).
+      std::array<Border, 2>& local = local_borders_;
+      bool local_ok = true;
+      for (std::size_t side = 0U; side < 2U; ++side) {
+        const Border& global = e.borders[side];
+        local[side] = Border{};
+        const Point approx = global.curve.at(t_corner[side]);
+        const double window = config_.local_border_window * 2.0 * half_width;
+        // At an end boundary only the marker's side: beyond it the shaft or
+        // the grasper has another radius.
+        const Point dir = global.curve.derivative(t_corner[side]);
+        const double dir_len = std::hypot(dir.x, dir.y);
+        const double end_sign = !internal ? (j == in.first_marker ? 1.0 : -1.0) : 0.0;
+        for (const EdgePoint& ep : global.points) {
+          const double along = dir_len > 0.0 ? ((ep.pixel.x - approx.x) * dir.x + (ep.pixel.y - approx.y) * dir.y) / dir_len : 0.0;
+          if (end_sign * along < -config_.end_margin_px) {
             continue;
           }
-          const double d = config_.profile_insets_px[q];
-          const double basis[3] = {1.0, std::sqrt(d), d * std::sqrt(d)};
-          for (int r = 0; r < 3; ++r) {
-            for (int k = 0; k < 3; ++k) {
-              m[r][k] += basis[r] * basis[k];
+          if (std::hypot(ep.pixel.x - approx.x, ep.pixel.y - approx.y) <= window) {
+            static_cast<void>(local[side].points.push_back(ep));  // same capacity as the global border
+          }
+        }
+        if (local[side].points.size() < 6U ||
+            !fit_bezier(local[side], config_.tukey_c, config_.irls_iterations, config_.irls_scale_iterations)) {
+          local[side] = global;
+        } else {
+          double best = 1e30;
+          double start = 0.5;
+          for (int i = -4; i <= 24; ++i) {
+            const Point q = local[side].curve.at(i / 20.0);
+            const double d = std::hypot(q.x - approx.x, q.y - approx.y);
+            if (d < best) {
+              best = d;
+              start = i / 20.0;
             }
-            rhs[r][0] += basis[r] * crossing_t[q];
+          }
+          t_corner[side] = nearest_t(local[side].curve, approx, start);
+        }
+        local_ok = local_ok && local[side].valid;
+      }
+      if (local_ok && fit_boundary_arc(local, arc.data(), arc_count, t_corner)) {
+        for (std::size_t side = 0U; side < 2U; ++side) {
+          const Point p = local[side].curve.at(t_corner[side]);
+          const Point near = e.borders[side].curve.at(crossing_t[side][static_cast<std::size_t>(first_q[side])]);
+          if (std::hypot(p.x - near.x, p.y - near.y) < 3.0 * half_width + 3.0) {
+            corner_px[side] = p;
+            corner_ok[side] = true;
+            corner_fitted[side] = true;
           }
         }
-        double x[3][2] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
-        if (!solve3(m, rhs, x)) {
-          continue;
+      }
+    }
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      const Border& border = e.borders[side];
+      const int fq = first_q[side];
+      if (!border.valid || fq < 0) {
+        continue;
+      }
+      if (!corner_ok[side]) {
+        // One border only: the innermost crossing, extrapolated with the
+        // tangency law t(d) ~ t0 + a sqrt(d) when a second one exists.
+        const double t_near = crossing_t[side][static_cast<std::size_t>(fq)];
+        corner_px[side] = border.curve.at(t_near);
+        if (fq + 1 < static_cast<int>(kProfileInsets) && crossing_ok[side][static_cast<std::size_t>(fq) + 1U]) {
+          const double d0 = std::sqrt(insets[static_cast<std::size_t>(fq)]);
+          const double d1 = std::sqrt(insets[static_cast<std::size_t>(fq) + 1U]);
+          const double t1 = crossing_t[side][static_cast<std::size_t>(fq) + 1U];
+          corner_px[side] = border.curve.at(t_near - (t1 - t_near) * d0 / (d1 - d0));
         }
-        t0 = x[0][0];
-      } else {
-        for (std::size_t q = 0U; q < kInsets; ++q) {
-          if (crossing_ok[q]) {
-            t0 = crossing_t[q];
-            break;
-          }
-        }
+        corner_ok[side] = true;
+      }
+      const double conf = (strength[side] / static_cast<double>(kProfileInsets)) / 2.0 * (corner_fitted[side] ? 1.0 : 0.5);
+      const double confidence = conf > 1.0 ? 1.0 : (conf < 0.0 ? 0.0 : conf);
+      if (confidence < config_.min_corner_confidence) {
+        continue;  // weak or unfitted: more often misplaced than not
       }
       const int k = 2 * j + static_cast<int>(side);
       Corner& c = e.corners[static_cast<std::size_t>(k)];
       c.found = true;
-      c.pixel = border.curve.at(t0);
-      const double conf = (strength / static_cast<double>(kInsets)) / 8.0;
-      c.confidence = conf > 1.0 ? 1.0 : (conf < 0.0 ? 0.0 : conf);
+      c.pixel = corner_px[side];
+      c.confidence = confidence;
       ++e.corner_count;
     }
   }

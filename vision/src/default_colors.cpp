@@ -8,8 +8,8 @@ namespace vision {
 ColorModel default_color_model() noexcept {
   ColorModel m;
   m.min_lightness = 8.0;
-  m.blue = ColorGaussian{21.766150, -49.065541, 20.292616, -29.867263, 52.827461, 3.3200};
-  m.yellow = ColorGaussian{-1.282914, 54.793367, 6.843494, -1.354576, 55.745274, 3.4200};
+  m.blue = ColorGaussian{4.320735, -44.864997, 23.093389, -16.173945, 34.959442, 6.0};
+  m.yellow = ColorGaussian{-11.72294, 58.703289, 9.804949, -27.692832, 149.177529, 4.76};
   return m;
 }
 

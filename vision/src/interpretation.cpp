@@ -124,7 +124,7 @@ Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noex
         // Children: adjacent, right colour, unused, turn below the limit.
         StaticVector<std::size_t, kMaxChildren> children;
         for (std::size_t c = 0U; c < n && !children.full(); ++c) {
-          if ((used >> c) & 1ULL) {
+          if (((used >> c) & 1ULL) != 0ULL) {
             continue;
           }
           const Region& cand = regions[c];
@@ -207,7 +207,7 @@ double FeatureExtractor::patch_luminance(double x, double y) const noexcept {
   }
   double sum = 0.0;
   for (int dy = -2; dy <= 2; ++dy) {
-    const std::uint8_t* p = image_.row(cy + dy) + 3 * (cx - 2);
+    const std::uint8_t* p = image_.row(cy + dy) + static_cast<std::ptrdiff_t>(3) * (cx - 2);
     for (int dx = 0; dx < 5; ++dx) {
       sum += 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
       p += 3;
@@ -221,9 +221,9 @@ double FeatureExtractor::orientation_log(const Interpretation& hyp) const noexce
     return 0.0;
   }
   const Region& first = hyp.markers[static_cast<std::size_t>(hyp.first_marker)].region;
-  const Region& second = hyp.markers[static_cast<std::size_t>(hyp.first_marker + 1)].region;
+  const Region& second = hyp.markers[static_cast<std::size_t>(hyp.first_marker) + 1U].region;
   const Region& last = hyp.markers[static_cast<std::size_t>(hyp.last_marker)].region;
-  const Region& before_last = hyp.markers[static_cast<std::size_t>(hyp.last_marker - 1)].region;
+  const Region& before_last = hyp.markers[static_cast<std::size_t>(hyp.last_marker) - 1U].region;
   // Points well beyond each end of the chain, along the chain.
   const auto beyond = [this](const Region& end, const Region& inner) noexcept {
     const double dx = end.centroid.x - inner.centroid.x;
@@ -266,7 +266,7 @@ MarkerPriors predict(const solver::CameraModel& camera, const solver::Instrument
   for (int m = 0; m < kNumMarkers; ++m) {
     MarkerPrior& mp = p.marker[static_cast<std::size_t>(m)];
     const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
-    const double s1 = g.boundaries_mm[static_cast<std::size_t>(m + 1)];
+    const double s1 = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
     const solver::CentrelineFrame c0 = model.centreline(frames, s0);
     const solver::CentrelineFrame c1 = model.centreline(frames, s1);
     const solver::CentrelineFrame cm = model.centreline(frames, 0.5 * (s0 + s1));

@@ -10,7 +10,7 @@ void draw_pixel(const MutableImageView& image, int x, int y, std::uint8_t r, std
   if (x < 0 || y < 0 || x >= image.width || y >= image.height) {
     return;
   }
-  std::uint8_t* p = image.row(y) + 3 * x;
+  std::uint8_t* p = image.row(y) + static_cast<std::ptrdiff_t>(3) * x;
   p[0] = r;
   p[1] = g;
   p[2] = b;

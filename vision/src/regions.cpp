@@ -16,21 +16,73 @@ std::size_t idx(std::int32_t i) noexcept { return static_cast<std::size_t>(i); }
 }  // namespace
 
 bool ClassifierLut::build(const ColorModel& model) noexcept {
+  model_ = model;
   table_.reset(new (std::nothrow) std::uint8_t[kEntries]);
-  if (table_ == nullptr) {
+  constexpr int kLevels = 1 << kBitsPerChannel;
+  constexpr int kCell = 1 << kShift;
+  // Class at both ends of every cell, per channel: values q*kCell and
+  // q*kCell + kCell - 1 (start-up scratch, 2 MiB).
+  constexpr int kEnds = 2 * kLevels;
+  std::unique_ptr<std::uint8_t[]> ends(new (std::nothrow) std::uint8_t[static_cast<std::size_t>(kEnds * kEnds * kEnds)]);
+  if (table_ == nullptr || ends == nullptr) {
+    table_.reset();
     return false;
   }
-  constexpr int kLevels = 1 << kBitsPerChannel;
-  constexpr int kHalfCell = (1 << kShift) / 2;
+  const auto value = [](int e) noexcept { return static_cast<std::uint8_t>((e / 2) * kCell + (e % 2) * (kCell - 1)); };
+  const auto at = [](int r, int g, int b) noexcept {
+    return (static_cast<std::size_t>(r) * kEnds + static_cast<std::size_t>(g)) * kEnds + static_cast<std::size_t>(b);
+  };
+  for (int r = 0; r < kEnds; ++r) {
+    for (int g = 0; g < kEnds; ++g) {
+      for (int b = 0; b < kEnds; ++b) {
+        ends[at(r, g, b)] = static_cast<std::uint8_t>(model.classify(value(r), value(g), value(b)));
+      }
+    }
+  }
+  block_count_ = 0U;
   for (int r = 0; r < kLevels; ++r) {
     for (int g = 0; g < kLevels; ++g) {
       for (int b = 0; b < kLevels; ++b) {
-        const auto red = static_cast<std::uint8_t>((r << kShift) + kHalfCell);
-        const auto green = static_cast<std::uint8_t>((g << kShift) + kHalfCell);
-        const auto blue = static_cast<std::uint8_t>((b << kShift) + kHalfCell);
-        table_[index(red, green, blue)] = static_cast<std::uint8_t>(model.classify(red, green, blue));
+        const std::uint8_t first = ends[at(2 * r, 2 * g, 2 * b)];
+        std::uint8_t cls = first;
+        for (int corner = 1; corner < 8; ++corner) {
+          if (ends[at(2 * r + (corner & 1), 2 * g + ((corner >> 1) & 1), 2 * b + ((corner >> 2) & 1))] != first) {
+            cls = kAmbiguous;
+            break;
+          }
+        }
+        if (cls == kAmbiguous) {
+          ++block_count_;
+        }
+        table_[(static_cast<std::size_t>(r) << (2 * kBitsPerChannel)) | (static_cast<std::size_t>(g) << kBitsPerChannel) |
+               static_cast<std::size_t>(b)] = cls;
       }
     }
+  }
+  // Second level: the exact class of every colour of the ambiguous cells.
+  block_of_cell_.reset(new (std::nothrow) std::uint32_t[kEntries]);
+  blocks_.reset(new (std::nothrow) std::uint8_t[static_cast<std::size_t>(block_count_) * kBlockSize + 1U]);
+  if (block_of_cell_ == nullptr || blocks_ == nullptr) {
+    table_.reset();
+    return false;
+  }
+  std::uint32_t next = 0U;
+  for (std::uint32_t cell = 0U; cell < kEntries; ++cell) {
+    block_of_cell_[cell] = 0U;
+    if (table_[cell] != kAmbiguous) {
+      continue;
+    }
+    block_of_cell_[cell] = next;
+    const std::uint32_t r0 = (cell >> (2 * kBitsPerChannel)) << kShift;
+    const std::uint32_t g0 = ((cell >> kBitsPerChannel) & (kLevels - 1U)) << kShift;
+    const std::uint32_t b0 = (cell & (kLevels - 1U)) << kShift;
+    for (std::uint32_t o = 0U; o < kBlockSize; ++o) {
+      const auto red = static_cast<std::uint8_t>(r0 + (o >> (2 * kShift)));
+      const auto green = static_cast<std::uint8_t>(g0 + ((o >> kShift) & ((1U << kShift) - 1U)));
+      const auto blue = static_cast<std::uint8_t>(b0 + (o & ((1U << kShift) - 1U)));
+      blocks_[static_cast<std::size_t>(next) * kBlockSize + o] = static_cast<std::uint8_t>(model.classify(red, green, blue));
+    }
+    ++next;
   }
   return true;
 }
@@ -102,7 +154,7 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   if (config.max_width <= 0 || config.max_height <= 0 || config.max_width > 8192 || config.max_height > 8192 ||
       config.skeleton_samples < 8 || config.skeleton_samples > static_cast<int>(kMaxSkeletonSamples) ||
       config.irls_iterations < 1 || config.irls_iterations > 50 || config.profile_samples < 16 ||
-      config.profile_samples > 1024 || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0)) {
+      config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0)) {
     return R::failure(VisionError::BadParameter);
   }
   std::unique_ptr<FeatureExtractor> e(new (std::nothrow) FeatureExtractor());
@@ -158,33 +210,38 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
   for (int y = 0; y < height_; ++y) {
     const std::uint8_t* px = image.row(y);
     std::uint8_t* cls_row = classes_.get() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width_);
-    for (int x = 0; x < width_; ++x) {
-      cls_row[x] = table[ClassifierLut::index(px[0], px[1], px[2])];
-      px += 3;
-    }
     const std::int32_t row_begin = run_count;
-    int x = 0;
-    while (x < width_) {
-      const std::uint8_t c = cls_row[x];
-      if (c == 0U) {
-        ++x;
+    // Classify and cut the row into runs of one class in the same pass.
+    std::uint8_t previous = 0U;
+    int run_start = 0;
+    for (int x = 0; x <= width_; ++x) {
+      std::uint8_t c = 0U;
+      if (x < width_) {
+        c = table[ClassifierLut::index(px[0], px[1], px[2])];
+        if (c == ClassifierLut::kAmbiguous) {
+          c = lut_.fine(ClassifierLut::index(px[0], px[1], px[2]), px[0], px[1], px[2]);
+        }
+        cls_row[x] = c;
+        px += 3;
+      }
+      if (c == previous) {
         continue;
       }
-      const int x0 = x;
-      while (x < width_ && cls_row[x] == c) {
-        ++x;
+      if (previous != 0U) {
+        if (run_count >= max_runs_) {
+          out.too_many_regions = true;
+          return Status<VisionError>::failure(VisionError::TooManyRuns);
+        }
+        Run& r = runs_[idx(run_count)];
+        r.parent = run_count;
+        r.y = static_cast<std::int16_t>(y);
+        r.x0 = static_cast<std::int16_t>(run_start);
+        r.x1 = static_cast<std::int16_t>(x);
+        r.cls = previous;
+        ++run_count;
       }
-      if (run_count >= max_runs_) {
-        out.too_many_regions = true;
-        return Status<VisionError>::failure(VisionError::TooManyRuns);
-      }
-      Run& r = runs_[idx(run_count)];
-      r.parent = run_count;
-      r.y = static_cast<std::int16_t>(y);
-      r.x0 = static_cast<std::int16_t>(x0);
-      r.x1 = static_cast<std::int16_t>(x);
-      r.cls = c;
-      ++run_count;
+      run_start = x;
+      previous = c;
     }
     // 8-connectivity with the previous row: runs overlap when
     // [x0 - 1, x1] and [p.x0, p.x1) intersect.
@@ -216,27 +273,35 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
   out.run_count = run_count;
 
   // Moments per component, accumulated per run in closed form.
-  struct Sums {
-    double n, sx, sy, sxx, sxy, syy;
-  };
+  // Areas per component first (indexed by root), so that only components of
+  // at least the minimum area take one of the kMaxCandidates slots.
+  for (std::int32_t i = 0; i < run_count; ++i) {
+    region_of_root_[idx(i)] = 0;
+  }
+  for (std::int32_t i = 0; i < run_count; ++i) {
+    region_of_root_[idx(find_root(i))] += runs_[idx(i)].x1 - runs_[idx(i)].x0;
+  }
   std::size_t candidate_count = 0U;
   bool overflow = false;
   for (std::int32_t i = 0; i < run_count; ++i) {
     const std::int32_t root = find_root(i);
     std::int32_t slot = -1;
     if (root == i) {
-      if (candidate_count < kMaxCandidates) {
-        slot = static_cast<std::int32_t>(candidate_count);
-        Region& reg = candidates_[candidate_count];
-        reg = Region{};
-        reg.cls = static_cast<PixelClass>(runs_[idx(i)].cls);
-        reg.x_min = runs_[idx(i)].x0;
-        reg.x_max = runs_[idx(i)].x1 - 1;
-        reg.y_min = runs_[idx(i)].y;
-        reg.y_max = runs_[idx(i)].y;
-        ++candidate_count;
-      } else {
-        overflow = true;
+      const std::int32_t area = region_of_root_[idx(i)];
+      if (area >= config_.min_region_area) {
+        if (candidate_count < kMaxCandidates) {
+          slot = static_cast<std::int32_t>(candidate_count);
+          Region& reg = candidates_[candidate_count];
+          reg = Region{};
+          reg.cls = static_cast<PixelClass>(runs_[idx(i)].cls);
+          reg.x_min = runs_[idx(i)].x0;
+          reg.x_max = runs_[idx(i)].x1 - 1;
+          reg.y_min = runs_[idx(i)].y;
+          reg.y_max = runs_[idx(i)].y;
+          ++candidate_count;
+        } else {
+          overflow = true;
+        }
       }
       region_of_root_[idx(i)] = slot;
     } else {

@@ -49,11 +49,12 @@ struct ColorModel {
   double min_lightness = 8.0;
 
   PixelClass classify(std::uint8_t red, std::uint8_t green, std::uint8_t blue) const noexcept;
-  // The signed chroma score used along the borders (stage 4): Mahalanobis
-  // distance to blue minus distance to yellow (> 0 on yellow, < 0 on blue),
+  // The signed chroma score used along the borders (stage 4): the a*b*
+  // position along the line from the blue mean (-1) to the yellow mean (+1),
   // clamped to +/- 10.
   double yellow_minus_blue(std::uint8_t red, std::uint8_t green, std::uint8_t blue) const noexcept;
-  // Blue membership: blue threshold minus distance to blue (> 0 inside), clamped.
+  // Blue against neutral (shaft, grasper): the a*b* projected on the blue
+  // mean's direction, as a fraction of the mean, minus 1/2 (> 0 on blue).
   double blue_margin(std::uint8_t red, std::uint8_t green, std::uint8_t blue) const noexcept;
   bool valid() const noexcept;
 };

@@ -116,6 +116,8 @@ struct Bezier {
 };
 
 constexpr std::size_t kMaxSkeletonSamples = 64U;
+constexpr std::size_t kProfileInsets = 8U;
+constexpr std::size_t kMaxProfileSamples = 512U;
 
 struct EdgePoint {
   Point pixel{};
@@ -159,17 +161,33 @@ struct ExtractorConfig {
   double adjacency_slack_px = 3.0;
   double level_reward = 9.0;                // log-likelihood credit of one more labelled level
   int skeleton_samples = 40;
+  // The skeleton runs past the end markers' centroids by this many of their
+  // half extents (a stripe's end lies at ~0.87): just past the end boundaries.
+  double skeleton_extension = 1.3;
   double edge_search_min = 0.35;            // edge search window along the normal, in local half widths
   double edge_search_max = 1.9;
+  // Outward correction of the gradient maximum: the tube's shading falls off
+  // towards the silhouette, which pulls the maximum inwards (measured on
+  // rendered frames, docs/vision.md).
+  double edge_offset_px = 0.3;
   double tukey_c = 1.5;
   int irls_iterations = 10;
   int irls_scale_iterations = 4;            // the MAD scale is re-estimated during the first ones only
   int profile_samples = 160;                // chroma profile samples along each border
-  // The profile is read along curves parallel to the border, this far inside;
-  // the colour boundary meets the border tangentially, so its position is
-  // extrapolated to inset 0 (see find_corners).
-  std::array<double, 5> profile_insets_px{{1.0, 1.75, 2.5, 3.25, 4.0}};
-  double orientation_weight = 6.0;          // log-likelihood of the dark-shaft / bright-grasper cue
+  // The profiles are read along curves parallel to the border, from this far
+  // inside to profile_max_inset times the tube's half width (see find_corners).
+  double profile_min_inset_px = 1.5;
+  double profile_max_inset = 1.1;
+  // Stage 4 refits each border locally, on the edge points within this many
+  // tube widths of the corner.
+  double local_border_window = 1.5;
+  // At an end boundary the local fit keeps the edge points on the marker's
+  // side, and at most this far beyond.
+  double end_margin_px = 2.0;
+  // Corners of lower confidence are not reported (docs/vision.md: below ~0.35
+  // most are misplaced).
+  double min_corner_confidence = 0.35;
+  double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
 };
 
 class FeatureExtractor {
@@ -227,7 +245,12 @@ class FeatureExtractor {
   int width_ = 0;
   int height_ = 0;
   Extraction result_{};
+  std::array<Border, 2> local_borders_{};  // stage 4's borders around one boundary
   ImageView image_{};  // the frame of find_regions(), for the orientation cue
+  // Stage 4's chroma profiles [side][inset][sample].
+  std::array<std::array<std::array<double, kMaxProfileSamples>, kProfileInsets>, 2> profile_score_{};
+  std::array<std::array<std::array<double, kMaxProfileSamples>, kProfileInsets>, 2> profile_margin_{};
+  std::array<std::array<std::array<bool, kMaxProfileSamples>, kProfileInsets>, 2> profile_valid_{};
 };
 
 // Stage-2 priors. `generic`: the documented prior of the very first frame
