@@ -69,7 +69,7 @@ SequenceGenerator::SequenceGenerator(const solver::InstrumentGeometry& geometry,
   for (std::size_t j = 0; j < 3; ++j) {
     for (std::size_t w = 0; w < static_cast<std::size_t>(kWaves); ++w) {
       joints_[j][w].amplitude = half_range[j] * weight[w];
-      joints_[j][w].frequency_hz = rng.uniform(0.03, 0.12) * (1.0 + static_cast<double>(w));
+      joints_[j][w].frequency_hz = rng.uniform(0.02, 0.06) * (1.0 + static_cast<double>(w));
       joints_[j][w].phase = rng.uniform(0.0, 2.0 * kPi);
     }
   }

@@ -37,6 +37,12 @@ constexpr double kShaftPieceMm = 4.0;    // shaft split so that each piece has a
 // corner's 3D point (the ray to a limb point grazes the tube there).
 constexpr double kVisibilityToleranceMm = 0.3;
 constexpr double kPlaneEps = 1.0e-7;     // mm: overlap of neighbouring chords (no cracks)
+// Irradiance follows 1/d^2 beyond this distance and stays at its value
+// nearer: the light guides sit beside the lens and have a finite size, so
+// the parts next to the camera (the shaft at the channel exit) are not lit
+// a hundred times more than the scene.
+constexpr double kLightNearMm = 15.0;
+double falloff(double dist2) noexcept { return 1.0 / std::max(dist2, kLightNearMm * kLightNearMm); }
 
 // Instrument parts (label = kLabelInstrument + 8 * instrument + part).
 enum Part : std::uint8_t { kPartShaft = 0, kPartStripe0 = 1, kPartGrasper = 6 };
@@ -451,7 +457,7 @@ void Renderer::Impl::bake_textures() noexcept {
       const double v1 = std::exp(-(n1 * n1) / (2.0 * 0.018 * 0.018));
       const double v2 = 0.7 * std::exp(-(n2 * n2) / (2.0 * 0.012 * 0.012));
       tex[kTexVessel].at(x, y) = static_cast<float>(std::max(v1, v2));
-      tex[kTexWet].at(x, y) = static_cast<float>(smoothstep(0.0, 0.35, fractal(kBakeSeed + 6U, u, v, 128, 3)));
+      tex[kTexWet].at(x, y) = static_cast<float>(smoothstep(0.1, 0.4, fractal(kBakeSeed + 6U, u, v, 128, 3)));
       // Fine wet relief (its height goes into scratch texture kTexDetailDu for now).
       tex[kTexDetailDu].at(x, y) = static_cast<float>(fractal(kBakeSeed + 7U, u, v, 8, 2));
     }
@@ -491,15 +497,15 @@ void Renderer::Impl::bake_textures() noexcept {
     const double shoulder = 1.0 - std::exp(-1.6 * x);
     tone[i] = static_cast<float>(255.0 * std::pow(shoulder, 1.0 / 2.2));
   }
-  materials.albedo[kPartShaft] = Rgb{0.025, 0.026, 0.03};
+  materials.albedo[kPartShaft] = Rgb{0.008, 0.008, 0.009};
   materials.specular[kPartShaft] = 0.35;
   materials.albedo[kPartGrasper] = Rgb{0.42, 0.42, 0.44};
   materials.specular[kPartGrasper] = 1.6;
   const auto& g = model.geometry();
   for (int m = 0; m < kNumMarkers; ++m) {
     const bool blue = g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue;
-    materials.albedo[kPartStripe0 + m] = blue ? Rgb{0.02, 0.10, 0.42} : Rgb{0.62, 0.50, 0.04};
-    materials.specular[kPartStripe0 + m] = 1.4;
+    materials.albedo[kPartStripe0 + m] = blue ? Rgb{0.012, 0.06, 0.36} : Rgb{0.62, 0.50, 0.04};
+    materials.specular[kPartStripe0 + m] = 1.2;
   }
 }
 
@@ -693,8 +699,12 @@ Rgb Renderer::Impl::shade_instrument(const Hit& hit) const noexcept {
     const double along = dot3(hit.point - p.p0, p.axis) / std::max(1e-9, (p.p1 - p.p0).norm());
     albedo = albedo * (1.0 - 0.2 * clamp01(along));
   }
-  const double spec = ks * pow32(cosine);
-  const double light = layout.light / dist2;
+  // Glossy sleeve: a broad lobe plus a sharp one; along the tube's crest
+  // (normal towards the camera and the light) it saturates to white.
+  const double c2 = cosine * cosine;
+  const double c8 = c2 * c2 * c2 * c2;
+  const double spec = ks * (0.35 * c8 + pow32(cosine));
+  const double light = layout.light * falloff(dist2);
   return Rgb{light * (albedo.r * cosine + spec), light * (albedo.g * cosine + spec), light * (albedo.b * cosine + spec)};
 }
 
@@ -718,9 +728,9 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
 
   // Albedo: reddish mucosa, colour variation, fat patches, vessels.
   const double cv = tex[kTexColour].sample(u * 1.7, v * 1.7);
-  Rgb albedo{0.60 * (1.0 + 0.22 * cv), 0.19 * (1.0 + 0.35 * cv), 0.15 * (1.0 + 0.3 * cv)};
+  Rgb albedo{0.64 * (1.0 + 0.2 * cv), 0.17 * (1.0 + 0.35 * cv), 0.12 * (1.0 + 0.3 * cv)};
   albedo = mix(albedo, Rgb{0.70, 0.42, 0.24}, 0.55 * tex[kTexFat].sample(u * 0.8 + 97.0, v * 0.8 + 13.0));
-  const double vessel = tex[kTexVessel].sample(u, v);
+  const double vessel = tex[kTexVessel].sample(u, v) * smoothstep(-0.25, 0.35, tex[kTexColour].sample(u * 0.45 + 71.0, v * 0.45 + 5.0));
   albedo = mix(albedo, Rgb{0.30, 0.025, 0.04}, 0.75 * vessel);
   label = kLabelTissue;
   if (s.decoy) {
@@ -743,24 +753,27 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
     // Wet spots: fine relief and a sharp lobe, only where the tissue is wet.
     const double wet = tex[kTexWet].sample(u * 0.9 + 31.0, v * 0.9 + 57.0);
     if (wet > 0.0) {
-      const double du = tex[kTexDetailDu].sample(u * 2.0, v * 2.0);
-      const double dv = tex[kTexDetailDv].sample(u * 2.0, v * 2.0);
-      const Vec3 wet_normal = Vec3(gx + 0.9 * du, gy + 0.9 * dv, -1.0).normalized();
+      // Glints where the wet film's relief faces the light (light and camera coincide).
+      const double du = tex[kTexDetailDu].sample(u * 0.4, v * 0.4);
+      const double dv = tex[kTexDetailDv].sample(u * 0.4, v * 0.4);
+      const Vec3 wet_normal = Vec3(gx + 1.1 * du, gy + 1.1 * dv, -1.0).normalized();
       const double cw = std::max(0.0, dot3(wet_normal, view));
       const double c32 = pow32(cw);
-      spec = 2.5 * wet * c32 * c32;
+      spec = 3.0 * wet * c32 * c32;
     }
     spec += 0.06 * pow32(cosine);  // broad sheen of the mucosa
   }
   c = c + Rgb{spec, spec, spec};
-  const double light = s.light / dist2;
+  const double light = s.light * falloff(dist2);
   c = c * light;
   if (s.reflection && s.reflection_strength > 0.0) {
     // Mirror image on the wet film: reflect the view ray about the smooth normal.
     const Vec3 d = -view;
-    const Vec3 reflected = d - 2.0 * dot3(d, normal) * normal;
-    const double wet = tex[kTexWet].sample(u * 0.5 + 11.0, v * 0.5 + 7.0);
-    if (wet > 0.05) {
+    // The film smooths the relief: reflect about a gentler normal.
+    const Vec3 film = Vec3(0.5 * (gx + s.depth_mm * s.tilt_x / plane), 0.5 * (gy + s.depth_mm * s.tilt_y / plane), -1.0).normalized();
+    const Vec3 reflected = d - 2.0 * dot3(d, film) * film;
+    const double wet = 0.4 + 0.6 * tex[kTexWet].sample(u * 0.5 + 11.0, v * 0.5 + 7.0);
+    {
       for (int k = 0; k < 2; ++k) {
         if (inst_count[k] == 0 || misses_sphere(point, reflected, inst_centre[k], inst_radius[k])) {
           continue;
@@ -779,16 +792,21 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
           }
         }
         if (found) {
-          // Light from the camera reaches the instrument, bounces to the tissue.
+          // Lit from the camera, seen along the reflected ray; the wet film
+          // reflects a fraction (Fresnel-like) of it over the tissue.
           const Primitive& p = prims[hit.prim];
           const double d2 = hit.point.squaredNorm();
           const Vec3 to_light = -hit.point / std::sqrt(d2);
-          const double lit = std::max(0.0, dot3(hit.normal, to_light)) + 0.3 * pow32(std::max(0.0, dot3(hit.normal, -reflected)));
+          const Vec3 half = (to_light - reflected).normalized();
+          // The side facing the tissue is lit by the tissue's own scattered light.
+          const double diffuse = std::max(0.0, dot3(hit.normal, to_light)) + 0.6;
+          const double glint = pow32(std::max(0.0, dot3(hit.normal, half)));
           const Rgb a = materials.albedo[p.part];
-          const double gain = s.light / d2 * lit;
-          const Rgb mirrored{a.r * gain + 0.02 * gain, a.g * gain + 0.02 * gain, a.b * gain + 0.02 * gain};
-          const double w = s.reflection_strength * smoothstep(0.05, 0.4, wet);
-          c = mix(c, mirrored, w);
+          const double gain = s.light * falloff(d2);
+          const double sheen = materials.specular[p.part] * glint;
+          const Rgb mirrored{gain * (a.r * diffuse + sheen), gain * (a.g * diffuse + sheen), gain * (a.b * diffuse + sheen)};
+          const double w = s.reflection_strength * wet;
+          c = c * (1.0 - w) + mirrored * w;
           label = kLabelReflection;
         }
       }
@@ -810,18 +828,20 @@ Rgb Renderer::Impl::shade_occluder(double x, double y) const noexcept {
   Rgb albedo;
   double ks = 0.0;
   if (s.occ_blood) {
-    albedo = Rgb{0.28, 0.012, 0.02};
-    ks = 1.2;
+    albedo = Rgb{0.05, 0.003, 0.005};
+    ks = 0.5;
   } else {
     const double u = x * s.occ_depth / kTexelMm * 1.3 + 200.0;
     const double v = y * s.occ_depth / kTexelMm * 1.3 + 100.0;
     const double cv = tex[kTexColour].sample(u, v);
-    albedo = Rgb{0.62 * (1.0 + 0.2 * cv), 0.2 * (1.0 + 0.3 * cv), 0.16};
+    albedo = Rgb{0.32 * (1.0 + 0.2 * cv), 0.08 * (1.0 + 0.3 * cv), 0.07};
     albedo = mix(albedo, Rgb{0.30, 0.025, 0.04}, 0.7 * tex[kTexVessel].sample(u, v));
     ks = 0.4;
   }
+  // Darker towards the rim (the flap curls away from the light).
+  const double rim = 1.0 - 0.6 * r2 * r2;
   const double spec = ks * pow32(cosine);
-  const double light = s.light / dist2;
+  const double light = s.light * falloff(dist2) * rim;
   return Rgb{light * (albedo.r * cosine + spec), light * (albedo.g * cosine + spec), light * (albedo.b * cosine + spec)};
 }
 
@@ -879,6 +899,10 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   s.depth_mm = (scene.tissue_depth_mm > 0.0) ? scene.tissue_depth_mm : rng.uniform(40.0, 90.0);
   if (scene.tissue_depth_mm <= 0.0) {
     s.depth_mm = std::min(90.0, std::max(s.depth_mm, far_z + 12.0));
+    if ((scene.hard_cases & kHardReflection) != 0U) {
+      // A mirror image needs the wet surface close behind the instrument.
+      s.depth_mm = std::min(90.0, std::max(40.0, far_z + 8.0));
+    }
   }
   s.tilt_x = rng.uniform(-0.25, 0.25);
   s.tilt_y = rng.uniform(-0.25, 0.25);
@@ -905,7 +929,7 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   const bool anchor_ok = anchor.z() > 5.0;
   if ((hard & kHardReflection) != 0U) {
     s.reflection = true;
-    s.reflection_strength = hard_rng.uniform(0.35, 0.6);
+    s.reflection_strength = hard_rng.uniform(0.45, 0.7);
   }
   if ((hard & kHardOccluder) != 0U && anchor_ok) {
     s.occluder = true;
@@ -913,7 +937,7 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
     const double offset = hard_rng.uniform(-1.5, 1.5) / anchor.z();
     s.occ_x = anchor.x() / anchor.z() + offset;
     s.occ_y = anchor.y() / anchor.z() + hard_rng.uniform(-1.5, 1.5) / anchor.z();
-    s.occ_radius = hard_rng.uniform(2.0, 3.5) / s.occ_depth * (s.occ_depth / anchor.z()) * 1.2;
+    s.occ_radius = hard_rng.uniform(2.5, 5.0) / anchor.z();  // 2.5-5 mm at the instrument's depth
     s.occ_p1 = hard_rng.uniform(0.0, 6.28);
     s.occ_p2 = hard_rng.uniform(0.0, 6.28);
     s.occ_blood = hard_rng.uniform() < 0.5;
@@ -939,8 +963,8 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   }
   if ((hard & kHardHaze) != 0U) {
     s.haze = true;
-    s.haze_density = hard_rng.uniform(0.008, 0.02);
-    const double level = hard_rng.uniform(0.45, 0.75);
+    s.haze_density = hard_rng.uniform(0.004, 0.009);
+    const double level = hard_rng.uniform(0.25, 0.45);
     s.haze_radiance = Rgb{level, level * 0.93, level * 0.9};
   }
   if ((hard & kHardNoise) != 0U && !scene.clean) {

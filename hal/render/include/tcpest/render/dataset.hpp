@@ -51,8 +51,8 @@ struct SequenceSample {
   double time_s = 0.0;
 };
 
-// Smooth, plausible motion: each joint a sum of three slow sinusoids (0.03
-// to 0.3 Hz, random phases) inside the working range (lambda 12..38 mm, phi
+// Smooth, plausible motion: each joint a sum of three slow sinusoids (0.02
+// to 0.18 Hz, random phases; peak speeds ~50 deg/s, ~8 mm/s) inside the working range (lambda 12..38 mm, phi
 // +/- 80 deg, theta +/- 90 deg), the play a slow drift (< 0.03 Hz) of the
 // lab's size around r_m*. Random access: sample(frame) needs no history.
 class SequenceGenerator {
