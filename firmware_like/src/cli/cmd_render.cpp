@@ -358,6 +358,8 @@ int cmd_render(int argc, char** argv) {
     static_cast<void>(std::snprintf(sidecar.image, sizeof sidecar.image, "%04d.%s", index, raw ? "ppm" : "jpg"));
     static_cast<void>(std::snprintf(sidecar.set, sizeof sidecar.set, "%s", set_name));  // names are short
     sidecar.index = index;
+    sidecar.has_dataset_seed = true;
+    sidecar.dataset_seed = seed;
     sidecar.has_prior = sidecar_extra.has_prior;
     sidecar.prior = sidecar_extra.prior;
     sidecar.has_time = sidecar_extra.has_time;

@@ -457,7 +457,7 @@ void Renderer::Impl::bake_textures() noexcept {
       const double v1 = std::exp(-(n1 * n1) / (2.0 * 0.018 * 0.018));
       const double v2 = 0.7 * std::exp(-(n2 * n2) / (2.0 * 0.012 * 0.012));
       tex[kTexVessel].at(x, y) = static_cast<float>(std::max(v1, v2));
-      tex[kTexWet].at(x, y) = static_cast<float>(smoothstep(0.1, 0.4, fractal(kBakeSeed + 6U, u, v, 128, 3)));
+      tex[kTexWet].at(x, y) = static_cast<float>(smoothstep(0.15, 0.45, fractal(kBakeSeed + 6U, u, v, 128, 3)));
       // Fine wet relief (its height goes into scratch texture kTexDetailDu for now).
       tex[kTexDetailDu].at(x, y) = static_cast<float>(fractal(kBakeSeed + 7U, u, v, 8, 2));
     }
@@ -673,12 +673,12 @@ bool Renderer::Impl::in_occluder(double x, double y) const noexcept {
   const double dx = x - s.occ_x;
   const double dy = y - s.occ_y;
   const double r2 = dx * dx + dy * dy;
-  const double outer = 1.35 * s.occ_radius;
+  const double outer = 1.25 * s.occ_radius;
   if (r2 > outer * outer) {
     return false;
   }
   const double a = std::atan2(dy, dx);
-  const double rim = s.occ_radius * (1.0 + 0.22 * std::sin(3.0 * a + s.occ_p1) + 0.1 * std::sin(5.0 * a + s.occ_p2));
+  const double rim = s.occ_radius * (1.0 + 0.14 * std::sin(2.0 * a + s.occ_p1) + 0.07 * std::sin(3.0 * a + s.occ_p2));
   return r2 < rim * rim;
 }
 
@@ -828,15 +828,15 @@ Rgb Renderer::Impl::shade_occluder(double x, double y) const noexcept {
   Rgb albedo;
   double ks = 0.0;
   if (s.occ_blood) {
-    albedo = Rgb{0.05, 0.003, 0.005};
-    ks = 0.5;
+    albedo = Rgb{0.022, 0.0025, 0.003};
+    ks = 0.6;
   } else {
     const double u = x * s.occ_depth / kTexelMm * 1.3 + 200.0;
     const double v = y * s.occ_depth / kTexelMm * 1.3 + 100.0;
     const double cv = tex[kTexColour].sample(u, v);
-    albedo = Rgb{0.32 * (1.0 + 0.2 * cv), 0.08 * (1.0 + 0.3 * cv), 0.07};
-    albedo = mix(albedo, Rgb{0.30, 0.025, 0.04}, 0.7 * tex[kTexVessel].sample(u, v));
-    ks = 0.4;
+    albedo = Rgb{0.16 * (1.0 + 0.25 * cv), 0.035 * (1.0 + 0.4 * cv), 0.03};
+    albedo = mix(albedo, Rgb{0.08, 0.008, 0.012}, 0.8 * tex[kTexVessel].sample(u, v));
+    ks = 0.3;
   }
   // Darker towards the rim (the flap curls away from the light).
   const double rim = 1.0 - 0.6 * r2 * r2;
@@ -849,7 +849,9 @@ Rgb Renderer::Impl::apply_haze(const Rgb& c, double depth, double x, double y) c
   const SceneLayout& s = layout;
   const double u = x * 60.0 / kTexelMm + 301.0;
   const double v = y * 60.0 / kTexelMm + 17.0;
-  const double density = s.haze_density * (0.55 + 0.9 * (0.5 + 0.5 * tex[kTexHeight].sample(u * 0.7, v * 0.7)));
+  // Patchy: smoke drifts in wisps.
+  const double wisps = smoothstep(-0.4, 0.5, tex[kTexHeight].sample(u * 0.7, v * 0.7));
+  const double density = s.haze_density * (0.2 + 1.6 * wisps);
   const double f = 1.0 - std::exp(-density * depth);
   return mix(c, s.haze_radiance, f);
 }
@@ -963,8 +965,8 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   }
   if ((hard & kHardHaze) != 0U) {
     s.haze = true;
-    s.haze_density = hard_rng.uniform(0.004, 0.009);
-    const double level = hard_rng.uniform(0.25, 0.45);
+    s.haze_density = hard_rng.uniform(0.0025, 0.006);
+    const double level = hard_rng.uniform(0.3, 0.5);
     s.haze_radiance = Rgb{level, level * 0.93, level * 0.9};
   }
   if ((hard & kHardNoise) != 0U && !scene.clean) {

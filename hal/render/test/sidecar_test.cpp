@@ -28,6 +28,8 @@ Sidecar rendered_sidecar(bool two) {
   std::snprintf(s.image, sizeof s.image, "0007.jpg");
   std::snprintf(s.set, sizeof s.set, "hard");
   s.index = 7;
+  s.has_dataset_seed = true;
+  s.dataset_seed = 99U;
   s.has_prior = true;
   s.prior = {23.1, 0.25, 1.2};
   s.jpeg_quality = 90;
@@ -64,6 +66,8 @@ TEST(Sidecar, RoundTripKeepsEveryField) {
     EXPECT_EQ(p.width, 720);
     EXPECT_EQ(p.height, 576);
     EXPECT_EQ(p.seed, s.seed);
+    EXPECT_TRUE(p.has_dataset_seed);
+    EXPECT_EQ(p.dataset_seed, 99U);
     EXPECT_EQ(p.hard_cases, s.hard_cases);
     EXPECT_TRUE(p.has_prior);
     EXPECT_DOUBLE_EQ(p.prior[0], 23.1);
