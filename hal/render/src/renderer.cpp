@@ -223,14 +223,26 @@ struct Texture {
     const int iv1 = (iv + 1) & kTexMask;
     const float* row0 = &data[static_cast<std::size_t>(iv) * kTexSize];
     const float* row1 = &data[static_cast<std::size_t>(iv1) * kTexSize];
-    const double a00 = row0[iu];
-    const double a01 = row0[iu1];
-    const double a10 = row1[iu];
-    const double a11 = row1[iu1];
+    const auto a00 = static_cast<double>(row0[iu]);
+    const auto a01 = static_cast<double>(row0[iu1]);
+    const auto a10 = static_cast<double>(row1[iu]);
+    const auto a11 = static_cast<double>(row1[iu1]);
     const double a = a00 + (a01 - a00) * tu;
     const double b = a10 + (a11 - a10) * tu;
     return a + (b - a) * tv;
   }
+};
+
+// All tissue channels of one texel side by side: one bilinear fetch of four
+// texels gives every channel the shading needs (cache-friendly).
+struct TissueTexel {
+  float height, height_du, height_dv;  // bumps [-1, 1] and their slope per texel
+  float colour, fat, vessel, wet;      // albedo variation, fat patches, vessels, wet film
+  float wet_du, wet_dv;                // slope of the wet film's fine relief per texel
+  float pad;
+};
+struct TissueSample {
+  double height, height_du, height_dv, colour, fat, vessel, wet, wet_du, wet_dv;
 };
 
 enum TextureId : int {
@@ -295,7 +307,8 @@ struct Renderer::Impl {
   std::unique_ptr<double[]> tile_rect;      // xmin, xmax, ymin, ymax per tile
   std::unique_ptr<std::uint16_t[]> tile_prims;
   std::unique_ptr<std::uint16_t[]> tile_count;
-  Texture tex[kNumTextures];
+  Texture tex[kNumTextures];                // bake scratch, released after creation
+  std::unique_ptr<TissueTexel[]> tissue;   // kTexSize^2 interleaved texels
   std::unique_ptr<float[]> linear;   // 3 * pixels, linear radiance
   std::unique_ptr<float[]> scratch;  // 3 * pixels, blur pass
   std::unique_ptr<std::uint8_t[]> labels;
@@ -321,15 +334,16 @@ struct Renderer::Impl {
   void make_layout(const SceneSpec& scene, const GroundTruth& truth) noexcept;
   bool nearest_instrument_hit(const Vec3& origin, const Vec3& d, double tmax, Hit& hit,
                               const std::uint16_t* candidates, int candidate_count) const noexcept;
+  TissueSample sample_tissue(double u, double v) const noexcept;
   double tissue_depth(double x, double y) const noexcept;
   bool in_occluder(double x, double y) const noexcept;
   Rgb shade_instrument(const Hit& hit) const noexcept;
-  Rgb shade_tissue(double x, double y, std::uint8_t& label) const noexcept;
+  Rgb shade_tissue(double x, double y, double plane, const TissueSample& t, std::uint8_t& label) const noexcept;
   Rgb shade_occluder(double x, double y) const noexcept;
   Sample shade(double x, double y, const std::uint16_t* candidates, int candidate_count) const noexcept;
   Rgb apply_haze(const Rgb& c, double depth, double x, double y) const noexcept;
   void compute_truth(const SceneSpec& scene, GroundTruth& truth) noexcept;
-  void post_process(const SceneSpec& scene, MutableImageView out) noexcept;
+  void post_process(const SceneSpec& scene, const MutableImageView& out) noexcept;
 };
 
 const char* to_string(RenderError e) noexcept {
@@ -381,7 +395,8 @@ bool Renderer::Impl::allocate() noexcept {
   for (auto& t : tex) {
     ok = ok && t.allocate();
   }
-  return ok;
+  tissue.reset(new (std::nothrow) TissueTexel[static_cast<std::size_t>(kTexSize) * kTexSize]);
+  return ok && tissue;
 }
 
 void Renderer::Impl::build_rays() noexcept {
@@ -414,11 +429,11 @@ void Renderer::Impl::build_rays() noexcept {
       for (int v = v0; v <= v1; ++v) {
         for (int u = u0; u <= u1; ++u) {
           const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(width) + static_cast<std::size_t>(u);
-          const double x = ray_x[i];
+          const auto x = static_cast<double>(ray_x[i]);
           if (std::isnan(x)) {
             continue;
           }
-          const double y = ray_y[i];
+          const auto y = static_cast<double>(ray_y[i]);
           xmin = std::min(xmin, x);
           xmax = std::max(xmax, x);
           ymin = std::min(ymin, y);
@@ -448,7 +463,7 @@ void Renderer::Impl::bake_textures() noexcept {
       const double u = x;
       const double v = y;
       tex[kTexHeight].at(x, y) = static_cast<float>(fractal(kBakeSeed + 1U, u, v, 128, 4));
-      tex[kTexColour].at(x, y) = static_cast<float>(fractal(kBakeSeed + 2U, u, v, 64, 5));
+      tex[kTexColour].at(x, y) = static_cast<float>(fractal(kBakeSeed + 2U, u, v, 32, 5));
       tex[kTexFat].at(x, y) = static_cast<float>(smoothstep(0.25, 0.6, fractal(kBakeSeed + 3U, u, v, 128, 3)));
       // Vessels: thin ridges of two noise fields (the zero crossings), the
       // second finer; looks like a branching vessel network.
@@ -456,10 +471,12 @@ void Renderer::Impl::bake_textures() noexcept {
       const double n2 = fractal(kBakeSeed + 5U, u, v, 64, 3);
       const double v1 = std::exp(-(n1 * n1) / (2.0 * 0.018 * 0.018));
       const double v2 = 0.7 * std::exp(-(n2 * n2) / (2.0 * 0.012 * 0.012));
-      tex[kTexVessel].at(x, y) = static_cast<float>(std::max(v1, v2));
+      // Faded in places: segments and branches rather than closed loops.
+      const double fade = smoothstep(-0.25, 0.35, fractal(kBakeSeed + 8U, u, v, 128, 3));
+      tex[kTexVessel].at(x, y) = static_cast<float>(std::max(v1, v2) * fade);
       tex[kTexWet].at(x, y) = static_cast<float>(smoothstep(0.15, 0.45, fractal(kBakeSeed + 6U, u, v, 128, 3)));
       // Fine wet relief (its height goes into scratch texture kTexDetailDu for now).
-      tex[kTexDetailDu].at(x, y) = static_cast<float>(fractal(kBakeSeed + 7U, u, v, 8, 2));
+      tex[kTexDetailDu].at(x, y) = static_cast<float>(fractal(kBakeSeed + 7U, u, v, 16, 2));
     }
   }
   // Derivatives by central differences (wrapping): height, then detail.
@@ -484,6 +501,25 @@ void Renderer::Impl::bake_textures() noexcept {
     for (int x = 0; x < kTexSize; ++x) {
       tex[kTexDetailDu].at(x, y) = 0.5F * (row[(x + 1) & kTexMask] - row[(x - 1) & kTexMask]);
     }
+  }
+  // Interleave, then release the scratch.
+  for (int y = 0; y < kTexSize; ++y) {
+    for (int x = 0; x < kTexSize; ++x) {
+      TissueTexel& t = tissue[static_cast<std::size_t>(y) * kTexSize + static_cast<std::size_t>(x)];
+      t.height = tex[kTexHeight].at(x, y);
+      t.height_du = tex[kTexHeightDu].at(x, y);
+      t.height_dv = tex[kTexHeightDv].at(x, y);
+      t.colour = tex[kTexColour].at(x, y);
+      t.fat = tex[kTexFat].at(x, y);
+      t.vessel = tex[kTexVessel].at(x, y);
+      t.wet = tex[kTexWet].at(x, y);
+      t.wet_du = tex[kTexDetailDu].at(x, y);
+      t.wet_dv = tex[kTexDetailDv].at(x, y);
+      t.pad = 0.0F;
+    }
+  }
+  for (auto& t : tex) {
+    t.data.reset();
   }
   // Gaussian table for sensor noise (a fixed stream; the scene seed picks entries).
   Random rng(kBakeSeed, 99U);
@@ -590,7 +626,7 @@ void Renderer::Impl::build_instrument(const PoseVector& r, std::uint8_t index) n
   const int per_stripe = settings.segments_per_stripe;
   for (int m = 0; m < kNumMarkers; ++m) {
     const double sa = g.boundaries_mm[static_cast<std::size_t>(m)];
-    const double sb = g.boundaries_mm[static_cast<std::size_t>(m + 1)];
+    const double sb = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
     for (int i = 0; i < per_stripe; ++i) {
       const double s0 = sa + (sb - sa) * i / per_stripe;
       const double s1 = (i + 1 == per_stripe) ? sb : sa + (sb - sa) * (i + 1) / per_stripe;
@@ -655,6 +691,39 @@ bool Renderer::Impl::nearest_instrument_hit(const Vec3& origin, const Vec3& d, d
   return found;
 }
 
+TissueSample Renderer::Impl::sample_tissue(double u, double v) const noexcept {
+  const double fu = std::floor(u);
+  const double fv = std::floor(v);
+  const double tu = u - fu;
+  const double tv = v - fv;
+  const auto iu = static_cast<std::size_t>(static_cast<long>(fu) & kTexMask);
+  const auto iv = static_cast<std::size_t>(static_cast<long>(fv) & kTexMask);
+  const std::size_t iu1 = (iu + 1U) & static_cast<std::size_t>(kTexMask);
+  const std::size_t iv1 = (iv + 1U) & static_cast<std::size_t>(kTexMask);
+  const TissueTexel& a = tissue[iv * kTexSize + iu];
+  const TissueTexel& b = tissue[iv * kTexSize + iu1];
+  const TissueTexel& c = tissue[iv1 * kTexSize + iu];
+  const TissueTexel& d = tissue[iv1 * kTexSize + iu1];
+  const auto wa = static_cast<float>((1.0 - tu) * (1.0 - tv));
+  const auto wb = static_cast<float>(tu * (1.0 - tv));
+  const auto wc = static_cast<float>((1.0 - tu) * tv);
+  const auto wd = static_cast<float>(tu * tv);
+  auto mixf = [wa, wb, wc, wd](float pa, float pb, float pc, float pd) {
+    return static_cast<double>(wa * pa + wb * pb + wc * pc + wd * pd);
+  };
+  TissueSample t{};
+  t.height = mixf(a.height, b.height, c.height, d.height);
+  t.height_du = mixf(a.height_du, b.height_du, c.height_du, d.height_du);
+  t.height_dv = mixf(a.height_dv, b.height_dv, c.height_dv, d.height_dv);
+  t.colour = mixf(a.colour, b.colour, c.colour, d.colour);
+  t.fat = mixf(a.fat, b.fat, c.fat, d.fat);
+  t.vessel = mixf(a.vessel, b.vessel, c.vessel, d.vessel);
+  t.wet = mixf(a.wet, b.wet, c.wet, d.wet);
+  t.wet_du = mixf(a.wet_du, b.wet_du, c.wet_du, d.wet_du);
+  t.wet_dv = mixf(a.wet_dv, b.wet_dv, c.wet_dv, d.wet_dv);
+  return t;
+}
+
 double Renderer::Impl::tissue_depth(double x, double y) const noexcept {
   const SceneLayout& s = layout;
   const double plane = s.depth_mm * (1.0 + s.tilt_x * x + s.tilt_y * y);
@@ -662,7 +731,7 @@ double Renderer::Impl::tissue_depth(double x, double y) const noexcept {
   const double sy = y * plane;
   const double u = (s.tex_cos * sx - s.tex_sin * sy) / kTexelMm + s.tex_u0;
   const double v = (s.tex_sin * sx + s.tex_cos * sy) / kTexelMm + s.tex_v0;
-  return plane + s.bump_mm * tex[kTexHeight].sample(u, v);
+  return plane + s.bump_mm * sample_tissue(u, v).height;
 }
 
 bool Renderer::Impl::in_occluder(double x, double y) const noexcept {
@@ -708,18 +777,16 @@ Rgb Renderer::Impl::shade_instrument(const Hit& hit) const noexcept {
   return Rgb{light * (albedo.r * cosine + spec), light * (albedo.g * cosine + spec), light * (albedo.b * cosine + spec)};
 }
 
-Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const noexcept {
+Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueSample& t,
+                                 std::uint8_t& label) const noexcept {
   const SceneLayout& s = layout;
-  const double plane = s.depth_mm * (1.0 + s.tilt_x * x + s.tilt_y * y);
   const double sx = x * plane;
   const double sy = y * plane;
-  const double u = (s.tex_cos * sx - s.tex_sin * sy) / kTexelMm + s.tex_u0;
-  const double v = (s.tex_sin * sx + s.tex_cos * sy) / kTexelMm + s.tex_v0;
-  const double z = plane + s.bump_mm * tex[kTexHeight].sample(u, v);
+  const double z = plane + s.bump_mm * t.height;
   const Vec3 point(x * z, y * z, z);
   // Height gradient on the surface (mm/mm): texture derivative rotated back.
-  const double hu = s.bump_mm * tex[kTexHeightDu].sample(u, v) / kTexelMm;
-  const double hv = s.bump_mm * tex[kTexHeightDv].sample(u, v) / kTexelMm;
+  const double hu = s.bump_mm * t.height_du / kTexelMm;
+  const double hv = s.bump_mm * t.height_dv / kTexelMm;
   const double gx = s.depth_mm * s.tilt_x / plane + s.tex_cos * hu + s.tex_sin * hv;
   const double gy = s.depth_mm * s.tilt_y / plane - s.tex_sin * hu + s.tex_cos * hv;
   Vec3 normal = Vec3(gx, gy, -1.0).normalized();
@@ -727,10 +794,10 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
   const Vec3 view = -point / std::sqrt(dist2);
 
   // Albedo: reddish mucosa, colour variation, fat patches, vessels.
-  const double cv = tex[kTexColour].sample(u * 1.7, v * 1.7);
+  const double cv = t.colour;
   Rgb albedo{0.64 * (1.0 + 0.2 * cv), 0.17 * (1.0 + 0.35 * cv), 0.12 * (1.0 + 0.3 * cv)};
-  albedo = mix(albedo, Rgb{0.70, 0.42, 0.24}, 0.55 * tex[kTexFat].sample(u * 0.8 + 97.0, v * 0.8 + 13.0));
-  const double vessel = tex[kTexVessel].sample(u, v) * smoothstep(-0.25, 0.35, tex[kTexColour].sample(u * 0.45 + 71.0, v * 0.45 + 5.0));
+  albedo = mix(albedo, Rgb{0.70, 0.42, 0.24}, 0.55 * t.fat);
+  const double vessel = t.vessel;
   albedo = mix(albedo, Rgb{0.30, 0.025, 0.04}, 0.75 * vessel);
   label = kLabelTissue;
   if (s.decoy) {
@@ -751,12 +818,10 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
   double spec = 0.0;
   if (!s.clean) {
     // Wet spots: fine relief and a sharp lobe, only where the tissue is wet.
-    const double wet = tex[kTexWet].sample(u * 0.9 + 31.0, v * 0.9 + 57.0);
+    const double wet = t.wet;
     if (wet > 0.0) {
       // Glints where the wet film's relief faces the light (light and camera coincide).
-      const double du = tex[kTexDetailDu].sample(u * 0.4, v * 0.4);
-      const double dv = tex[kTexDetailDv].sample(u * 0.4, v * 0.4);
-      const Vec3 wet_normal = Vec3(gx + 1.1 * du, gy + 1.1 * dv, -1.0).normalized();
+      const Vec3 wet_normal = Vec3(gx + 2.2 * t.wet_du, gy + 2.2 * t.wet_dv, -1.0).normalized();
       const double cw = std::max(0.0, dot3(wet_normal, view));
       const double c32 = pow32(cw);
       spec = 3.0 * wet * c32 * c32;
@@ -772,7 +837,7 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
     // The film smooths the relief: reflect about a gentler normal.
     const Vec3 film = Vec3(0.5 * (gx + s.depth_mm * s.tilt_x / plane), 0.5 * (gy + s.depth_mm * s.tilt_y / plane), -1.0).normalized();
     const Vec3 reflected = d - 2.0 * dot3(d, film) * film;
-    const double wet = 0.4 + 0.6 * tex[kTexWet].sample(u * 0.5 + 11.0, v * 0.5 + 7.0);
+    const double wet = 0.4 + 0.6 * t.wet;
     {
       for (int k = 0; k < 2; ++k) {
         if (inst_count[k] == 0 || misses_sphere(point, reflected, inst_centre[k], inst_radius[k])) {
@@ -833,9 +898,10 @@ Rgb Renderer::Impl::shade_occluder(double x, double y) const noexcept {
   } else {
     const double u = x * s.occ_depth / kTexelMm * 1.3 + 200.0;
     const double v = y * s.occ_depth / kTexelMm * 1.3 + 100.0;
-    const double cv = tex[kTexColour].sample(u, v);
+    const TissueSample t = sample_tissue(u, v);
+    const double cv = t.colour;
     albedo = Rgb{0.16 * (1.0 + 0.25 * cv), 0.035 * (1.0 + 0.4 * cv), 0.03};
-    albedo = mix(albedo, Rgb{0.08, 0.008, 0.012}, 0.8 * tex[kTexVessel].sample(u, v));
+    albedo = mix(albedo, Rgb{0.08, 0.008, 0.012}, 0.8 * t.vessel);
     ks = 0.3;
   }
   // Darker towards the rim (the flap curls away from the light).
@@ -850,7 +916,7 @@ Rgb Renderer::Impl::apply_haze(const Rgb& c, double depth, double x, double y) c
   const double u = x * 60.0 / kTexelMm + 301.0;
   const double v = y * 60.0 / kTexelMm + 17.0;
   // Patchy: smoke drifts in wisps.
-  const double wisps = smoothstep(-0.4, 0.5, tex[kTexHeight].sample(u * 0.7, v * 0.7));
+  const double wisps = smoothstep(-0.4, 0.5, sample_tissue(u * 0.7, v * 0.7).height);
   const double density = s.haze_density * (0.2 + 1.6 * wisps);
   const double f = 1.0 - std::exp(-density * depth);
   return mix(c, s.haze_radiance, f);
@@ -859,7 +925,12 @@ Rgb Renderer::Impl::apply_haze(const Rgb& c, double depth, double x, double y) c
 Sample Renderer::Impl::shade(double x, double y, const std::uint16_t* candidates, int candidate_count) const noexcept {
   Sample out;
   const Vec3 d(x, y, 1.0);
-  const double tissue_z = tissue_depth(x, y);
+  const SceneLayout& s = layout;
+  const double plane = s.depth_mm * (1.0 + s.tilt_x * x + s.tilt_y * y);
+  const double u = (s.tex_cos * x - s.tex_sin * y) * plane / kTexelMm + s.tex_u0;
+  const double v = (s.tex_sin * x + s.tex_cos * y) * plane / kTexelMm + s.tex_v0;
+  const TissueSample t = sample_tissue(u, v);
+  const double tissue_z = plane + s.bump_mm * t.height;
   double occluder_z = std::numeric_limits<double>::infinity();
   if (in_occluder(x, y)) {
     occluder_z = layout.occ_depth;
@@ -878,7 +949,7 @@ Sample Renderer::Impl::shade(double x, double y, const std::uint16_t* candidates
     out.label = kLabelOccluder;
     depth = occluder_z;
   } else {
-    out.colour = shade_tissue(x, y, out.label);
+    out.colour = shade_tissue(x, y, plane, t, out.label);
     depth = tissue_z;
   }
   if (layout.haze) {
@@ -1050,7 +1121,7 @@ void Renderer::Impl::compute_truth(const SceneSpec& scene, GroundTruth& truth) n
   }
 }
 
-void Renderer::Impl::post_process(const SceneSpec& scene, MutableImageView out) noexcept {
+void Renderer::Impl::post_process(const SceneSpec& scene, const MutableImageView& out) noexcept {
   const SceneLayout& s = layout;
   const int w = width;
   const int h = height;
@@ -1058,24 +1129,43 @@ void Renderer::Impl::post_process(const SceneSpec& scene, MutableImageView out) 
   float* tmp = scratch.get();
   // Motion blur: a symmetric streak (the ground truth is mid-exposure).
   if (s.motion_blur) {
-    const int steps = std::max(2, static_cast<int>(std::ceil(std::hypot(s.blur_dx, s.blur_dy))));
+    constexpr int kMaxSteps = 32;
+    const int steps = std::min(kMaxSteps, std::max(2, static_cast<int>(std::ceil(std::hypot(s.blur_dx, s.blur_dy)))));
+    int off_x[kMaxSteps + 1];
+    int off_y[kMaxSteps + 1];
+    int reach_x = 0;
+    int reach_y = 0;
+    for (int i = 0; i <= steps; ++i) {
+      const double f = static_cast<double>(i) / steps - 0.5;
+      off_x[i] = static_cast<int>(std::lround(f * s.blur_dx));
+      off_y[i] = static_cast<int>(std::lround(f * s.blur_dy));
+      reach_x = std::max(reach_x, std::abs(off_x[i]));
+      reach_y = std::max(reach_y, std::abs(off_y[i]));
+    }
+    const float inv = 1.0F / static_cast<float>(steps + 1);
     for (int y = 0; y < h; ++y) {
+      const bool inner_row = y >= reach_y && y < h - reach_y;
       for (int x = 0; x < w; ++x) {
-        float acc[3] = {0.0F, 0.0F, 0.0F};
+        const bool inner = inner_row && x >= reach_x && x < w - reach_x;
+        float acc0 = 0.0F;
+        float acc1 = 0.0F;
+        float acc2 = 0.0F;
         for (int i = 0; i <= steps; ++i) {
-          const double f = static_cast<double>(i) / steps - 0.5;
-          const int sx = std::min(w - 1, std::max(0, static_cast<int>(std::lround(x + f * s.blur_dx))));
-          const int sy = std::min(h - 1, std::max(0, static_cast<int>(std::lround(y + f * s.blur_dy))));
+          int sx = x + off_x[i];
+          int sy = y + off_y[i];
+          if (!inner) {  // clamp at the borders only
+            sx = std::min(w - 1, std::max(0, sx));
+            sy = std::min(h - 1, std::max(0, sy));
+          }
           const float* p = &src[3U * (static_cast<std::size_t>(sy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(sx))];
-          acc[0] += p[0];
-          acc[1] += p[1];
-          acc[2] += p[2];
+          acc0 += p[0];
+          acc1 += p[1];
+          acc2 += p[2];
         }
         float* q = &tmp[3U * (static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x))];
-        const float inv = 1.0F / static_cast<float>(steps + 1);
-        q[0] = acc[0] * inv;
-        q[1] = acc[1] * inv;
-        q[2] = acc[2] * inv;
+        q[0] = acc0 * inv;
+        q[1] = acc1 * inv;
+        q[2] = acc2 * inv;
       }
     }
     std::swap(src, tmp);
@@ -1119,10 +1209,11 @@ void Renderer::Impl::post_process(const SceneSpec& scene, MutableImageView out) 
     const double dy = (y - k.cy);
     for (int x = 0; x < w; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x);
+      std::uint8_t* px = dst + 3U * static_cast<std::size_t>(x);
       if (labels[i] == kLabelNoRay) {
-        dst[3 * x] = 0U;
-        dst[3 * x + 1] = 0U;
-        dst[3 * x + 2] = 0U;
+        px[0] = 0U;
+        px[1] = 0U;
+        px[2] = 0U;
         continue;
       }
       const double dx = (x - k.cx);
@@ -1134,15 +1225,15 @@ void Renderer::Impl::post_process(const SceneSpec& scene, MutableImageView out) 
         const double pos = std::min(static_cast<double>(kToneLutSize), lin * lut_scale);
         const auto idx = static_cast<int>(pos);
         const double frac = pos - idx;
-        const double lo = tone[idx];
-        const double hi = tone[std::min(idx + 1, kToneLutSize)];
+        const auto lo = static_cast<double>(tone[idx]);
+        const auto hi = static_cast<double>(tone[std::min(idx + 1, kToneLutSize)]);
         double level = lo + (hi - lo) * frac;
         if (s.noise_sigma > 0.0) {
           const auto g = static_cast<std::size_t>((bits >> (16U * static_cast<unsigned>(c))) & (kGaussTableSize - 1U));
           level += s.noise_sigma * (0.6 + 0.4 * level / 128.0) * static_cast<double>(gauss[g]);
         }
         const double q = std::floor(level + 0.5);
-        dst[3 * x + c] = static_cast<std::uint8_t>(q < 0.0 ? 0.0 : (q > 255.0 ? 255.0 : q));
+        px[c] = static_cast<std::uint8_t>(q < 0.0 ? 0.0 : (q > 255.0 ? 255.0 : q));
       }
     }
   }
@@ -1255,7 +1346,7 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
       for (int y = ty * kTileSize; y < y1; ++y) {
         for (int x = tx * kTileSize; x < x1; ++x) {
           const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x);
-          const double rx = m.ray_x[i];
+          const auto rx = static_cast<double>(m.ray_x[i]);
           float* px = &m.linear[3U * i];
           if (std::isnan(rx)) {
             m.labels[i] = kLabelNoRay;
@@ -1265,7 +1356,7 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
             }
             continue;
           }
-          const Sample sample = m.shade(rx, m.ray_y[i], list, count);
+          const Sample sample = m.shade(rx, static_cast<double>(m.ray_y[i]), list, count);
           m.labels[i] = sample.label;
           px[0] = static_cast<float>(sample.colour.r);
           px[1] = static_cast<float>(sample.colour.g);
@@ -1310,8 +1401,8 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
       // Ray derivatives per pixel (central where possible).
       auto ray_at = [&m, w](int xx, int yy, double& rx, double& ry) {
         const std::size_t j = static_cast<std::size_t>(yy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(xx);
-        rx = m.ray_x[j];
-        ry = m.ray_y[j];
+        rx = static_cast<double>(m.ray_x[j]);
+        ry = static_cast<double>(m.ray_y[j]);
         return !std::isnan(rx);
       };
       double cx = 0.0;

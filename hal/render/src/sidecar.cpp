@@ -22,6 +22,7 @@ class Writer {
       out_[0] = '\0';
     }
   }
+  // NOLINTNEXTLINE(cert-dcl50-cpp): printf-style formatting into a fixed buffer is the project's allocation-free formatter; the format attribute lets the compiler check every call
   void add(const char* format, ...) noexcept __attribute__((format(printf, 2, 3))) {
     if (overflow_) {
       return;
