@@ -1336,6 +1336,7 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
   const int w = m.width;
   const int h = m.height;
   // Pass 1: one sample at every pixel centre.
+  long instrument_pixels[2] = {0, 0};
   for (int ty = 0; ty < m.tiles_y; ++ty) {
     for (int tx = 0; tx < m.tiles_x; ++tx) {
       const std::size_t tile = static_cast<std::size_t>(ty) * static_cast<std::size_t>(m.tiles_x) + static_cast<std::size_t>(tx);
@@ -1358,6 +1359,9 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
           }
           const Sample sample = m.shade(rx, static_cast<double>(m.ray_y[i]), list, count);
           m.labels[i] = sample.label;
+          if (sample.instrument) {
+            ++instrument_pixels[(sample.label - kLabelInstrument) / 8];
+          }
           px[0] = static_cast<float>(sample.colour.r);
           px[1] = static_cast<float>(sample.colour.g);
           px[2] = static_cast<float>(sample.colour.b);
@@ -1466,6 +1470,12 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
     }
   }
   // An instrument the geometry placed in view but no pixel shows is out of view.
+  for (int k = 0; k < truth.instrument_count; ++k) {
+    InstrumentTruth& it = truth.instruments[static_cast<std::size_t>(k)];
+    if (it.view == InstrumentView::Visible && instrument_pixels[k] == 0) {
+      it.view = InstrumentView::OutOfView;
+    }
+  }
   m.post_process(scene, out);
   return ok_status<RenderError>();
 }

@@ -69,7 +69,9 @@ struct SceneSpec {
   double tissue_depth_mm = 0.0;    // mean tissue depth; 0 = drawn in [40, 90] from the seed
 };
 
-// Why an instrument shows nothing.
+// Whether an instrument shows. BehindCamera: no part in front of the camera.
+// OutOfView: in front, but nothing of it projects into the image (render()
+// also says so when no pixel centre shows it, e.g. entirely hidden).
 enum class InstrumentView : std::uint8_t { Visible, BehindCamera, OutOfView };
 const char* to_string(InstrumentView v) noexcept;
 
@@ -119,7 +121,8 @@ class Renderer {
   Status<RenderError> render(const SceneSpec& scene, MutableImageView out, GroundTruth& truth,
                              float* coverage = nullptr) noexcept;
 
-  // The ground truth alone (no pixels): corners, visibility, view status.
+  // The ground truth alone (no pixels): corners, visibility, and the view
+  // status from the geometry (centreline samples within 20 px of the image).
   Status<RenderError> ground_truth(const SceneSpec& scene, GroundTruth& truth) noexcept;
 
   struct Impl;
