@@ -211,26 +211,6 @@ struct Texture {
     return data != nullptr;
   }
   float& at(int x, int y) noexcept { return data[static_cast<std::size_t>(y) * kTexSize + static_cast<std::size_t>(x)]; }
-  // Bilinear, wrapping.
-  double sample(double u, double v) const noexcept {
-    const double fu = std::floor(u);
-    const double fv = std::floor(v);
-    const double tu = u - fu;
-    const double tv = v - fv;
-    const int iu = static_cast<int>(static_cast<long>(fu) & kTexMask);
-    const int iv = static_cast<int>(static_cast<long>(fv) & kTexMask);
-    const int iu1 = (iu + 1) & kTexMask;
-    const int iv1 = (iv + 1) & kTexMask;
-    const float* row0 = &data[static_cast<std::size_t>(iv) * kTexSize];
-    const float* row1 = &data[static_cast<std::size_t>(iv1) * kTexSize];
-    const auto a00 = static_cast<double>(row0[iu]);
-    const auto a01 = static_cast<double>(row0[iu1]);
-    const auto a10 = static_cast<double>(row1[iu]);
-    const auto a11 = static_cast<double>(row1[iu1]);
-    const double a = a00 + (a01 - a00) * tu;
-    const double b = a10 + (a11 - a10) * tu;
-    return a + (b - a) * tv;
-  }
 };
 
 // All tissue channels of one texel side by side: one bilinear fetch of four
