@@ -320,6 +320,8 @@ int cmd_render(int argc, char** argv) {
       case SetKind::Seq: {
         const render::SequenceSample s = sequence.sample(static_cast<std::uint32_t>(index));
         scene.r = s.r;
+        scene.world_seed = sequence.world_seed();  // the same tissue in every frame
+        scene.tissue_depth_mm = sequence.tissue_depth_mm();
         sidecar_extra.has_prior = true;
         sidecar_extra.prior = s.prior.joints;
         sidecar_extra.has_time = true;

@@ -941,7 +941,8 @@ Sample Renderer::Impl::shade(double x, double y, const std::uint16_t* candidates
 void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& truth) noexcept {
   SceneLayout& s = layout;
   s = SceneLayout{};
-  Random rng(scene.seed, 1U);
+  const std::uint64_t world = (scene.world_seed != 0U) ? scene.world_seed : scene.seed;
+  Random rng(world, 1U);
   // The instrument's farthest visible part: the tissue stays behind it.
   double far_z = 0.0;
   for (int k = 0; k < truth.instrument_count; ++k) {
@@ -973,7 +974,7 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   s.vignetting = scene.clean ? 0.0 : scene.vignetting;
 
   const std::uint32_t hard = scene.hard_cases;
-  Random hard_rng(scene.seed, 2U);
+  Random hard_rng(world, 2U);
   // A point of the first instrument's bending section, for placing things.
   const auto& g = model.geometry();
   const solver::PoseFrames f = model.frames(scene.r);

@@ -278,6 +278,9 @@ std::size_t format_sidecar(const Sidecar& s, char* out, std::size_t capacity) no
   if (s.has_dataset_seed) {
     w.add("  \"dataset_seed\": %llu,\n", static_cast<unsigned long long>(s.dataset_seed));
   }
+  if (s.scene.world_seed != 0U) {
+    w.add("  \"world_seed\": %llu,\n", static_cast<unsigned long long>(s.scene.world_seed));
+  }
   add_instrument(w, s.instrument, "  ");
   w.add(",\n  \"prior\": ");
   if (s.has_prior) {
@@ -356,9 +359,9 @@ Result<Sidecar, Diagnostic> parse_sidecar(const char* text, std::size_t length, 
   if (s.width < 0 || s.height < 0) {
     return R::failure(rd.error("width", "image size must not be negative"));
   }
-  const char* seed_keys[] = {"seed", "dataset_seed"};
-  std::uint64_t* seed_values[] = {&s.seed, &s.dataset_seed};
-  for (std::size_t k = 0; k < 2U; ++k) {
+  const char* seed_keys[] = {"seed", "dataset_seed", "world_seed"};
+  std::uint64_t* seed_values[] = {&s.seed, &s.dataset_seed, &s.scene.world_seed};
+  for (std::size_t k = 0; k < 3U; ++k) {
     i = rd.find(root, seed_keys[k]);
     if (i == json::kNone) {
       continue;
@@ -379,6 +382,7 @@ Result<Sidecar, Diagnostic> parse_sidecar(const char* text, std::size_t length, 
     }
     *seed_values[k] = seed;
     s.has_dataset_seed = s.has_dataset_seed || k == 1U;
+    s.scene.seed = s.seed;
   }
   i = rd.find(root, "prior");
   if (i != json::kNone && !doc.is_null(i)) {

@@ -71,6 +71,25 @@ TEST_F(RendererTest, SameSeedGivesByteIdenticalImages) {
   EXPECT_EQ(a.pixels, c.pixels);
 }
 
+TEST_F(RendererTest, AFixedWorldSeedKeepsTheSceneOnlyTheNoiseChanges) {
+  test::Frame a(720, 576);
+  test::Frame b(720, 576);
+  SceneSpec scene;
+  scene.r = nominal(25.0, 10.0, 30.0);
+  scene.clean = true;  // no sensor noise: only the world could differ
+  scene.world_seed = 77U;
+  scene.tissue_depth_mm = 80.0;
+  scene.seed = 1U;
+  GroundTruth truth;
+  ASSERT_TRUE(renderer_->render(scene, a.view, truth).ok());
+  scene.seed = 2U;
+  ASSERT_TRUE(renderer_->render(scene, b.view, truth).ok());
+  EXPECT_EQ(a.pixels, b.pixels);
+  scene.world_seed = 78U;
+  ASSERT_TRUE(renderer_->render(scene, b.view, truth).ok());
+  EXPECT_NE(a.pixels, b.pixels);
+}
+
 TEST_F(RendererTest, EveryHardCaseRendersAndChangesTheImage) {
   test::Frame base(720, 576);
   test::Frame hard(720, 576);

@@ -19,6 +19,7 @@ Sidecar rendered_sidecar(bool two) {
   SceneSpec scene;
   scene.r = solver::InstrumentGeometry{}.nominal_pose(22.5, 0.3, 1.1);
   scene.seed = 0xFFFFFFFFFFFFFFF1ULL;  // beyond 2^53: must survive the round trip
+  scene.world_seed = 0xFFFFFFFFFFFFFF07ULL;
   scene.hard_cases = kHardHaze | kHardDecoy;
   scene.second_instrument = two;
   scene.r2 = renderer->mirrored_nominal_pose(20.0, -0.2, 0.9);
@@ -66,6 +67,7 @@ TEST(Sidecar, RoundTripKeepsEveryField) {
     EXPECT_EQ(p.width, 720);
     EXPECT_EQ(p.height, 576);
     EXPECT_EQ(p.seed, s.seed);
+    EXPECT_EQ(p.scene.world_seed, s.scene.world_seed);
     EXPECT_TRUE(p.has_dataset_seed);
     EXPECT_EQ(p.dataset_seed, 99U);
     EXPECT_EQ(p.hard_cases, s.hard_cases);

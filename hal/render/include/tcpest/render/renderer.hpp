@@ -58,7 +58,11 @@ struct SceneSpec {
   bool second_instrument = false;
   solver::PoseVector r2 = solver::PoseVector::Zero();  // instrument 2 (right channel)
   std::uint32_t hard_cases = 0U;                       // HardCase bits
-  std::uint64_t seed = 1U;
+  std::uint64_t seed = 1U;        // this frame: sensor noise (and the world when world_seed is 0)
+  // The world: tissue (texture placement, tilt, depth draw) and the hard
+  // cases' layout. A video keeps it fixed while `seed` changes per frame;
+  // 0 = derived from `seed` (every frame a different scene).
+  std::uint64_t world_seed = 0U;
   // Sensor and optics. `clean` turns off noise, blur, vignetting and the
   // tissue's specular spots: the renders the geometric tests measure.
   bool clean = false;

@@ -50,7 +50,7 @@ struct Sidecar {
   double time_s = 0.0;
   // Render settings (informative).
   bool has_render = false;
-  SceneSpec scene{};              // noise, blur, vignetting, exposure, clean (r fields unused)
+  SceneSpec scene{};              // noise, blur, vignetting, exposure, clean, world_seed (r fields unused)
   double tissue_depth_mm = 0.0;
   int jpeg_quality = 0;           // 0 = raw frame
   int supersample = 0;
