@@ -74,12 +74,12 @@ void BM_RenderPalAllHardCases(benchmark::State& state) {
 void BM_RenderHd(benchmark::State& state) { render_frames(state, hd_camera(), 0U, false); }
 
 void BM_JpegEncodePal(benchmark::State& state) {
-  std::vector<std::uint8_t> pixels(720U * 576U * 3U);
+  std::vector<std::uint8_t> pixels(std::size_t{720U} * 576U * 3U);
   for (std::size_t i = 0; i < pixels.size(); ++i) {
     pixels[i] = static_cast<std::uint8_t>((i * 2654435761U) >> 24U);
   }
   auto encoder = tcpest::render::JpegEncoder::create(720, 576);
-  const tcpest::ImageView view{pixels.data(), 720, 576, 720U * 3U};
+  const tcpest::ImageView view{pixels.data(), 720, 576, std::size_t{720U} * 3U};
   for (auto _ : state) {
     if (!encoder.value()->encode(view, 92).ok()) {
       state.SkipWithError("encode failed");
