@@ -320,6 +320,8 @@ int cmd_render(int argc, char** argv) {
       case SetKind::Seq: {
         const render::SequenceSample s = sequence.sample(static_cast<std::uint32_t>(index));
         scene.r = s.r;
+        scene.world_seed = sequence.world_seed();  // the same tissue in every frame
+        scene.tissue_depth_mm = sequence.tissue_depth_mm();
         sidecar_extra.has_prior = true;
         sidecar_extra.prior = s.prior.joints;
         sidecar_extra.has_time = true;
@@ -358,6 +360,8 @@ int cmd_render(int argc, char** argv) {
     static_cast<void>(std::snprintf(sidecar.image, sizeof sidecar.image, "%04d.%s", index, raw ? "ppm" : "jpg"));
     static_cast<void>(std::snprintf(sidecar.set, sizeof sidecar.set, "%s", set_name));  // names are short
     sidecar.index = index;
+    sidecar.has_dataset_seed = true;
+    sidecar.dataset_seed = seed;
     sidecar.has_prior = sidecar_extra.has_prior;
     sidecar.prior = sidecar_extra.prior;
     sidecar.has_time = sidecar_extra.has_time;

@@ -61,15 +61,19 @@ std::uint32_t hard_cases_for(int index, std::uint64_t seed) noexcept {
 
 SequenceGenerator::SequenceGenerator(const solver::InstrumentGeometry& geometry, std::uint64_t seed,
                                      double frame_rate_hz) noexcept
-    : geometry_(geometry), seed_(seed), frame_rate_hz_(frame_rate_hz > 0.0 ? frame_rate_hz : 25.0) {
+    : geometry_(geometry),
+      seed_(seed),
+      frame_rate_hz_(frame_rate_hz > 0.0 ? frame_rate_hz : 25.0),
+      world_seed_(splitmix64(seed ^ 0x3D0C1DULL) | 1U) {  // never 0 (0 means "derive from the frame seed")
   Random rng(seed, 0x5E9ULL);
+  tissue_depth_mm_ = rng.uniform(70.0, 90.0);
   // Amplitudes sum to the half range of each joint (the weights 0.5, 0.3, 0.2).
   const double half_range[3] = {13.0, deg_to_rad(80.0), deg_to_rad(90.0)};
   const double weight[kWaves] = {0.5, 0.3, 0.2};
   for (std::size_t j = 0; j < 3; ++j) {
     for (std::size_t w = 0; w < static_cast<std::size_t>(kWaves); ++w) {
       joints_[j][w].amplitude = half_range[j] * weight[w];
-      joints_[j][w].frequency_hz = rng.uniform(0.03, 0.12) * (1.0 + static_cast<double>(w));
+      joints_[j][w].frequency_hz = rng.uniform(0.02, 0.06) * (1.0 + static_cast<double>(w));
       joints_[j][w].phase = rng.uniform(0.0, 2.0 * kPi);
     }
   }

@@ -37,6 +37,12 @@ constexpr double kShaftPieceMm = 4.0;    // shaft split so that each piece has a
 // corner's 3D point (the ray to a limb point grazes the tube there).
 constexpr double kVisibilityToleranceMm = 0.3;
 constexpr double kPlaneEps = 1.0e-7;     // mm: overlap of neighbouring chords (no cracks)
+// Irradiance follows 1/d^2 beyond this distance and stays at its value
+// nearer: the light guides sit beside the lens and have a finite size, so
+// the parts next to the camera (the shaft at the channel exit) are not lit
+// a hundred times more than the scene.
+constexpr double kLightNearMm = 15.0;
+double falloff(double dist2) noexcept { return 1.0 / std::max(dist2, kLightNearMm * kLightNearMm); }
 
 // Instrument parts (label = kLabelInstrument + 8 * instrument + part).
 enum Part : std::uint8_t { kPartShaft = 0, kPartStripe0 = 1, kPartGrasper = 6 };
@@ -205,26 +211,18 @@ struct Texture {
     return data != nullptr;
   }
   float& at(int x, int y) noexcept { return data[static_cast<std::size_t>(y) * kTexSize + static_cast<std::size_t>(x)]; }
-  // Bilinear, wrapping.
-  double sample(double u, double v) const noexcept {
-    const double fu = std::floor(u);
-    const double fv = std::floor(v);
-    const double tu = u - fu;
-    const double tv = v - fv;
-    const int iu = static_cast<int>(static_cast<long>(fu) & kTexMask);
-    const int iv = static_cast<int>(static_cast<long>(fv) & kTexMask);
-    const int iu1 = (iu + 1) & kTexMask;
-    const int iv1 = (iv + 1) & kTexMask;
-    const float* row0 = &data[static_cast<std::size_t>(iv) * kTexSize];
-    const float* row1 = &data[static_cast<std::size_t>(iv1) * kTexSize];
-    const double a00 = row0[iu];
-    const double a01 = row0[iu1];
-    const double a10 = row1[iu];
-    const double a11 = row1[iu1];
-    const double a = a00 + (a01 - a00) * tu;
-    const double b = a10 + (a11 - a10) * tu;
-    return a + (b - a) * tv;
-  }
+};
+
+// All tissue channels of one texel side by side: one bilinear fetch of four
+// texels gives every channel the shading needs (cache-friendly).
+struct TissueTexel {
+  float height, height_du, height_dv;  // bumps [-1, 1] and their slope per texel
+  float colour, fat, vessel, wet;      // albedo variation, fat patches, vessels, wet film
+  float wet_du, wet_dv;                // slope of the wet film's fine relief per texel
+  float pad;
+};
+struct TissueSample {
+  double height, height_du, height_dv, colour, fat, vessel, wet, wet_du, wet_dv;
 };
 
 enum TextureId : int {
@@ -289,7 +287,8 @@ struct Renderer::Impl {
   std::unique_ptr<double[]> tile_rect;      // xmin, xmax, ymin, ymax per tile
   std::unique_ptr<std::uint16_t[]> tile_prims;
   std::unique_ptr<std::uint16_t[]> tile_count;
-  Texture tex[kNumTextures];
+  Texture tex[kNumTextures];                // bake scratch, released after creation
+  std::unique_ptr<TissueTexel[]> tissue;   // kTexSize^2 interleaved texels
   std::unique_ptr<float[]> linear;   // 3 * pixels, linear radiance
   std::unique_ptr<float[]> scratch;  // 3 * pixels, blur pass
   std::unique_ptr<std::uint8_t[]> labels;
@@ -315,15 +314,16 @@ struct Renderer::Impl {
   void make_layout(const SceneSpec& scene, const GroundTruth& truth) noexcept;
   bool nearest_instrument_hit(const Vec3& origin, const Vec3& d, double tmax, Hit& hit,
                               const std::uint16_t* candidates, int candidate_count) const noexcept;
+  TissueSample sample_tissue(double u, double v) const noexcept;
   double tissue_depth(double x, double y) const noexcept;
   bool in_occluder(double x, double y) const noexcept;
   Rgb shade_instrument(const Hit& hit) const noexcept;
-  Rgb shade_tissue(double x, double y, std::uint8_t& label) const noexcept;
+  Rgb shade_tissue(double x, double y, double plane, const TissueSample& t, std::uint8_t& label) const noexcept;
   Rgb shade_occluder(double x, double y) const noexcept;
   Sample shade(double x, double y, const std::uint16_t* candidates, int candidate_count) const noexcept;
   Rgb apply_haze(const Rgb& c, double depth, double x, double y) const noexcept;
   void compute_truth(const SceneSpec& scene, GroundTruth& truth) noexcept;
-  void post_process(const SceneSpec& scene, MutableImageView out) noexcept;
+  void post_process(const SceneSpec& scene, const MutableImageView& out) noexcept;
 };
 
 const char* to_string(RenderError e) noexcept {
@@ -375,7 +375,8 @@ bool Renderer::Impl::allocate() noexcept {
   for (auto& t : tex) {
     ok = ok && t.allocate();
   }
-  return ok;
+  tissue.reset(new (std::nothrow) TissueTexel[static_cast<std::size_t>(kTexSize) * kTexSize]);
+  return ok && tissue;
 }
 
 void Renderer::Impl::build_rays() noexcept {
@@ -408,11 +409,11 @@ void Renderer::Impl::build_rays() noexcept {
       for (int v = v0; v <= v1; ++v) {
         for (int u = u0; u <= u1; ++u) {
           const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(width) + static_cast<std::size_t>(u);
-          const double x = ray_x[i];
+          const auto x = static_cast<double>(ray_x[i]);
           if (std::isnan(x)) {
             continue;
           }
-          const double y = ray_y[i];
+          const auto y = static_cast<double>(ray_y[i]);
           xmin = std::min(xmin, x);
           xmax = std::max(xmax, x);
           ymin = std::min(ymin, y);
@@ -442,7 +443,7 @@ void Renderer::Impl::bake_textures() noexcept {
       const double u = x;
       const double v = y;
       tex[kTexHeight].at(x, y) = static_cast<float>(fractal(kBakeSeed + 1U, u, v, 128, 4));
-      tex[kTexColour].at(x, y) = static_cast<float>(fractal(kBakeSeed + 2U, u, v, 64, 5));
+      tex[kTexColour].at(x, y) = static_cast<float>(fractal(kBakeSeed + 2U, u, v, 32, 5));
       tex[kTexFat].at(x, y) = static_cast<float>(smoothstep(0.25, 0.6, fractal(kBakeSeed + 3U, u, v, 128, 3)));
       // Vessels: thin ridges of two noise fields (the zero crossings), the
       // second finer; looks like a branching vessel network.
@@ -450,10 +451,12 @@ void Renderer::Impl::bake_textures() noexcept {
       const double n2 = fractal(kBakeSeed + 5U, u, v, 64, 3);
       const double v1 = std::exp(-(n1 * n1) / (2.0 * 0.018 * 0.018));
       const double v2 = 0.7 * std::exp(-(n2 * n2) / (2.0 * 0.012 * 0.012));
-      tex[kTexVessel].at(x, y) = static_cast<float>(std::max(v1, v2));
-      tex[kTexWet].at(x, y) = static_cast<float>(smoothstep(0.0, 0.35, fractal(kBakeSeed + 6U, u, v, 128, 3)));
+      // Faded in places: segments and branches rather than closed loops.
+      const double fade = smoothstep(-0.25, 0.35, fractal(kBakeSeed + 8U, u, v, 128, 3));
+      tex[kTexVessel].at(x, y) = static_cast<float>(std::max(v1, v2) * fade);
+      tex[kTexWet].at(x, y) = static_cast<float>(smoothstep(0.15, 0.45, fractal(kBakeSeed + 6U, u, v, 128, 3)));
       // Fine wet relief (its height goes into scratch texture kTexDetailDu for now).
-      tex[kTexDetailDu].at(x, y) = static_cast<float>(fractal(kBakeSeed + 7U, u, v, 8, 2));
+      tex[kTexDetailDu].at(x, y) = static_cast<float>(fractal(kBakeSeed + 7U, u, v, 16, 2));
     }
   }
   // Derivatives by central differences (wrapping): height, then detail.
@@ -479,6 +482,25 @@ void Renderer::Impl::bake_textures() noexcept {
       tex[kTexDetailDu].at(x, y) = 0.5F * (row[(x + 1) & kTexMask] - row[(x - 1) & kTexMask]);
     }
   }
+  // Interleave, then release the scratch.
+  for (int y = 0; y < kTexSize; ++y) {
+    for (int x = 0; x < kTexSize; ++x) {
+      TissueTexel& t = tissue[static_cast<std::size_t>(y) * kTexSize + static_cast<std::size_t>(x)];
+      t.height = tex[kTexHeight].at(x, y);
+      t.height_du = tex[kTexHeightDu].at(x, y);
+      t.height_dv = tex[kTexHeightDv].at(x, y);
+      t.colour = tex[kTexColour].at(x, y);
+      t.fat = tex[kTexFat].at(x, y);
+      t.vessel = tex[kTexVessel].at(x, y);
+      t.wet = tex[kTexWet].at(x, y);
+      t.wet_du = tex[kTexDetailDu].at(x, y);
+      t.wet_dv = tex[kTexDetailDv].at(x, y);
+      t.pad = 0.0F;
+    }
+  }
+  for (auto& t : tex) {
+    t.data.reset();
+  }
   // Gaussian table for sensor noise (a fixed stream; the scene seed picks entries).
   Random rng(kBakeSeed, 99U);
   for (float& g : gauss) {
@@ -491,15 +513,15 @@ void Renderer::Impl::bake_textures() noexcept {
     const double shoulder = 1.0 - std::exp(-1.6 * x);
     tone[i] = static_cast<float>(255.0 * std::pow(shoulder, 1.0 / 2.2));
   }
-  materials.albedo[kPartShaft] = Rgb{0.025, 0.026, 0.03};
+  materials.albedo[kPartShaft] = Rgb{0.008, 0.008, 0.009};
   materials.specular[kPartShaft] = 0.35;
   materials.albedo[kPartGrasper] = Rgb{0.42, 0.42, 0.44};
   materials.specular[kPartGrasper] = 1.6;
   const auto& g = model.geometry();
   for (int m = 0; m < kNumMarkers; ++m) {
     const bool blue = g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue;
-    materials.albedo[kPartStripe0 + m] = blue ? Rgb{0.02, 0.10, 0.42} : Rgb{0.62, 0.50, 0.04};
-    materials.specular[kPartStripe0 + m] = 1.4;
+    materials.albedo[kPartStripe0 + m] = blue ? Rgb{0.012, 0.06, 0.36} : Rgb{0.62, 0.50, 0.04};
+    materials.specular[kPartStripe0 + m] = 1.2;
   }
 }
 
@@ -584,7 +606,7 @@ void Renderer::Impl::build_instrument(const PoseVector& r, std::uint8_t index) n
   const int per_stripe = settings.segments_per_stripe;
   for (int m = 0; m < kNumMarkers; ++m) {
     const double sa = g.boundaries_mm[static_cast<std::size_t>(m)];
-    const double sb = g.boundaries_mm[static_cast<std::size_t>(m + 1)];
+    const double sb = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
     for (int i = 0; i < per_stripe; ++i) {
       const double s0 = sa + (sb - sa) * i / per_stripe;
       const double s1 = (i + 1 == per_stripe) ? sb : sa + (sb - sa) * (i + 1) / per_stripe;
@@ -649,6 +671,39 @@ bool Renderer::Impl::nearest_instrument_hit(const Vec3& origin, const Vec3& d, d
   return found;
 }
 
+TissueSample Renderer::Impl::sample_tissue(double u, double v) const noexcept {
+  const double fu = std::floor(u);
+  const double fv = std::floor(v);
+  const double tu = u - fu;
+  const double tv = v - fv;
+  const auto iu = static_cast<std::size_t>(static_cast<long>(fu) & kTexMask);
+  const auto iv = static_cast<std::size_t>(static_cast<long>(fv) & kTexMask);
+  const std::size_t iu1 = (iu + 1U) & static_cast<std::size_t>(kTexMask);
+  const std::size_t iv1 = (iv + 1U) & static_cast<std::size_t>(kTexMask);
+  const TissueTexel& a = tissue[iv * kTexSize + iu];
+  const TissueTexel& b = tissue[iv * kTexSize + iu1];
+  const TissueTexel& c = tissue[iv1 * kTexSize + iu];
+  const TissueTexel& d = tissue[iv1 * kTexSize + iu1];
+  const auto wa = static_cast<float>((1.0 - tu) * (1.0 - tv));
+  const auto wb = static_cast<float>(tu * (1.0 - tv));
+  const auto wc = static_cast<float>((1.0 - tu) * tv);
+  const auto wd = static_cast<float>(tu * tv);
+  auto mixf = [wa, wb, wc, wd](float pa, float pb, float pc, float pd) {
+    return static_cast<double>(wa * pa + wb * pb + wc * pc + wd * pd);
+  };
+  TissueSample t{};
+  t.height = mixf(a.height, b.height, c.height, d.height);
+  t.height_du = mixf(a.height_du, b.height_du, c.height_du, d.height_du);
+  t.height_dv = mixf(a.height_dv, b.height_dv, c.height_dv, d.height_dv);
+  t.colour = mixf(a.colour, b.colour, c.colour, d.colour);
+  t.fat = mixf(a.fat, b.fat, c.fat, d.fat);
+  t.vessel = mixf(a.vessel, b.vessel, c.vessel, d.vessel);
+  t.wet = mixf(a.wet, b.wet, c.wet, d.wet);
+  t.wet_du = mixf(a.wet_du, b.wet_du, c.wet_du, d.wet_du);
+  t.wet_dv = mixf(a.wet_dv, b.wet_dv, c.wet_dv, d.wet_dv);
+  return t;
+}
+
 double Renderer::Impl::tissue_depth(double x, double y) const noexcept {
   const SceneLayout& s = layout;
   const double plane = s.depth_mm * (1.0 + s.tilt_x * x + s.tilt_y * y);
@@ -656,7 +711,7 @@ double Renderer::Impl::tissue_depth(double x, double y) const noexcept {
   const double sy = y * plane;
   const double u = (s.tex_cos * sx - s.tex_sin * sy) / kTexelMm + s.tex_u0;
   const double v = (s.tex_sin * sx + s.tex_cos * sy) / kTexelMm + s.tex_v0;
-  return plane + s.bump_mm * tex[kTexHeight].sample(u, v);
+  return plane + s.bump_mm * sample_tissue(u, v).height;
 }
 
 bool Renderer::Impl::in_occluder(double x, double y) const noexcept {
@@ -667,12 +722,12 @@ bool Renderer::Impl::in_occluder(double x, double y) const noexcept {
   const double dx = x - s.occ_x;
   const double dy = y - s.occ_y;
   const double r2 = dx * dx + dy * dy;
-  const double outer = 1.35 * s.occ_radius;
+  const double outer = 1.25 * s.occ_radius;
   if (r2 > outer * outer) {
     return false;
   }
   const double a = std::atan2(dy, dx);
-  const double rim = s.occ_radius * (1.0 + 0.22 * std::sin(3.0 * a + s.occ_p1) + 0.1 * std::sin(5.0 * a + s.occ_p2));
+  const double rim = s.occ_radius * (1.0 + 0.14 * std::sin(2.0 * a + s.occ_p1) + 0.07 * std::sin(3.0 * a + s.occ_p2));
   return r2 < rim * rim;
 }
 
@@ -693,23 +748,25 @@ Rgb Renderer::Impl::shade_instrument(const Hit& hit) const noexcept {
     const double along = dot3(hit.point - p.p0, p.axis) / std::max(1e-9, (p.p1 - p.p0).norm());
     albedo = albedo * (1.0 - 0.2 * clamp01(along));
   }
-  const double spec = ks * pow32(cosine);
-  const double light = layout.light / dist2;
+  // Glossy sleeve: a broad lobe plus a sharp one; along the tube's crest
+  // (normal towards the camera and the light) it saturates to white.
+  const double c2 = cosine * cosine;
+  const double c8 = c2 * c2 * c2 * c2;
+  const double spec = ks * (0.35 * c8 + pow32(cosine));
+  const double light = layout.light * falloff(dist2);
   return Rgb{light * (albedo.r * cosine + spec), light * (albedo.g * cosine + spec), light * (albedo.b * cosine + spec)};
 }
 
-Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const noexcept {
+Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueSample& t,
+                                 std::uint8_t& label) const noexcept {
   const SceneLayout& s = layout;
-  const double plane = s.depth_mm * (1.0 + s.tilt_x * x + s.tilt_y * y);
   const double sx = x * plane;
   const double sy = y * plane;
-  const double u = (s.tex_cos * sx - s.tex_sin * sy) / kTexelMm + s.tex_u0;
-  const double v = (s.tex_sin * sx + s.tex_cos * sy) / kTexelMm + s.tex_v0;
-  const double z = plane + s.bump_mm * tex[kTexHeight].sample(u, v);
+  const double z = plane + s.bump_mm * t.height;
   const Vec3 point(x * z, y * z, z);
   // Height gradient on the surface (mm/mm): texture derivative rotated back.
-  const double hu = s.bump_mm * tex[kTexHeightDu].sample(u, v) / kTexelMm;
-  const double hv = s.bump_mm * tex[kTexHeightDv].sample(u, v) / kTexelMm;
+  const double hu = s.bump_mm * t.height_du / kTexelMm;
+  const double hv = s.bump_mm * t.height_dv / kTexelMm;
   const double gx = s.depth_mm * s.tilt_x / plane + s.tex_cos * hu + s.tex_sin * hv;
   const double gy = s.depth_mm * s.tilt_y / plane - s.tex_sin * hu + s.tex_cos * hv;
   Vec3 normal = Vec3(gx, gy, -1.0).normalized();
@@ -717,10 +774,10 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
   const Vec3 view = -point / std::sqrt(dist2);
 
   // Albedo: reddish mucosa, colour variation, fat patches, vessels.
-  const double cv = tex[kTexColour].sample(u * 1.7, v * 1.7);
-  Rgb albedo{0.60 * (1.0 + 0.22 * cv), 0.19 * (1.0 + 0.35 * cv), 0.15 * (1.0 + 0.3 * cv)};
-  albedo = mix(albedo, Rgb{0.70, 0.42, 0.24}, 0.55 * tex[kTexFat].sample(u * 0.8 + 97.0, v * 0.8 + 13.0));
-  const double vessel = tex[kTexVessel].sample(u, v);
+  const double cv = t.colour;
+  Rgb albedo{0.64 * (1.0 + 0.2 * cv), 0.17 * (1.0 + 0.35 * cv), 0.12 * (1.0 + 0.3 * cv)};
+  albedo = mix(albedo, Rgb{0.70, 0.42, 0.24}, 0.55 * t.fat);
+  const double vessel = t.vessel;
   albedo = mix(albedo, Rgb{0.30, 0.025, 0.04}, 0.75 * vessel);
   label = kLabelTissue;
   if (s.decoy) {
@@ -741,26 +798,27 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
   double spec = 0.0;
   if (!s.clean) {
     // Wet spots: fine relief and a sharp lobe, only where the tissue is wet.
-    const double wet = tex[kTexWet].sample(u * 0.9 + 31.0, v * 0.9 + 57.0);
+    const double wet = t.wet;
     if (wet > 0.0) {
-      const double du = tex[kTexDetailDu].sample(u * 2.0, v * 2.0);
-      const double dv = tex[kTexDetailDv].sample(u * 2.0, v * 2.0);
-      const Vec3 wet_normal = Vec3(gx + 0.9 * du, gy + 0.9 * dv, -1.0).normalized();
+      // Glints where the wet film's relief faces the light (light and camera coincide).
+      const Vec3 wet_normal = Vec3(gx + 2.2 * t.wet_du, gy + 2.2 * t.wet_dv, -1.0).normalized();
       const double cw = std::max(0.0, dot3(wet_normal, view));
       const double c32 = pow32(cw);
-      spec = 2.5 * wet * c32 * c32;
+      spec = 3.0 * wet * c32 * c32;
     }
     spec += 0.06 * pow32(cosine);  // broad sheen of the mucosa
   }
   c = c + Rgb{spec, spec, spec};
-  const double light = s.light / dist2;
+  const double light = s.light * falloff(dist2);
   c = c * light;
   if (s.reflection && s.reflection_strength > 0.0) {
     // Mirror image on the wet film: reflect the view ray about the smooth normal.
     const Vec3 d = -view;
-    const Vec3 reflected = d - 2.0 * dot3(d, normal) * normal;
-    const double wet = tex[kTexWet].sample(u * 0.5 + 11.0, v * 0.5 + 7.0);
-    if (wet > 0.05) {
+    // The film smooths the relief: reflect about a gentler normal.
+    const Vec3 film = Vec3(0.5 * (gx + s.depth_mm * s.tilt_x / plane), 0.5 * (gy + s.depth_mm * s.tilt_y / plane), -1.0).normalized();
+    const Vec3 reflected = d - 2.0 * dot3(d, film) * film;
+    const double wet = 0.4 + 0.6 * t.wet;
+    {
       for (int k = 0; k < 2; ++k) {
         if (inst_count[k] == 0 || misses_sphere(point, reflected, inst_centre[k], inst_radius[k])) {
           continue;
@@ -779,16 +837,21 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, std::uint8_t& label) const 
           }
         }
         if (found) {
-          // Light from the camera reaches the instrument, bounces to the tissue.
+          // Lit from the camera, seen along the reflected ray; the wet film
+          // reflects a fraction (Fresnel-like) of it over the tissue.
           const Primitive& p = prims[hit.prim];
           const double d2 = hit.point.squaredNorm();
           const Vec3 to_light = -hit.point / std::sqrt(d2);
-          const double lit = std::max(0.0, dot3(hit.normal, to_light)) + 0.3 * pow32(std::max(0.0, dot3(hit.normal, -reflected)));
+          const Vec3 half = (to_light - reflected).normalized();
+          // The side facing the tissue is lit by the tissue's own scattered light.
+          const double diffuse = std::max(0.0, dot3(hit.normal, to_light)) + 0.6;
+          const double glint = pow32(std::max(0.0, dot3(hit.normal, half)));
           const Rgb a = materials.albedo[p.part];
-          const double gain = s.light / d2 * lit;
-          const Rgb mirrored{a.r * gain + 0.02 * gain, a.g * gain + 0.02 * gain, a.b * gain + 0.02 * gain};
-          const double w = s.reflection_strength * smoothstep(0.05, 0.4, wet);
-          c = mix(c, mirrored, w);
+          const double gain = s.light * falloff(d2);
+          const double sheen = materials.specular[p.part] * glint;
+          const Rgb mirrored{gain * (a.r * diffuse + sheen), gain * (a.g * diffuse + sheen), gain * (a.b * diffuse + sheen)};
+          const double w = s.reflection_strength * wet;
+          c = c * (1.0 - w) + mirrored * w;
           label = kLabelReflection;
         }
       }
@@ -810,18 +873,21 @@ Rgb Renderer::Impl::shade_occluder(double x, double y) const noexcept {
   Rgb albedo;
   double ks = 0.0;
   if (s.occ_blood) {
-    albedo = Rgb{0.28, 0.012, 0.02};
-    ks = 1.2;
+    albedo = Rgb{0.022, 0.0025, 0.003};
+    ks = 0.6;
   } else {
     const double u = x * s.occ_depth / kTexelMm * 1.3 + 200.0;
     const double v = y * s.occ_depth / kTexelMm * 1.3 + 100.0;
-    const double cv = tex[kTexColour].sample(u, v);
-    albedo = Rgb{0.62 * (1.0 + 0.2 * cv), 0.2 * (1.0 + 0.3 * cv), 0.16};
-    albedo = mix(albedo, Rgb{0.30, 0.025, 0.04}, 0.7 * tex[kTexVessel].sample(u, v));
-    ks = 0.4;
+    const TissueSample t = sample_tissue(u, v);
+    const double cv = t.colour;
+    albedo = Rgb{0.16 * (1.0 + 0.25 * cv), 0.035 * (1.0 + 0.4 * cv), 0.03};
+    albedo = mix(albedo, Rgb{0.08, 0.008, 0.012}, 0.8 * t.vessel);
+    ks = 0.3;
   }
+  // Darker towards the rim (the flap curls away from the light).
+  const double rim = 1.0 - 0.6 * r2 * r2;
   const double spec = ks * pow32(cosine);
-  const double light = s.light / dist2;
+  const double light = s.light * falloff(dist2) * rim;
   return Rgb{light * (albedo.r * cosine + spec), light * (albedo.g * cosine + spec), light * (albedo.b * cosine + spec)};
 }
 
@@ -829,7 +895,9 @@ Rgb Renderer::Impl::apply_haze(const Rgb& c, double depth, double x, double y) c
   const SceneLayout& s = layout;
   const double u = x * 60.0 / kTexelMm + 301.0;
   const double v = y * 60.0 / kTexelMm + 17.0;
-  const double density = s.haze_density * (0.55 + 0.9 * (0.5 + 0.5 * tex[kTexHeight].sample(u * 0.7, v * 0.7)));
+  // Patchy: smoke drifts in wisps.
+  const double wisps = smoothstep(-0.4, 0.5, sample_tissue(u * 0.7, v * 0.7).height);
+  const double density = s.haze_density * (0.2 + 1.6 * wisps);
   const double f = 1.0 - std::exp(-density * depth);
   return mix(c, s.haze_radiance, f);
 }
@@ -837,7 +905,12 @@ Rgb Renderer::Impl::apply_haze(const Rgb& c, double depth, double x, double y) c
 Sample Renderer::Impl::shade(double x, double y, const std::uint16_t* candidates, int candidate_count) const noexcept {
   Sample out;
   const Vec3 d(x, y, 1.0);
-  const double tissue_z = tissue_depth(x, y);
+  const SceneLayout& s = layout;
+  const double plane = s.depth_mm * (1.0 + s.tilt_x * x + s.tilt_y * y);
+  const double u = (s.tex_cos * x - s.tex_sin * y) * plane / kTexelMm + s.tex_u0;
+  const double v = (s.tex_sin * x + s.tex_cos * y) * plane / kTexelMm + s.tex_v0;
+  const TissueSample t = sample_tissue(u, v);
+  const double tissue_z = plane + s.bump_mm * t.height;
   double occluder_z = std::numeric_limits<double>::infinity();
   if (in_occluder(x, y)) {
     occluder_z = layout.occ_depth;
@@ -856,7 +929,7 @@ Sample Renderer::Impl::shade(double x, double y, const std::uint16_t* candidates
     out.label = kLabelOccluder;
     depth = occluder_z;
   } else {
-    out.colour = shade_tissue(x, y, out.label);
+    out.colour = shade_tissue(x, y, plane, t, out.label);
     depth = tissue_z;
   }
   if (layout.haze) {
@@ -868,7 +941,8 @@ Sample Renderer::Impl::shade(double x, double y, const std::uint16_t* candidates
 void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& truth) noexcept {
   SceneLayout& s = layout;
   s = SceneLayout{};
-  Random rng(scene.seed, 1U);
+  const std::uint64_t world = (scene.world_seed != 0U) ? scene.world_seed : scene.seed;
+  Random rng(world, 1U);
   // The instrument's farthest visible part: the tissue stays behind it.
   double far_z = 0.0;
   for (int k = 0; k < truth.instrument_count; ++k) {
@@ -879,6 +953,10 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   s.depth_mm = (scene.tissue_depth_mm > 0.0) ? scene.tissue_depth_mm : rng.uniform(40.0, 90.0);
   if (scene.tissue_depth_mm <= 0.0) {
     s.depth_mm = std::min(90.0, std::max(s.depth_mm, far_z + 12.0));
+    if ((scene.hard_cases & kHardReflection) != 0U) {
+      // A mirror image needs the wet surface close behind the instrument.
+      s.depth_mm = std::min(90.0, std::max(40.0, far_z + 8.0));
+    }
   }
   s.tilt_x = rng.uniform(-0.25, 0.25);
   s.tilt_y = rng.uniform(-0.25, 0.25);
@@ -896,7 +974,7 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   s.vignetting = scene.clean ? 0.0 : scene.vignetting;
 
   const std::uint32_t hard = scene.hard_cases;
-  Random hard_rng(scene.seed, 2U);
+  Random hard_rng(world, 2U);
   // A point of the first instrument's bending section, for placing things.
   const auto& g = model.geometry();
   const solver::PoseFrames f = model.frames(scene.r);
@@ -905,7 +983,7 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   const bool anchor_ok = anchor.z() > 5.0;
   if ((hard & kHardReflection) != 0U) {
     s.reflection = true;
-    s.reflection_strength = hard_rng.uniform(0.35, 0.6);
+    s.reflection_strength = hard_rng.uniform(0.45, 0.7);
   }
   if ((hard & kHardOccluder) != 0U && anchor_ok) {
     s.occluder = true;
@@ -913,7 +991,7 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
     const double offset = hard_rng.uniform(-1.5, 1.5) / anchor.z();
     s.occ_x = anchor.x() / anchor.z() + offset;
     s.occ_y = anchor.y() / anchor.z() + hard_rng.uniform(-1.5, 1.5) / anchor.z();
-    s.occ_radius = hard_rng.uniform(2.0, 3.5) / s.occ_depth * (s.occ_depth / anchor.z()) * 1.2;
+    s.occ_radius = hard_rng.uniform(2.5, 5.0) / anchor.z();  // 2.5-5 mm at the instrument's depth
     s.occ_p1 = hard_rng.uniform(0.0, 6.28);
     s.occ_p2 = hard_rng.uniform(0.0, 6.28);
     s.occ_blood = hard_rng.uniform() < 0.5;
@@ -939,8 +1017,8 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   }
   if ((hard & kHardHaze) != 0U) {
     s.haze = true;
-    s.haze_density = hard_rng.uniform(0.008, 0.02);
-    const double level = hard_rng.uniform(0.45, 0.75);
+    s.haze_density = hard_rng.uniform(0.0025, 0.006);
+    const double level = hard_rng.uniform(0.3, 0.5);
     s.haze_radiance = Rgb{level, level * 0.93, level * 0.9};
   }
   if ((hard & kHardNoise) != 0U && !scene.clean) {
@@ -1024,7 +1102,7 @@ void Renderer::Impl::compute_truth(const SceneSpec& scene, GroundTruth& truth) n
   }
 }
 
-void Renderer::Impl::post_process(const SceneSpec& scene, MutableImageView out) noexcept {
+void Renderer::Impl::post_process(const SceneSpec& scene, const MutableImageView& out) noexcept {
   const SceneLayout& s = layout;
   const int w = width;
   const int h = height;
@@ -1032,24 +1110,43 @@ void Renderer::Impl::post_process(const SceneSpec& scene, MutableImageView out) 
   float* tmp = scratch.get();
   // Motion blur: a symmetric streak (the ground truth is mid-exposure).
   if (s.motion_blur) {
-    const int steps = std::max(2, static_cast<int>(std::ceil(std::hypot(s.blur_dx, s.blur_dy))));
+    constexpr int kMaxSteps = 32;
+    const int steps = std::min(kMaxSteps, std::max(2, static_cast<int>(std::ceil(std::hypot(s.blur_dx, s.blur_dy)))));
+    int off_x[kMaxSteps + 1];
+    int off_y[kMaxSteps + 1];
+    int reach_x = 0;
+    int reach_y = 0;
+    for (int i = 0; i <= steps; ++i) {
+      const double f = static_cast<double>(i) / steps - 0.5;
+      off_x[i] = static_cast<int>(std::lround(f * s.blur_dx));
+      off_y[i] = static_cast<int>(std::lround(f * s.blur_dy));
+      reach_x = std::max(reach_x, std::abs(off_x[i]));
+      reach_y = std::max(reach_y, std::abs(off_y[i]));
+    }
+    const float inv = 1.0F / static_cast<float>(steps + 1);
     for (int y = 0; y < h; ++y) {
+      const bool inner_row = y >= reach_y && y < h - reach_y;
       for (int x = 0; x < w; ++x) {
-        float acc[3] = {0.0F, 0.0F, 0.0F};
+        const bool inner = inner_row && x >= reach_x && x < w - reach_x;
+        float acc0 = 0.0F;
+        float acc1 = 0.0F;
+        float acc2 = 0.0F;
         for (int i = 0; i <= steps; ++i) {
-          const double f = static_cast<double>(i) / steps - 0.5;
-          const int sx = std::min(w - 1, std::max(0, static_cast<int>(std::lround(x + f * s.blur_dx))));
-          const int sy = std::min(h - 1, std::max(0, static_cast<int>(std::lround(y + f * s.blur_dy))));
+          int sx = x + off_x[i];
+          int sy = y + off_y[i];
+          if (!inner) {  // clamp at the borders only
+            sx = std::min(w - 1, std::max(0, sx));
+            sy = std::min(h - 1, std::max(0, sy));
+          }
           const float* p = &src[3U * (static_cast<std::size_t>(sy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(sx))];
-          acc[0] += p[0];
-          acc[1] += p[1];
-          acc[2] += p[2];
+          acc0 += p[0];
+          acc1 += p[1];
+          acc2 += p[2];
         }
         float* q = &tmp[3U * (static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x))];
-        const float inv = 1.0F / static_cast<float>(steps + 1);
-        q[0] = acc[0] * inv;
-        q[1] = acc[1] * inv;
-        q[2] = acc[2] * inv;
+        q[0] = acc0 * inv;
+        q[1] = acc1 * inv;
+        q[2] = acc2 * inv;
       }
     }
     std::swap(src, tmp);
@@ -1093,10 +1190,11 @@ void Renderer::Impl::post_process(const SceneSpec& scene, MutableImageView out) 
     const double dy = (y - k.cy);
     for (int x = 0; x < w; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x);
+      std::uint8_t* px = dst + 3U * static_cast<std::size_t>(x);
       if (labels[i] == kLabelNoRay) {
-        dst[3 * x] = 0U;
-        dst[3 * x + 1] = 0U;
-        dst[3 * x + 2] = 0U;
+        px[0] = 0U;
+        px[1] = 0U;
+        px[2] = 0U;
         continue;
       }
       const double dx = (x - k.cx);
@@ -1108,15 +1206,15 @@ void Renderer::Impl::post_process(const SceneSpec& scene, MutableImageView out) 
         const double pos = std::min(static_cast<double>(kToneLutSize), lin * lut_scale);
         const auto idx = static_cast<int>(pos);
         const double frac = pos - idx;
-        const double lo = tone[idx];
-        const double hi = tone[std::min(idx + 1, kToneLutSize)];
+        const auto lo = static_cast<double>(tone[idx]);
+        const auto hi = static_cast<double>(tone[std::min(idx + 1, kToneLutSize)]);
         double level = lo + (hi - lo) * frac;
         if (s.noise_sigma > 0.0) {
           const auto g = static_cast<std::size_t>((bits >> (16U * static_cast<unsigned>(c))) & (kGaussTableSize - 1U));
           level += s.noise_sigma * (0.6 + 0.4 * level / 128.0) * static_cast<double>(gauss[g]);
         }
         const double q = std::floor(level + 0.5);
-        dst[3 * x + c] = static_cast<std::uint8_t>(q < 0.0 ? 0.0 : (q > 255.0 ? 255.0 : q));
+        px[c] = static_cast<std::uint8_t>(q < 0.0 ? 0.0 : (q > 255.0 ? 255.0 : q));
       }
     }
   }
@@ -1219,6 +1317,7 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
   const int w = m.width;
   const int h = m.height;
   // Pass 1: one sample at every pixel centre.
+  long instrument_pixels[2] = {0, 0};
   for (int ty = 0; ty < m.tiles_y; ++ty) {
     for (int tx = 0; tx < m.tiles_x; ++tx) {
       const std::size_t tile = static_cast<std::size_t>(ty) * static_cast<std::size_t>(m.tiles_x) + static_cast<std::size_t>(tx);
@@ -1229,7 +1328,7 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
       for (int y = ty * kTileSize; y < y1; ++y) {
         for (int x = tx * kTileSize; x < x1; ++x) {
           const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x);
-          const double rx = m.ray_x[i];
+          const auto rx = static_cast<double>(m.ray_x[i]);
           float* px = &m.linear[3U * i];
           if (std::isnan(rx)) {
             m.labels[i] = kLabelNoRay;
@@ -1239,8 +1338,11 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
             }
             continue;
           }
-          const Sample sample = m.shade(rx, m.ray_y[i], list, count);
+          const Sample sample = m.shade(rx, static_cast<double>(m.ray_y[i]), list, count);
           m.labels[i] = sample.label;
+          if (sample.instrument) {
+            ++instrument_pixels[(sample.label - kLabelInstrument) / 8];
+          }
           px[0] = static_cast<float>(sample.colour.r);
           px[1] = static_cast<float>(sample.colour.g);
           px[2] = static_cast<float>(sample.colour.b);
@@ -1284,8 +1386,8 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
       // Ray derivatives per pixel (central where possible).
       auto ray_at = [&m, w](int xx, int yy, double& rx, double& ry) {
         const std::size_t j = static_cast<std::size_t>(yy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(xx);
-        rx = m.ray_x[j];
-        ry = m.ray_y[j];
+        rx = static_cast<double>(m.ray_x[j]);
+        ry = static_cast<double>(m.ray_y[j]);
         return !std::isnan(rx);
       };
       double cx = 0.0;
@@ -1349,6 +1451,12 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
     }
   }
   // An instrument the geometry placed in view but no pixel shows is out of view.
+  for (int k = 0; k < truth.instrument_count; ++k) {
+    InstrumentTruth& it = truth.instruments[static_cast<std::size_t>(k)];
+    if (it.view == InstrumentView::Visible && instrument_pixels[k] == 0) {
+      it.view = InstrumentView::OutOfView;
+    }
+  }
   m.post_process(scene, out);
   return ok_status<RenderError>();
 }

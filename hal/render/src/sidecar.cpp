@@ -22,6 +22,7 @@ class Writer {
       out_[0] = '\0';
     }
   }
+  // NOLINTNEXTLINE(cert-dcl50-cpp): printf-style formatting into a fixed buffer is the project's allocation-free formatter; the format attribute lets the compiler check every call
   void add(const char* format, ...) noexcept __attribute__((format(printf, 2, 3))) {
     if (overflow_) {
       return;
@@ -274,6 +275,12 @@ std::size_t format_sidecar(const Sidecar& s, char* out, std::size_t capacity) no
   w.add(",\n  \"width\": %d,\n  \"height\": %d,\n  \"set\": ", s.width, s.height);
   add_string(w, s.set);
   w.add(",\n  \"index\": %d,\n  \"seed\": %llu,\n", s.index, static_cast<unsigned long long>(s.seed));
+  if (s.has_dataset_seed) {
+    w.add("  \"dataset_seed\": %llu,\n", static_cast<unsigned long long>(s.dataset_seed));
+  }
+  if (s.scene.world_seed != 0U) {
+    w.add("  \"world_seed\": %llu,\n", static_cast<unsigned long long>(s.scene.world_seed));
+  }
   add_instrument(w, s.instrument, "  ");
   w.add(",\n  \"prior\": ");
   if (s.has_prior) {
@@ -352,11 +359,16 @@ Result<Sidecar, Diagnostic> parse_sidecar(const char* text, std::size_t length, 
   if (s.width < 0 || s.height < 0) {
     return R::failure(rd.error("width", "image size must not be negative"));
   }
-  i = rd.find(root, "seed");
-  if (i != json::kNone) {
+  const char* seed_keys[] = {"seed", "dataset_seed", "world_seed"};
+  std::uint64_t* seed_values[] = {&s.seed, &s.dataset_seed, &s.scene.world_seed};
+  for (std::size_t k = 0; k < 3U; ++k) {
+    i = rd.find(root, seed_keys[k]);
+    if (i == json::kNone) {
+      continue;
+    }
     const auto v = doc.number(i);
-    if (!v.ok() || v.value() < 0.0 || v.value() != std::floor(v.value())) {
-      return R::failure(rd.error("seed", "expected a non-negative integer"));
+    if (!v.ok() || v.value() < 0.0 || v.value() != std::floor(v.value()) || v.value() > 1.8446744073709552e19) {
+      return R::failure(rd.error(seed_keys[k], "expected a non-negative 64-bit integer"));
     }
     // Seeds above 2^53 do not survive a double: read the digits.
     const json::Token& t = doc.token(i);
@@ -368,7 +380,9 @@ Result<Sidecar, Diagnostic> parse_sidecar(const char* text, std::size_t length, 
       }
       seed = seed * 10U + static_cast<std::uint64_t>(ch - '0');
     }
-    s.seed = seed;
+    *seed_values[k] = seed;
+    s.has_dataset_seed = s.has_dataset_seed || k == 1U;
+    s.scene.seed = s.seed;
   }
   i = rd.find(root, "prior");
   if (i != json::kNone && !doc.is_null(i)) {

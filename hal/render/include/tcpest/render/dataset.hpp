@@ -51,8 +51,8 @@ struct SequenceSample {
   double time_s = 0.0;
 };
 
-// Smooth, plausible motion: each joint a sum of three slow sinusoids (0.03
-// to 0.3 Hz, random phases) inside the working range (lambda 12..38 mm, phi
+// Smooth, plausible motion: each joint a sum of three slow sinusoids (0.02
+// to 0.18 Hz, random phases; peak speeds ~50 deg/s, ~8 mm/s) inside the working range (lambda 12..38 mm, phi
 // +/- 80 deg, theta +/- 90 deg), the play a slow drift (< 0.03 Hz) of the
 // lab's size around r_m*. Random access: sample(frame) needs no history.
 class SequenceGenerator {
@@ -61,6 +61,13 @@ class SequenceGenerator {
                     double frame_rate_hz = 25.0) noexcept;
   SequenceSample sample(std::uint32_t frame) const noexcept;
   double frame_rate_hz() const noexcept { return frame_rate_hz_; }
+  // The scene stays put during a sequence: use these for every frame
+  // (SceneSpec::world_seed, SceneSpec::tissue_depth_mm), and a per-frame
+  // SceneSpec::seed (image_seed(seed, frame)) for the sensor noise. The
+  // tissue is 70-90 mm away: the tip may touch it (the depth test hides
+  // what is inside, and the ground truth says which corners it hides).
+  std::uint64_t world_seed() const noexcept { return world_seed_; }
+  double tissue_depth_mm() const noexcept { return tissue_depth_mm_; }
 
  private:
   struct Wave {
@@ -70,6 +77,8 @@ class SequenceGenerator {
   solver::InstrumentGeometry geometry_;
   std::uint64_t seed_ = 0U;
   double frame_rate_hz_ = 25.0;
+  std::uint64_t world_seed_ = 1U;
+  double tissue_depth_mm_ = 80.0;
   std::array<std::array<Wave, kWaves>, 3> joints_{};  // lambda, phi, theta
   std::array<std::array<Wave, 2>, 4> play_{};         // x_ch, y_ch, psi, mu
   std::array<std::array<Wave, 2>, 3> bias_{};         // encoder bias

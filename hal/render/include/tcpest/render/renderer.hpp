@@ -58,7 +58,11 @@ struct SceneSpec {
   bool second_instrument = false;
   solver::PoseVector r2 = solver::PoseVector::Zero();  // instrument 2 (right channel)
   std::uint32_t hard_cases = 0U;                       // HardCase bits
-  std::uint64_t seed = 1U;
+  std::uint64_t seed = 1U;        // this frame: sensor noise (and the world when world_seed is 0)
+  // The world: tissue (texture placement, tilt, depth draw) and the hard
+  // cases' layout. A video keeps it fixed while `seed` changes per frame;
+  // 0 = derived from `seed` (every frame a different scene).
+  std::uint64_t world_seed = 0U;
   // Sensor and optics. `clean` turns off noise, blur, vignetting and the
   // tissue's specular spots: the renders the geometric tests measure.
   bool clean = false;
@@ -69,7 +73,9 @@ struct SceneSpec {
   double tissue_depth_mm = 0.0;    // mean tissue depth; 0 = drawn in [40, 90] from the seed
 };
 
-// Why an instrument shows nothing.
+// Whether an instrument shows. BehindCamera: no part in front of the camera.
+// OutOfView: in front, but nothing of it projects into the image (render()
+// also says so when no pixel centre shows it, e.g. entirely hidden).
 enum class InstrumentView : std::uint8_t { Visible, BehindCamera, OutOfView };
 const char* to_string(InstrumentView v) noexcept;
 
@@ -119,7 +125,8 @@ class Renderer {
   Status<RenderError> render(const SceneSpec& scene, MutableImageView out, GroundTruth& truth,
                              float* coverage = nullptr) noexcept;
 
-  // The ground truth alone (no pixels): corners, visibility, view status.
+  // The ground truth alone (no pixels): corners, visibility, and the view
+  // status from the geometry (centreline samples within 20 px of the image).
   Status<RenderError> ground_truth(const SceneSpec& scene, GroundTruth& truth) noexcept;
 
   struct Impl;

@@ -39,7 +39,9 @@ struct Sidecar {
   int height = 0;
   char set[16] = {};      // lab, hard, seq, single (free text for foreign datasets)
   int index = -1;
-  std::uint64_t seed = 0U;
+  std::uint64_t seed = 0U;          // the frame's scene seed (SceneSpec::seed)
+  bool has_dataset_seed = false;
+  std::uint64_t dataset_seed = 0U;  // `tcpest render --seed`
   SidecarInstrument instrument;
   bool has_prior = false;
   std::array<double, 3> prior{};  // [lambda mm, phi rad, theta rad]
@@ -48,7 +50,7 @@ struct Sidecar {
   double time_s = 0.0;
   // Render settings (informative).
   bool has_render = false;
-  SceneSpec scene{};              // noise, blur, vignetting, exposure, clean (r fields unused)
+  SceneSpec scene{};              // noise, blur, vignetting, exposure, clean, world_seed (r fields unused)
   double tissue_depth_mm = 0.0;
   int jpeg_quality = 0;           // 0 = raw frame
   int supersample = 0;
