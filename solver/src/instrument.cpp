@@ -38,13 +38,17 @@ Mat3 rotation_z_derivative(double a) noexcept {
 }
 
 // p(s) in the base frame (model.md), with the series for tiny k L.
-Vec3 arc_position(double k, double s, double bend_length) noexcept {
+// `sin_ks` = sin(k s), computed once by the caller.
+Vec3 arc_position(double k, double s, double bend_length, double sin_ks) noexcept {
   if (std::fabs(k * bend_length) < kSeriesCurvatureArc) {
     return Vec3(k * s * s / 2.0, 0.0, s - k * k * s * s * s / 6.0);
   }
   const double half = std::sin(0.5 * k * s);
   // (1 - cos(k s)) / k written as 2 sin^2(k s / 2) / k: equal, without cancellation.
-  return Vec3(2.0 * half * half / k, 0.0, std::sin(k * s) / k);
+  return Vec3(2.0 * half * half / k, 0.0, sin_ks / k);
+}
+Vec3 arc_position(double k, double s, double bend_length) noexcept {
+  return arc_position(k, s, bend_length, std::sin(k * s));
 }
 
 // d p(s) / d k.
@@ -246,9 +250,12 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
 
   for (int j = 0; j < kNumBoundaries; ++j) {
     const double s = g_.boundaries_mm[static_cast<std::size_t>(j)];
-    const Vec3 p_local = arc_position(f.curvature, s, g_.bend_length_mm);
-    const Vec3 n_local = arc_normal(f.curvature, s);
-    const Vec3 t_local = arc_tangent(f.curvature, s);
+    // One sine/cosine pair per boundary (the solver calls this every iteration).
+    const double sin_ks = std::sin(f.curvature * s);
+    const double cos_ks = std::cos(f.curvature * s);
+    const Vec3 p_local = arc_position(f.curvature, s, g_.bend_length_mm, sin_ks);
+    const Vec3 n_local(cos_ks, 0.0, -sin_ks);
+    const Vec3 t_local(sin_ks, 0.0, cos_ks);
     const Vec3 c = f.base_origin + f.base_rotation * p_local;
     const Vec3 n = f.base_rotation * n_local;
     const Vec3 b = f.base_rotation.col(1);
@@ -265,9 +272,13 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     if (!(rho > radius)) {
       continue;  // the camera is inside the tube's circle: no limb
     }
-    const double base_angle = std::atan2(b_coef, a_coef);
+    // a = atan2(B, A) +/- acos(-R / rho), its cosine and sine by the angle
+    // sum formulas (no trigonometric call): cos(atan2(B, A)) = A / rho,
+    // sin(atan2(B, A)) = B / rho, cos(delta) = w, sin(delta) = sqrt(1 - w^2) >= 0.
+    const double cos_base = a_coef / rho;
+    const double sin_base = b_coef / rho;
     const double w = -radius / rho;
-    const double delta = std::acos(w);
+    const double sin_delta = std::sqrt(1.0 - w * w);
     const Vec2 image_axis = c_jac * t;  // image direction of the centreline, base -> tip
 
     Vec3 points[2];
@@ -275,11 +286,13 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     Eigen::Matrix<double, 2, 3> point_jac[2];
     bool valid[2] = {false, false};
     int sides[2] = {0, 0};
-    double angles[2] = {0.0, 0.0};
+    double cos_angle[2] = {0.0, 0.0};
+    double sin_angle[2] = {0.0, 0.0};
     for (int i = 0; i < 2; ++i) {
       const double sign = (i == 0) ? 1.0 : -1.0;
-      angles[i] = base_angle + sign * delta;
-      points[i] = c + radius * (std::cos(angles[i]) * n + std::sin(angles[i]) * b);
+      cos_angle[i] = cos_base * w - sign * sin_base * sin_delta;
+      sin_angle[i] = sin_base * w + sign * cos_base * sin_delta;
+      points[i] = c + radius * (cos_angle[i] * n + sin_angle[i] * b);
       valid[i] = camera.project(points[i], pixels[i], point_jac[i]);
       if (valid[i]) {
         const Vec2 v = pixels[i] - c_px;
@@ -324,10 +337,10 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
         const Eigen::Matrix<double, 1, kNumParams> d_rho = (a_coef * d_a + b_coef * d_b) / rho;
         const Eigen::Matrix<double, 1, kNumParams> d_base = (a_coef * d_b - b_coef * d_a) / (rho * rho);
         const Eigen::Matrix<double, 1, kNumParams> d_w = (radius / (rho * rho)) * d_rho;
-        const Eigen::Matrix<double, 1, kNumParams> d_delta = (-1.0 / std::sqrt(1.0 - w * w)) * d_w;
+        const Eigen::Matrix<double, 1, kNumParams> d_delta = (-1.0 / sin_delta) * d_w;
         const Eigen::Matrix<double, 1, kNumParams> d_angle = d_base + sign * d_delta;
-        const double ca = std::cos(angles[i]);
-        const double sa = std::sin(angles[i]);
+        const double ca = cos_angle[i];
+        const double sa = sin_angle[i];
         const Vec3 along_circle = radius * (-sa * n + ca * b);
         const Mat37 d_point = dc + radius * (ca * dn + sa * db) + along_circle * d_angle;
         (*jacobians)[ku] = point_jac[i] * d_point;

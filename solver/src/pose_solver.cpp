@@ -186,18 +186,10 @@ bool PoseSolver::check_input(const CornerObservation& observed, const PoseVector
   return true;
 }
 
-void PoseSolver::finish(const CornerObservation& observed, const PoseVector& r, SolveSummary& summary) noexcept {
-  model_.corners(camera_, r, corners_, nullptr);
-  double sum_sq = 0.0;
-  int n = 0;
-  for (int k = 0; k < kNumCorners; ++k) {
-    const auto ku = static_cast<std::size_t>(k);
-    if (summary.used[ku] && corners_.present[ku]) {
-      sum_sq += (corners_.pixel[ku] - observed.pixel[ku]).squaredNorm();
-      ++n;
-    }
-  }
-  summary.rms_px = (n > 0) ? std::sqrt(sum_sq / static_cast<double>(n)) : 0.0;
+void PoseSolver::finish(const Eigen::Matrix<double, kNumResiduals, 1>& residuals, SolveSummary& summary) noexcept {
+  // Rows 0..23 hold f_hat_k - f_k of the used corners (zero otherwise) at the returned r.
+  const double sum_sq = residuals.head<2 * kNumCorners>().squaredNorm();
+  summary.rms_px = (summary.corners_used > 0) ? std::sqrt(sum_sq / static_cast<double>(summary.corners_used)) : 0.0;
 }
 
 SolveSummary PoseSolver::solve(const CornerObservation& observed, SolveMode mode, PoseVector& r) noexcept {
@@ -241,7 +233,7 @@ SolveSummary PoseSolver::solve(const CornerObservation& observed, SolveMode mode
   summary.iterations = outcome.iterations;
   summary.initial_cost = outcome.initial_cost;
   summary.final_cost = outcome.final_cost;
-  finish(observed, r, summary);
+  finish((mode == SolveMode::Adaptive) ? adaptive_lm_.residuals() : fixed_lm_.residuals(), summary);
   return summary;
 }
 

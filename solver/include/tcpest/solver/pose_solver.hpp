@@ -109,7 +109,7 @@ class PoseSolver {
  private:
   // Checks the measured corners; Converged* is never returned, InvalidInput means OK here.
   bool check_input(const CornerObservation& observed, const PoseVector& r, SolveSummary& summary) const noexcept;
-  void finish(const CornerObservation& observed, const PoseVector& r, SolveSummary& summary) noexcept;
+  static void finish(const Eigen::Matrix<double, kNumResiduals, 1>& residuals, SolveSummary& summary) noexcept;
 
   const CameraModel& camera_;
   const InstrumentModel& model_;
