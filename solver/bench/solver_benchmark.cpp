@@ -36,7 +36,7 @@ struct Fixture {
 
   Fixture() {
     all.fill(true);
-    std::mt19937 rng(2024);
+    std::mt19937 rng(2024);  // NOLINT(cert-msc32-c,cert-msc51-cpp): the same problems in every run, by design
     while (static_cast<int>(problems.size()) < kProblems) {
       test_support::Problem p;
       CornerSet at_prior;

@@ -130,12 +130,13 @@ bool PoseResidual<kParams>::operator()(const Params& x, Residuals& residuals, Ja
     if (!corners_.present[ku]) {
       return false;  // a corner in use has no model counterpart here
     }
-    residuals.template segment<2>(2 * k) = corners_.pixel[ku] - observed_.pixel[ku];
+    const Eigen::Index row = 2 * static_cast<Eigen::Index>(k);
+    residuals.template segment<2>(row) = corners_.pixel[ku] - observed_.pixel[ku];
     if (jacobian != nullptr) {
       if constexpr (kParams == kNumParams) {
-        jacobian->template block<2, kNumParams>(2 * k, 0) = corner_jacobians_[ku];
+        jacobian->template block<2, kNumParams>(row, 0) = corner_jacobians_[ku];
       } else {
-        jacobian->template block<2, kNumFixedModelParams>(2 * k, 0) =
+        jacobian->template block<2, kNumFixedModelParams>(row, 0) =
             corner_jacobians_[ku].template rightCols<kNumFixedModelParams>();
       }
     }
