@@ -190,9 +190,8 @@ class LevenbergMarquardt {
 
   template <typename Function>
   bool update_normal_equations(Function& f, const Params& x) noexcept {
-    // Only the lower triangle (all that the Cholesky factorisation and the
-    // predicted decrease read), column by column: for these small fixed
-    // sizes faster than Eigen's blocked GEMM path.
+    // The lower triangle column by column, then mirrored: for these small
+    // fixed sizes faster than Eigen's blocked GEMM path.
     for (int col = 0; col < kParams; ++col) {
       for (int row = col; row < kParams; ++row) {
         normal_(row, col) = jacobian_.col(row).dot(jacobian_.col(col));
