@@ -225,6 +225,65 @@ TEST(Commands, SolveReadsAFile) {
   EXPECT_EQ(run({"solve", "--corners", path.c_str()}), kExitConfig);
 }
 
+std::string write_temp(const char* name, const char* text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  EXPECT_NE(f, nullptr);
+  if (f != nullptr) {
+    std::fputs(text, f);
+    std::fclose(f);
+  }
+  return path;
+}
+
+// Bad calibration and configuration files are refused at load with exit 3
+// (the loaders' own tests check the file/line/field of each message).
+TEST(Commands, RefuseBadCameraAndConfigFiles) {
+  const char* head = "image_width: 720\nimage_height: 576\ncamera_matrix:\n  data: ";
+  const char* tail = "\ndistortion_model: plumb_bob\ndistortion_coefficients:\n  data: [-0.32, 0.11, 0, 0, 0]\n";
+  const std::string zero_focal =
+      write_temp("zero_focal.yaml", (std::string(head) + "[0, 0, 359.5, 0, 0, 287.5, 0, 0, 1]" + tail).c_str());
+  const std::string singular =
+      write_temp("singular.yaml", (std::string(head) + "[400, 0, 359.5, 0, 400, 287.5, 0, 0, 0]" + tail).c_str());
+  const std::string good =
+      write_temp("good.yaml", (std::string(head) + "[400, 0, 359.5, 0, 400, 287.5, 0, 0, 1]" + tail).c_str());
+  const std::string negative = write_temp("negative.yaml", "instrument:\n  bend_length_mm: -18.5\n");
+  const std::string fat = write_temp("fat.yaml", "instrument:\n  radius_mm: 12\n");
+  const char* r = "--r=-13.3,6.2,0.17,0,20,-0.5,1";
+  EXPECT_EQ(run({"project", r, "--calib", good.c_str()}), kExitOk);
+  EXPECT_EQ(run({"project", r, "--calib", zero_focal.c_str()}), kExitConfig);
+  EXPECT_EQ(run({"project", r, "--calib", singular.c_str()}), kExitConfig);
+  EXPECT_EQ(run({"project", r, "--config", negative.c_str()}), kExitConfig);
+  EXPECT_EQ(run({"project", r, "--config", fat.c_str()}), kExitConfig);
+  EXPECT_EQ(run({"solve", "--corners", "-", "--calib", zero_focal.c_str()}), kExitConfig);
+  EXPECT_EQ(run({"study", "play", "--config", fat.c_str()}), kExitConfig);
+}
+
+// NaN cannot be written in JSON; out-of-range numbers and corners far
+// outside the image reach the solver and get their status.
+TEST(SolveStream, BadCornerValuesGetAStatusLine) {
+  const ModelSetup setup = default_setup();
+  std::FILE* in = std::tmpfile();
+  std::FILE* out = std::tmpfile();
+  ASSERT_NE(in, nullptr);
+  ASSERT_NE(out, nullptr);
+  std::fputs("{\"corners\": [[1e999, 2], [1, 2], [3, 4], [5, 6], null, null, null, null, null, null, null, null]}\n", in);
+  std::fputs("{\"corners\": [[5000, 2], [1, 2], [3, 4], [5, 6], null, null, null, null, null, null, null, null]}\n", in);
+  std::fputs("{\"corners\": [[NaN, 2], [1, 2], [3, 4], [5, 6], null, null, null, null, null, null, null, null]}\n", in);
+  std::rewind(in);
+  const double prior[3] = {25.0, 0.0, 0.0};
+  const SolveStreamResult result = solve_stream(in, out, setup, solver::SolveMode::Adaptive, prior);
+  const std::string text = read_all(out);
+  std::fclose(in);
+  std::fclose(out);
+  EXPECT_EQ(result.solved + result.malformed, 3U) << text;
+  EXPECT_NE(text.find("corner_far_outside_image"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"line\": 3}"), std::string::npos) << text;  // NaN is not JSON
+  // 1e999 is either refused by the reader or reaches the solver as infinity.
+  EXPECT_TRUE(text.find("non_finite_corner") != std::string::npos || text.find("\"line\": 1}") != std::string::npos)
+      << text;
+}
+
 TEST(PlayStudy, OneNoiseLevelGivesConsistentStatistics) {
   const ModelSetup setup = default_setup();
   static PlayStudyResult result;

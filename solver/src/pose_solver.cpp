@@ -88,8 +88,8 @@ int CornerObservation::count_visible() const noexcept {
 template <int kParams>
 PoseResidual<kParams>::PoseResidual(const CameraModel& camera, const InstrumentModel& model,
                                     const CornerObservation& observed,
-                                    const std::array<bool, kNumCorners>& used) noexcept
-    : camera_(camera), model_(model), observed_(observed), used_(used) {}
+                                    std::array<bool, kNumCorners>& used, int* select_count) noexcept
+    : camera_(camera), model_(model), observed_(observed), used_(used), select_count_(select_count) {}
 
 template <int kParams>
 PoseVector PoseResidual<kParams>::pose(const Params& x) const noexcept {
@@ -109,6 +109,19 @@ bool PoseResidual<kParams>::operator()(const Params& x, Residuals& residuals, Ja
   if (jacobian != nullptr) {
     jacobian->setZero();
   }
+  if (select_count_ != nullptr) {
+    // First evaluation, at the start: choose the corners in use once.
+    int count = 0;
+    for (std::size_t k = 0; k < used_.size(); ++k) {
+      used_[k] = observed_.visible[k] && corners_.present[k];
+      count += used_[k] ? 1 : 0;
+    }
+    *select_count_ = count;
+    select_count_ = nullptr;
+    if (count < kMinCorners) {
+      return false;
+    }
+  }
   for (int k = 0; k < kNumCorners; ++k) {
     const auto ku = static_cast<std::size_t>(k);
     if (!used_[ku]) {
@@ -117,12 +130,13 @@ bool PoseResidual<kParams>::operator()(const Params& x, Residuals& residuals, Ja
     if (!corners_.present[ku]) {
       return false;  // a corner in use has no model counterpart here
     }
-    residuals.template segment<2>(2 * k) = corners_.pixel[ku] - observed_.pixel[ku];
+    const Eigen::Index row = 2 * static_cast<Eigen::Index>(k);
+    residuals.template segment<2>(row) = corners_.pixel[ku] - observed_.pixel[ku];
     if (jacobian != nullptr) {
       if constexpr (kParams == kNumParams) {
-        jacobian->template block<2, kNumParams>(2 * k, 0) = corner_jacobians_[ku];
+        jacobian->template block<2, kNumParams>(row, 0) = corner_jacobians_[ku];
       } else {
-        jacobian->template block<2, kNumFixedModelParams>(2 * k, 0) =
+        jacobian->template block<2, kNumFixedModelParams>(row, 0) =
             corner_jacobians_[ku].template rightCols<kNumFixedModelParams>();
       }
     }
@@ -144,6 +158,25 @@ bool PoseResidual<kParams>::operator()(const Params& x, Residuals& residuals, Ja
     }
   }
   return true;
+}
+
+template <int kParams>
+void PoseResidual<kParams>::add_curvature(const Params& x,
+                                          Eigen::Matrix<double, kParams, kParams>& normal) const noexcept {
+  if constexpr (kParams == kNumParams) {
+    const InstrumentGeometry& g = model_.geometry();
+    const double nominal[kNumPenalties] = {g.nominal_x_ch_mm, g.nominal_y_ch_mm, g.nominal_psi_rad, g.nominal_mu_rad};
+    const double stiffness[kNumPenalties] = {g.penalty.position_k, g.penalty.position_k, g.penalty.angle_k,
+                                             g.penalty.angle_k};
+    const double scale[kNumPenalties] = {g.penalty.position_scale_mm, g.penalty.position_scale_mm,
+                                         g.penalty.angle_scale_rad, g.penalty.angle_scale_rad};
+    for (int i = 0; i < kNumPenalties; ++i) {
+      normal(i, i) += 0.5 * stiffness[i] * std::fabs(x[i] - nominal[i]) / (scale[i] * scale[i] * scale[i]);
+    }
+  } else {
+    static_cast<void>(x);       // r_m is fixed: no penalty
+    static_cast<void>(normal);  // idem
+  }
 }
 
 template class PoseResidual<kNumParams>;
@@ -186,18 +219,10 @@ bool PoseSolver::check_input(const CornerObservation& observed, const PoseVector
   return true;
 }
 
-void PoseSolver::finish(const CornerObservation& observed, const PoseVector& r, SolveSummary& summary) noexcept {
-  model_.corners(camera_, r, corners_, nullptr);
-  double sum_sq = 0.0;
-  int n = 0;
-  for (int k = 0; k < kNumCorners; ++k) {
-    const auto ku = static_cast<std::size_t>(k);
-    if (summary.used[ku] && corners_.present[ku]) {
-      sum_sq += (corners_.pixel[ku] - observed.pixel[ku]).squaredNorm();
-      ++n;
-    }
-  }
-  summary.rms_px = (n > 0) ? std::sqrt(sum_sq / static_cast<double>(n)) : 0.0;
+void PoseSolver::finish(const Eigen::Matrix<double, kNumResiduals, 1>& residuals, SolveSummary& summary) noexcept {
+  // Rows 0..23 hold f_hat_k - f_k of the used corners (zero otherwise) at the returned r.
+  const double sum_sq = residuals.head<2 * kNumCorners>().squaredNorm();
+  summary.rms_px = (summary.corners_used > 0) ? std::sqrt(sum_sq / static_cast<double>(summary.corners_used)) : 0.0;
 }
 
 SolveSummary PoseSolver::solve(const CornerObservation& observed, SolveMode mode, PoseVector& r) noexcept {
@@ -213,35 +238,29 @@ SolveSummary PoseSolver::solve(const CornerObservation& observed, SolveMode mode
   if (!check_input(observed, r, summary)) {
     return summary;
   }
-  // The corners in use: visible ones the model gives at the start.
-  model_.corners(camera_, r, corners_, nullptr);
-  for (int k = 0; k < kNumCorners; ++k) {
-    const auto ku = static_cast<std::size_t>(k);
-    summary.used[ku] = observed.visible[ku] && corners_.present[ku];
-    summary.corners_used += summary.used[ku] ? 1 : 0;
-  }
-  if (summary.corners_used < kMinCorners) {
-    summary.status = SolveStatus::TooFewCorners;
-    return summary;
-  }
-
+  // The corners in use are the visible ones the model gives at the start:
+  // chosen by the residual at its first evaluation (no separate model call).
   LmOutcome outcome;
   if (mode == SolveMode::Adaptive) {
-    PoseResidual<kNumParams> residual(camera_, model_, observed, summary.used);
+    PoseResidual<kNumParams> residual(camera_, model_, observed, summary.used, &summary.corners_used);
     PoseVector x = r;
     outcome = adaptive_lm_.minimise(residual, x, options_);
     r = x;
   } else {
-    PoseResidual<kNumFixedModelParams> residual(camera_, model_, observed, summary.used);
+    PoseResidual<kNumFixedModelParams> residual(camera_, model_, observed, summary.used, &summary.corners_used);
     Eigen::Matrix<double, kNumFixedModelParams, 1> x(r[kLambda], r[kPhi], r[kTheta]);
     outcome = fixed_lm_.minimise(residual, x, options_);
     r = residual.pose(x);
+  }
+  if (summary.corners_used < kMinCorners) {
+    summary.status = SolveStatus::TooFewCorners;  // the residual refused the start; r is unchanged
+    return summary;
   }
   summary.status = outcome.status;
   summary.iterations = outcome.iterations;
   summary.initial_cost = outcome.initial_cost;
   summary.final_cost = outcome.final_cost;
-  finish(observed, r, summary);
+  finish((mode == SolveMode::Adaptive) ? adaptive_lm_.residuals() : fixed_lm_.residuals(), summary);
   return summary;
 }
 
@@ -251,7 +270,7 @@ double PoseSolver::cost(const CornerObservation& observed, const PoseVector& r) 
   for (std::size_t k = 0; k < used.size(); ++k) {
     used[k] = observed.visible[k] && corners_.present[k];
   }
-  PoseResidual<kNumParams> residual(camera_, model_, observed, used);
+  PoseResidual<kNumParams> residual(camera_, model_, observed, used, nullptr);
   Eigen::Matrix<double, kNumResiduals, 1> values;
   static_cast<void>(residual(r, values, nullptr));  // every used corner is present at r by construction
   return 0.5 * values.squaredNorm();

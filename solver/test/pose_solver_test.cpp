@@ -118,7 +118,7 @@ void check_residual_jacobian(const CameraModel& camera, const InstrumentModel& m
     Problem p;
     ASSERT_TRUE(draw_problem(rng, camera, model, true, 1.0, 4, p));
     std::array<bool, kNumCorners> used = p.observed.visible;
-    Residual residual(camera, model, p.observed, used);
+    Residual residual(camera, model, p.observed, used, nullptr);
     typename Residual::Params x;
     if constexpr (kParams == kNumParams) {
       x = p.truth;
@@ -171,7 +171,7 @@ TEST_F(PoseSolverTest, PenaltyDerivativeAtZero) {
   Problem p;
   ASSERT_TRUE(draw_problem(rng, camera_, model_, false, 0.0, 8, p));
   std::array<bool, kNumCorners> used = p.observed.visible;
-  PoseResidual<kNumParams> residual(camera_, model_, p.observed, used);
+  PoseResidual<kNumParams> residual(camera_, model_, p.observed, used, nullptr);
   PoseResidual<kNumParams>::Residuals values;
   PoseResidual<kNumParams>::Jacobian jacobian;
   ASSERT_TRUE(residual(p.truth, values, &jacobian));  // r_m = r*_m: every u is 0
@@ -414,7 +414,13 @@ TEST_F(StatusTest, InvalidInput) {
 // clamped damping keeps the normal equations positive definite unless they
 // overflow), so the shared Levenberg–Marquardt core is driven with small
 // functions that produce them.
-struct NanJacobian {
+template <int kParams>
+struct NoCurvature {
+  template <typename Normal>
+  void add_curvature(const Eigen::Matrix<double, kParams, 1>& /*x*/, Normal& /*normal*/) const noexcept {}
+};
+
+struct NanJacobian : NoCurvature<2> {
   bool operator()(const Eigen::Vector2d& x, Eigen::Vector2d& r, Eigen::Matrix2d* j) const noexcept {
     r = x;
     if (j != nullptr) {
@@ -425,7 +431,7 @@ struct NanJacobian {
   }
 };
 
-struct RankOneHuge {
+struct RankOneHuge : NoCurvature<2> {
   bool operator()(const Eigen::Vector2d& x, Eigen::Matrix<double, 1, 1>& r,
                   Eigen::Matrix<double, 1, 2>* j) const noexcept {
     r[0] = 1.0 + 1e100 * (x[0] + x[1]);
@@ -437,7 +443,7 @@ struct RankOneHuge {
 };
 
 // r = x - 3 on the domain x < 2.5: steps that leave the domain are rejected.
-struct Domain {
+struct Domain : NoCurvature<1> {
   bool operator()(const Eigen::Matrix<double, 1, 1>& x, Eigen::Matrix<double, 1, 1>& r,
                   Eigen::Matrix<double, 1, 1>* j) const noexcept {
     if (!(x[0] < 2.5)) {

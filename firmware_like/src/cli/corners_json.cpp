@@ -1,7 +1,6 @@
 #include "cli/corners_json.hpp"
 
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 
 #include "tcpest/common/json.hpp"
@@ -15,14 +14,7 @@ namespace {
 // for ignored members.
 constexpr std::size_t kMaxTokens = 512U;
 
-void set_error(char* error, std::size_t capacity, const char* format, ...) noexcept {
-  va_list args;
-  va_start(args, format);
-  static_cast<void>(std::vsnprintf(error, capacity, format, args));  // a cut message is still a message
-  va_end(args);
-}
-
-// Appends formatted text; remembers overflow.
+// Appends text and numbers to a caller's buffer; remembers overflow.
 class Writer {
  public:
   Writer(char* out, std::size_t capacity) noexcept : out_(out), capacity_(capacity) {
@@ -30,37 +22,43 @@ class Writer {
       out_[0] = '\0';
     }
   }
-  void text(const char* format, ...) noexcept {
-    if (!ok_) {
-      return;
+  void text(const char* literal) noexcept {
+    for (const char* p = literal; *p != '\0'; ++p) {
+      put(*p);
     }
-    va_list args;
-    va_start(args, format);
-    const int n = std::vsnprintf(out_ + used_, capacity_ - used_, format, args);
-    va_end(args);
-    if (n < 0 || static_cast<std::size_t>(n) >= capacity_ - used_) {
+  }
+  void put(char c) noexcept {
+    if (used_ + 1U >= capacity_) {
       ok_ = false;
       return;
     }
-    used_ += static_cast<std::size_t>(n);
+    out_[used_++] = c;
+    out_[used_] = '\0';
+  }
+  void integer(long value) noexcept {
+    char buffer[32];
+    static_cast<void>(std::snprintf(buffer, sizeof buffer, "%ld", value));  // 32 bytes hold any long
+    text(buffer);
   }
   void number(double value) noexcept {
-    if (std::isfinite(value)) {
-      text("%.12g", value);
-    } else {
+    if (!std::isfinite(value)) {
       text("null");
+      return;
     }
+    char buffer[40];
+    static_cast<void>(std::snprintf(buffer, sizeof buffer, "%.12g", value));  // 40 bytes hold any %.12g
+    text(buffer);
   }
   template <typename Vector>
   void vector(const Vector& v) noexcept {
-    text("[");
+    put('[');
     for (int i = 0; i < static_cast<int>(v.size()); ++i) {
       if (i > 0) {
         text(", ");
       }
       number(v[i]);
     }
-    text("]");
+    put(']');
   }
   bool ok() const noexcept { return ok_ && capacity_ > 0U; }
 
@@ -80,30 +78,30 @@ bool parse_corners_json(const char* text, std::size_t length, CornersInput& out,
   out = CornersInput{};
   const auto parsed = doc.parse(text, length);
   if (!parsed.ok()) {
-    set_error(error, error_capacity, "not valid JSON (%s at offset %u)", json::to_string(parsed.error().code),
-              parsed.error().offset);
+    static_cast<void>(std::snprintf(error, error_capacity, "not valid JSON (%s at offset %u)",
+                                    json::to_string(parsed.error().code), parsed.error().offset));  // cut is fine
     return false;
   }
   if (doc.type(doc.root()) != json::TokenType::Object) {
-    set_error(error, error_capacity, "expected a JSON object");
+    static_cast<void>(std::snprintf(error, error_capacity, "expected a JSON object"));  // idem
     return false;
   }
   const auto corners = doc.member(doc.root(), "corners");
   if (!corners.ok()) {
-    set_error(error, error_capacity, "missing member \"corners\"");
+    static_cast<void>(std::snprintf(error, error_capacity, "missing member \"corners\""));  // idem
     return false;
   }
   if (doc.type(corners.value()) != json::TokenType::Array ||
       doc.array_size(corners.value()) != static_cast<std::size_t>(solver::kNumCorners)) {
-    set_error(error, error_capacity, "\"corners\" must be an array of %d entries ([u, v] or null)",
-              solver::kNumCorners);
+    static_cast<void>(std::snprintf(error, error_capacity, "\"corners\" must be an array of %d entries ([u, v] or null)",
+                                    solver::kNumCorners));  // a cut message is still a message
     return false;
   }
   for (int k = 0; k < solver::kNumCorners; ++k) {
     const auto ku = static_cast<std::size_t>(k);
     const auto entry = doc.element(corners.value(), ku);
     if (!entry.ok()) {
-      set_error(error, error_capacity, "corner %d: unreadable", k);
+      static_cast<void>(std::snprintf(error, error_capacity, "corner %d: unreadable", k));  // idem
       return false;
     }
     if (doc.is_null(entry.value())) {
@@ -111,7 +109,8 @@ bool parse_corners_json(const char* text, std::size_t length, CornersInput& out,
     }
     double uv[2] = {0.0, 0.0};
     if (!doc.numbers(entry.value(), uv, 2U).ok()) {
-      set_error(error, error_capacity, "corner %d: expected [u, v] (two numbers, pixels) or null", k);
+      static_cast<void>(std::snprintf(error, error_capacity, "corner %d: expected [u, v] (two numbers, pixels) or null",
+                                      k));  // idem
       return false;
     }
     out.observed.pixel[ku] = solver::Vec2(uv[0], uv[1]);
@@ -120,7 +119,7 @@ bool parse_corners_json(const char* text, std::size_t length, CornersInput& out,
   const auto prior = doc.member(doc.root(), "prior");
   if (prior.ok()) {
     if (!doc.numbers(prior.value(), out.prior, 3U).ok()) {
-      set_error(error, error_capacity, "\"prior\" must be [lambda_mm, phi_rad, theta_rad]");
+      static_cast<void>(std::snprintf(error, error_capacity, "\"prior\" must be [lambda_mm, phi_rad, theta_rad]"));  // idem
       return false;
     }
     out.has_prior = true;
@@ -137,7 +136,9 @@ bool format_solve_json(const solver::SolveSummary& summary, const solver::PoseVe
                        char* out, std::size_t capacity) noexcept {
   Writer w(out, capacity);
   const bool estimate = has_estimate(summary);
-  w.text("{\"status\": \"%s\", \"tcp\": ", solver::to_string(summary.status));
+  w.text("{\"status\": \"");
+  w.text(solver::to_string(summary.status));
+  w.text("\", \"tcp\": ");
   if (estimate) {
     w.vector(tcp);
   } else {
@@ -155,7 +156,11 @@ bool format_solve_json(const solver::SolveSummary& summary, const solver::PoseVe
   } else {
     w.text("null");
   }
-  w.text(", \"iterations\": %d, \"corners_used\": %d}\n", summary.iterations, summary.corners_used);
+  w.text(", \"iterations\": ");
+  w.integer(summary.iterations);
+  w.text(", \"corners_used\": ");
+  w.integer(summary.corners_used);
+  w.text("}\n");
   return w.ok();
 }
 
@@ -165,14 +170,17 @@ bool format_error_json(const char* message, unsigned long line, char* out, std::
   // Our messages are plain ASCII; escape the two characters JSON forbids raw.
   for (const char* p = message; *p != '\0'; ++p) {
     if (*p == '"' || *p == '\\') {
-      w.text("\\%c", *p);
+      w.put('\\');
+      w.put(*p);
     } else if (static_cast<unsigned char>(*p) < 0x20U) {
-      w.text(" ");
+      w.put(' ');
     } else {
-      w.text("%c", *p);
+      w.put(*p);
     }
   }
-  w.text("\", \"line\": %lu}\n", line);
+  w.text("\", \"line\": ");
+  w.integer(static_cast<long>(line));
+  w.text("}\n");
   return w.ok();
 }
 

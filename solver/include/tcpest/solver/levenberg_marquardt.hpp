@@ -6,8 +6,13 @@
 //   bool f(const Params& x, Residuals& residuals, Jacobian* jacobian) noexcept;
 //
 // returning false when x is outside the function's domain (for the pose
-// problem: a corner in use has no model counterpart at x). Unused residual
-// rows must be zero (rows and Jacobian rows), they then add nothing.
+// problem: a corner in use has no model counterpart at x), and
+//
+//   void f.add_curvature(const Params& x, Normal& normal) noexcept;
+//
+// adding to J^T J any exact, positive semi-definite second-order term of
+// the cost's Hessian it knows (or nothing). Unused residual rows must be
+// zero (rows and Jacobian rows), they then add nothing.
 #pragma once
 
 #include <Eigen/Cholesky>
@@ -23,7 +28,7 @@ namespace solver {
 enum class SolveStatus : std::uint8_t {
   ConvergedGradient,      // max |J^T r| <= gradient_tolerance
   ConvergedStep,          // |dx| <= step_tolerance * (|x| + step_tolerance)
-  ConvergedCostChange,    // accepted step lowered the cost by <= cost_change_tolerance * cost
+  ConvergedCostChange,    // a step lowered (or would by the model lower) the cost by <= cost_change_tolerance * cost
   MaxIterations,          // options.max_iterations trial steps without converging
   NonFiniteResidual,      // a residual or the cost at the start is NaN/inf
   NonFiniteJacobian,      // the Jacobian (or J^T J, J^T r) at the start is NaN/inf
@@ -49,7 +54,7 @@ struct SolverOptions {
   int max_iterations = 100;              // trial steps (accepted or rejected), 1..kMaxIterationsCap
   double gradient_tolerance = 1e-8;      // on max |J^T r| (cost units per parameter unit)
   double step_tolerance = 1e-9;          // relative step size
-  double cost_change_tolerance = 1e-10;  // relative cost decrease of an accepted step
+  double cost_change_tolerance = 1e-6;  // relative cost decrease of an accepted step
   double initial_damping = 1e-4;         // mu0, relative to diag(J^T J) (tiny_solver: 1 / 1e4)
 };
 
@@ -58,7 +63,7 @@ bool valid(const SolverOptions& options) noexcept;
 
 struct LmOutcome {
   SolveStatus status = SolveStatus::InvalidInput;
-  int iterations = 0;         // trial steps taken
+  int iterations = 0;         // trial steps evaluated (accepted or rejected)
   double initial_cost = 0.0;  // 0.5 |r(x0)|^2
   double final_cost = 0.0;    // 0.5 |r(x)|^2 at the returned x
 };
@@ -91,7 +96,7 @@ class LevenbergMarquardt {
       out.status = SolveStatus::NonFiniteResidual;
       return out;
     }
-    if (!jacobian_.allFinite() || !update_normal_equations()) {
+    if (!jacobian_.allFinite() || !update_normal_equations(f, x)) {
       out.status = SolveStatus::NonFiniteJacobian;
       return out;
     }
@@ -120,11 +125,19 @@ class LevenbergMarquardt {
         out.status = SolveStatus::SingularSystem;
         return out;
       }
-      out.iterations = iteration + 1;
       if (step_.norm() <= options.step_tolerance * (x.norm() + options.step_tolerance)) {
         out.status = SolveStatus::ConvergedStep;
         return out;
       }
+      // Decrease the quadratic model promises for this step. When even that
+      // is below the cost-change tolerance, the step is not worth an
+      // evaluation: converged by cost change at the current x.
+      const double predicted = -(step_.dot(gradient_) + 0.5 * step_.dot(normal_ * step_));
+      if (predicted <= options.cost_change_tolerance * cost) {
+        out.status = SolveStatus::ConvergedCostChange;
+        return out;
+      }
+      out.iterations = iteration + 1;
       trial_x_ = x + step_;
       const bool in_domain = f(trial_x_, trial_residuals_, &trial_jacobian_);
       const double trial_cost = 0.5 * trial_residuals_.squaredNorm();
@@ -133,7 +146,6 @@ class LevenbergMarquardt {
       const bool usable = in_domain && std::isfinite(trial_cost) && trial_residuals_.allFinite() &&
                           trial_jacobian_.allFinite();
       if (usable && trial_cost < cost) {
-        const double predicted = -(step_.dot(gradient_) + 0.5 * step_.dot(normal_ * step_));
         const double actual = cost - trial_cost;
         const double previous_cost = cost;
         x = trial_x_;
@@ -141,7 +153,7 @@ class LevenbergMarquardt {
         jacobian_ = trial_jacobian_;
         cost = trial_cost;
         out.final_cost = cost;
-        if (!update_normal_equations()) {
+        if (!update_normal_equations(f, x)) {
           // A finite J whose J^T J overflows: no sound step can follow.
           out.status = SolveStatus::NonFiniteJacobian;
           return out;
@@ -176,9 +188,21 @@ class LevenbergMarquardt {
   static constexpr double kMaxDamping = 1e32;
   static constexpr double kMaxDampingGrowth = 1073741824.0;  // 2^30
 
-  bool update_normal_equations() noexcept {
-    normal_.noalias() = jacobian_.transpose() * jacobian_;
-    gradient_.noalias() = jacobian_.transpose() * residuals_;
+  template <typename Function>
+  bool update_normal_equations(Function& f, const Params& x) noexcept {
+    // The lower triangle column by column, then mirrored: for these small
+    // fixed sizes faster than Eigen's blocked GEMM path.
+    for (int col = 0; col < kParams; ++col) {
+      for (int row = col; row < kParams; ++row) {
+        normal_(row, col) = jacobian_.col(row).dot(jacobian_.col(col));
+      }
+    }
+    normal_.template triangularView<Eigen::StrictlyUpper>() = normal_.transpose();
+    // Second-order terms sum_i e_i * Hessian(e_i) that the function knows to
+    // be exact and positive (the pose problem: its penalty residuals). They
+    // change the model of the cost the step is computed from, not the cost.
+    f.add_curvature(x, normal_);
+    gradient_.noalias() = jacobian_.transpose().lazyProduct(residuals_);
     return normal_.allFinite() && gradient_.allFinite();
   }
 

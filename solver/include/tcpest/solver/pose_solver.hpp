@@ -70,10 +70,18 @@ class PoseResidual {
   using Residuals = Eigen::Matrix<double, kNumResiduals, 1>;
   using Jacobian = Eigen::Matrix<double, kNumResiduals, kParams>;
 
+  // `used` selects the corners. With `select_count`, the first evaluation
+  // sets `used` to the visible corners the model gives there, writes their
+  // number to *select_count, and fails if fewer than kMinCorners.
   PoseResidual(const CameraModel& camera, const InstrumentModel& model, const CornerObservation& observed,
-               const std::array<bool, kNumCorners>& used) noexcept;
+               std::array<bool, kNumCorners>& used, int* select_count) noexcept;
   // False when a used corner has no model counterpart at x.
   bool operator()(const Params& x, Residuals& residuals, Jacobian* jacobian) noexcept;
+  // The penalty's exact second-order term e * e'' = 0.5 k |u| / a^3 on the
+  // diagonal of x_ch, y_ch, psi, mu (with it, the normal matrix holds the
+  // penalty's true curvature 2 k |u| / a^3 instead of Gauss-Newton's 3/4 of
+  // it, and the iterations converge faster). Nothing in FixedModel.
+  void add_curvature(const Params& x, Eigen::Matrix<double, kParams, kParams>& normal) const noexcept;
   // The full configuration r for x.
   PoseVector pose(const Params& x) const noexcept;
 
@@ -81,7 +89,8 @@ class PoseResidual {
   const CameraModel& camera_;
   const InstrumentModel& model_;
   const CornerObservation& observed_;
-  const std::array<bool, kNumCorners>& used_;
+  std::array<bool, kNumCorners>& used_;
+  int* select_count_;
   CornerSet corners_{};
   CornerJacobians corner_jacobians_{};
 };
@@ -109,7 +118,7 @@ class PoseSolver {
  private:
   // Checks the measured corners; Converged* is never returned, InvalidInput means OK here.
   bool check_input(const CornerObservation& observed, const PoseVector& r, SolveSummary& summary) const noexcept;
-  void finish(const CornerObservation& observed, const PoseVector& r, SolveSummary& summary) noexcept;
+  static void finish(const Eigen::Matrix<double, kNumResiduals, 1>& residuals, SolveSummary& summary) noexcept;
 
   const CameraModel& camera_;
   const InstrumentModel& model_;
