@@ -29,7 +29,9 @@ Status<hal::CameraError> RenderedScene::render(std::uint32_t index, const Mutabl
                                                hal::FrameTruth& truth) noexcept {
   render::SceneSpec spec;
   spec.r = sequence_.sample(index).r;
-  spec.seed = render::image_seed(seed_, index);
+  spec.seed = render::image_seed(seed_, index);   // sensor noise per frame
+  spec.world_seed = sequence_.world_seed();          // the same tissue in every frame
+  spec.tissue_depth_mm = sequence_.tissue_depth_mm();
   const auto drawn = renderer_->render(spec, out, truth_);
   if (!drawn.ok()) {
     return Status<hal::CameraError>::failure(drawn.error() == render::RenderError::BadImage
