@@ -281,6 +281,12 @@ bool write_tcp_svg(const char* path, const std::vector<Sample>& samples) {
     std::fprintf(f, "<rect x='%.1f' y='%.1f' width='%.1f' height='%.1f' fill='none' stroke='#888'/>\n", left, y0,
                  width - left - right, panel_h);
     std::fprintf(f, "<text x='8' y='%.1f'>%s</text>\n", y0 + panel_h / 2.0, axis_name[a]);
+    for (int second = 0; second <= static_cast<int>(t_max); ++second) {
+      const double x = px(static_cast<double>(second));
+      std::fprintf(f, "<line x1='%.1f' y1='%.1f' x2='%.1f' y2='%.1f' stroke='#ddd'/>\n", x, y0, x, y0 + panel_h);
+      std::fprintf(f, "<text x='%.1f' y='%.1f' text-anchor='middle' fill='#666'>%d</text>\n", x, y0 + panel_h + 14.0,
+                   second);
+    }
     std::fprintf(f, "<text x='%.1f' y='%.1f' text-anchor='end'>%.1f</text>\n", left - 4.0, y0 + 12.0, hi);
     std::fprintf(f, "<text x='%.1f' y='%.1f' text-anchor='end'>%.1f</text>\n", left - 4.0, y0 + panel_h, lo);
     std::fprintf(f, "<polyline fill='none' stroke='black' stroke-width='1.5' points='");
@@ -297,8 +303,7 @@ bool write_tcp_svg(const char* path, const std::vector<Sample>& samples) {
       }
     }
   }
-  std::fprintf(f, "<text x='%.1f' y='%.1f' text-anchor='middle'>time (s), 0 .. %.1f</text>\n", width / 2.0, height - 6.0,
-               t_max);
+  std::fprintf(f, "<text x='%.1f' y='%.1f' text-anchor='middle'>time (s)</text>\n", width / 2.0, height - 6.0);
   std::fprintf(f, "</svg>\n");
   return std::fclose(f) == 0;
 }

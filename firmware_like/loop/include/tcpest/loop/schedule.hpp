@@ -38,9 +38,9 @@ constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
     {Step::kAcquire, "acquire", 1500},
     {Step::kClassify, "classify", 1000},
     {Step::kInterpret, "interpret", 300},
-    {Step::kBorders, "borders", 700},
-    {Step::kCorners, "corners", 300},
-    {Step::kSolve, "solve", 1000},
+    {Step::kBorders, "borders", 500},
+    {Step::kCorners, "corners", 700},
+    {Step::kSolve, "solve", 800},
     {Step::kPublish, "publish", 100},
     {Step::kHousekeeping, "housekeeping", 100},
 }};
