@@ -214,7 +214,6 @@ CycleOutcome Executive::wait_trigger() noexcept {
 }
 
 CycleOutcome Executive::run_cycle() noexcept {
-  const std::int64_t trigger_before = record_.trigger_ns;
   const CycleOutcome outcome = wait_trigger();
   if (outcome != CycleOutcome::kContinue) {
     return outcome;
@@ -222,7 +221,6 @@ CycleOutcome Executive::run_cycle() noexcept {
   // A fresh record, keeping what wait_trigger() filled in.
   const std::int64_t trigger_ns = record_.trigger_ns;
   const std::uint32_t slipped = record_.slipped;
-  static_cast<void>(trigger_before);  // kept only for symmetry with the interrupted path
   record_ = CycleRecord{};
   record_.trigger_ns = trigger_ns;
   record_.slipped = slipped;
