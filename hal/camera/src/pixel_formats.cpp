@@ -85,15 +85,27 @@ void planar_yuv_to_rgb(const std::uint8_t* frame, int width, int height, ChromaL
     const std::uint8_t* row_y = plane_y + static_cast<std::size_t>(y) * w;
     const std::size_t chroma_row = static_cast<std::size_t>(y >> shift_y) * chroma_w;
     std::uint8_t* dst = out.row(y);
-    for (std::size_t x = 0; x < w; ++x) {
-      int cb = 128;
-      int cr = 128;
+    // The chroma terms once per chroma sample (shared by 2 pixels in 4:2:0 and 4:2:2).
+    const std::size_t step = std::size_t{1} << static_cast<unsigned>(shift_x);
+    for (std::size_t x0 = 0; x0 < w; x0 += step) {
+      int u = 0;
+      int v = 0;
       if (layout != ChromaLayout::kMono) {
-        const std::size_t c = chroma_row + (x >> static_cast<unsigned>(shift_x));
-        cb = plane_cb[c];
-        cr = plane_cr[c];
+        const std::size_t c = chroma_row + (x0 >> static_cast<unsigned>(shift_x));
+        u = plane_cb[c] - 128;
+        v = plane_cr[c] - 128;
       }
-      yuv_pixel(k, row_y[x], cb, cr, dst + 3U * x);
+      const int r_add = k.cr_to_r * v;
+      const int g_sub = k.cb_to_g * u + k.cr_to_g * v;
+      const int b_add = k.cb_to_b * u;
+      const std::size_t x_end = x0 + step < w ? x0 + step : w;
+      for (std::size_t x = x0; x < x_end; ++x) {
+        const int luma = (row_y[x] - k.y_offset) * k.y_scale + 32768;
+        std::uint8_t* px = dst + 3U * x;
+        px[0] = clamp_u8((luma + r_add) >> 16);
+        px[1] = clamp_u8((luma - g_sub) >> 16);
+        px[2] = clamp_u8((luma + b_add) >> 16);
+      }
     }
   }
 }
