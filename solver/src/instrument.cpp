@@ -15,49 +15,63 @@ constexpr double kSeriesCurvatureArc = 1.0e-6;
 
 using Mat37 = Eigen::Matrix<double, 3, kNumParams>;
 
-Mat3 rotation_x_derivative(double a) noexcept {
-  const double c = std::cos(a);
-  const double s = std::sin(a);
-  Mat3 m;
-  m << 0.0, 0.0, 0.0, 0.0, -s, -c, 0.0, c, -s;
-  return m;
-}
-Mat3 rotation_y_derivative(double a) noexcept {
-  const double c = std::cos(a);
-  const double s = std::sin(a);
-  Mat3 m;
-  m << -s, 0.0, c, 0.0, 0.0, 0.0, -c, 0.0, -s;
-  return m;
-}
-Mat3 rotation_z_derivative(double a) noexcept {
-  const double c = std::cos(a);
-  const double s = std::sin(a);
-  Mat3 m;
-  m << -s, -c, 0.0, c, -s, 0.0, 0.0, 0.0, 0.0;
-  return m;
+// 1 - cos(x) without cancellation: sin^2 / (1 + cos) where cos > 0.
+double one_minus_cos(double sin_x, double cos_x) noexcept {
+  return (cos_x > 0.0) ? sin_x * sin_x / (1.0 + cos_x) : 1.0 - cos_x;
 }
 
 // p(s) in the base frame (model.md), with the series for tiny k L.
-Vec3 arc_position(double k, double s, double bend_length) noexcept {
+// sin_ks, cos_ks = sin(k s), cos(k s), computed once by the caller.
+Vec3 arc_position(double k, double s, double bend_length, double sin_ks, double cos_ks) noexcept {
   if (std::fabs(k * bend_length) < kSeriesCurvatureArc) {
     return Vec3(k * s * s / 2.0, 0.0, s - k * k * s * s * s / 6.0);
   }
-  const double half = std::sin(0.5 * k * s);
-  // (1 - cos(k s)) / k written as 2 sin^2(k s / 2) / k: equal, without cancellation.
-  return Vec3(2.0 * half * half / k, 0.0, std::sin(k * s) / k);
+  return Vec3(one_minus_cos(sin_ks, cos_ks) / k, 0.0, sin_ks / k);
+}
+Vec3 arc_position(double k, double s, double bend_length) noexcept {
+  return arc_position(k, s, bend_length, std::sin(k * s), std::cos(k * s));
 }
 
 // d p(s) / d k.
-Vec3 arc_position_dk(double k, double s) noexcept {
+Vec3 arc_position_dk(double k, double s, double sin_ks, double cos_ks) noexcept {
   const double ks = k * s;
   if (std::fabs(ks) < kSeriesArc) {
     const double ks2 = ks * ks;
     return Vec3(s * s * (0.5 - ks2 / 8.0 + ks2 * ks2 / 144.0), 0.0, s * s * ks * (-1.0 / 3.0 + ks2 / 30.0));
   }
-  const double sn = std::sin(ks);
-  const double cs = std::cos(ks);
-  const double half = std::sin(0.5 * ks);
-  return Vec3((ks * sn - 2.0 * half * half) / (k * k), 0.0, (ks * cs - sn) / (k * k));
+  return Vec3((ks * sin_ks - one_minus_cos(sin_ks, cos_ks)) / (k * k), 0.0, (ks * cos_ks - sin_ks) / (k * k));
+}
+
+// Elementary rotations and their derivatives from a cosine/sine pair.
+Mat3 rotation_x_cs(double c, double s) noexcept {
+  Mat3 m;
+  m << 1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c;
+  return m;
+}
+Mat3 rotation_y_cs(double c, double s) noexcept {
+  Mat3 m;
+  m << c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c;
+  return m;
+}
+Mat3 rotation_z_cs(double c, double s) noexcept {
+  Mat3 m;
+  m << c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0;
+  return m;
+}
+Mat3 rotation_x_derivative_cs(double c, double s) noexcept {
+  Mat3 m;
+  m << 0.0, 0.0, 0.0, 0.0, -s, -c, 0.0, c, -s;
+  return m;
+}
+Mat3 rotation_y_derivative_cs(double c, double s) noexcept {
+  Mat3 m;
+  m << -s, 0.0, c, 0.0, 0.0, 0.0, -c, 0.0, -s;
+  return m;
+}
+Mat3 rotation_z_derivative_cs(double c, double s) noexcept {
+  Mat3 m;
+  m << -s, -c, 0.0, c, -s, 0.0, 0.0, 0.0, 0.0;
+  return m;
 }
 
 Vec3 arc_tangent(double k, double s) noexcept { return Vec3(std::sin(k * s), 0.0, std::cos(k * s)); }
@@ -84,27 +98,9 @@ bool finite_geometry(const InstrumentGeometry& g) noexcept {
 
 }  // namespace
 
-Mat3 rotation_x(double a) noexcept {
-  const double c = std::cos(a);
-  const double s = std::sin(a);
-  Mat3 m;
-  m << 1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c;
-  return m;
-}
-Mat3 rotation_y(double a) noexcept {
-  const double c = std::cos(a);
-  const double s = std::sin(a);
-  Mat3 m;
-  m << c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c;
-  return m;
-}
-Mat3 rotation_z(double a) noexcept {
-  const double c = std::cos(a);
-  const double s = std::sin(a);
-  Mat3 m;
-  m << c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0;
-  return m;
-}
+Mat3 rotation_x(double a) noexcept { return rotation_x_cs(std::cos(a), std::sin(a)); }
+Mat3 rotation_y(double a) noexcept { return rotation_y_cs(std::cos(a), std::sin(a)); }
+Mat3 rotation_z(double a) noexcept { return rotation_z_cs(std::cos(a), std::sin(a)); }
 
 PoseVector InstrumentGeometry::nominal_pose(double lambda_mm, double phi_rad, double theta_rad) const noexcept {
   PoseVector r;
@@ -211,10 +207,30 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
                               CornerJacobians* jacobians) const noexcept {
   out.present.fill(false);
   out.in_image.fill(false);
-  const PoseFrames f = frames(r);
+  // The frames of frames(r), each angle's cosine and sine computed once and
+  // shared with the derivatives (the solver calls this every iteration).
+  const double cos_psi = std::cos(r[kPsi]);
+  const double sin_psi = std::sin(r[kPsi]);
+  const double cos_mu = std::cos(r[kMu]);
+  const double sin_mu = std::sin(r[kMu]);
+  const double cos_phi = std::cos(r[kPhi]);
+  const double sin_phi = std::sin(r[kPhi]);
+  const Mat3 ry = rotation_y_cs(cos_psi, sin_psi);
+  const Mat3 rx = rotation_x_cs(cos_mu, sin_mu);
+  const Mat3 rz = rotation_z_cs(cos_phi, sin_phi);
+  PoseFrames f;
+  f.channel_origin = Vec3(r[kXch], r[kYch], 0.0);
+  f.channel_rotation = ry * rx;
+  f.base_origin = f.channel_origin + r[kLambda] * f.channel_rotation.col(2);
+  f.base_rotation = f.channel_rotation * rz;
+  f.curvature = r[kTheta] / g_.bend_length_mm;
   {
-    const CentrelineFrame end = centreline(f, g_.bend_length_mm);
-    out.tcp = end.position + g_.tcp_offset_mm * end.tangent;
+    const double length = g_.bend_length_mm;
+    const double sin_kl = std::sin(f.curvature * length);
+    const double cos_kl = std::cos(f.curvature * length);
+    const Vec3 end_position = f.base_origin + f.base_rotation * arc_position(f.curvature, length, length, sin_kl, cos_kl);
+    const Vec3 end_tangent = f.base_rotation * Vec3(sin_kl, 0.0, cos_kl);
+    out.tcp = end_position + g_.tcp_offset_mm * end_tangent;
   }
   const double radius = g_.radius_mm;
 
@@ -225,11 +241,8 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
   Vec3 d_ob[kNumParams];
   const double dk_dtheta = 1.0 / g_.bend_length_mm;
   if (jacobians != nullptr) {
-    const Mat3 ry = rotation_y(r[kPsi]);
-    const Mat3 rx = rotation_x(r[kMu]);
-    const Mat3 rz = rotation_z(r[kPhi]);
-    d_rch_dpsi = rotation_y_derivative(r[kPsi]) * rx;
-    d_rch_dmu = ry * rotation_x_derivative(r[kMu]);
+    d_rch_dpsi = rotation_y_derivative_cs(cos_psi, sin_psi) * rx;
+    d_rch_dmu = ry * rotation_x_derivative_cs(cos_mu, sin_mu);
     for (int q = 0; q < kNumParams; ++q) {
       d_rb[q].setZero();
       d_ob[q].setZero();
@@ -241,14 +254,17 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     d_ob[kLambda] = f.channel_rotation.col(2);
     d_rb[kPsi] = d_rch_dpsi * rz;
     d_rb[kMu] = d_rch_dmu * rz;
-    d_rb[kPhi] = f.channel_rotation * rotation_z_derivative(r[kPhi]);
+    d_rb[kPhi] = f.channel_rotation * rotation_z_derivative_cs(cos_phi, sin_phi);
   }
 
   for (int j = 0; j < kNumBoundaries; ++j) {
     const double s = g_.boundaries_mm[static_cast<std::size_t>(j)];
-    const Vec3 p_local = arc_position(f.curvature, s, g_.bend_length_mm);
-    const Vec3 n_local = arc_normal(f.curvature, s);
-    const Vec3 t_local = arc_tangent(f.curvature, s);
+    // One sine/cosine pair per boundary (the solver calls this every iteration).
+    const double sin_ks = std::sin(f.curvature * s);
+    const double cos_ks = std::cos(f.curvature * s);
+    const Vec3 p_local = arc_position(f.curvature, s, g_.bend_length_mm, sin_ks, cos_ks);
+    const Vec3 n_local(cos_ks, 0.0, -sin_ks);
+    const Vec3 t_local(sin_ks, 0.0, cos_ks);
     const Vec3 c = f.base_origin + f.base_rotation * p_local;
     const Vec3 n = f.base_rotation * n_local;
     const Vec3 b = f.base_rotation.col(1);
@@ -265,9 +281,13 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     if (!(rho > radius)) {
       continue;  // the camera is inside the tube's circle: no limb
     }
-    const double base_angle = std::atan2(b_coef, a_coef);
+    // a = atan2(B, A) +/- acos(-R / rho), its cosine and sine by the angle
+    // sum formulas (no trigonometric call): cos(atan2(B, A)) = A / rho,
+    // sin(atan2(B, A)) = B / rho, cos(delta) = w, sin(delta) = sqrt(1 - w^2) >= 0.
+    const double cos_base = a_coef / rho;
+    const double sin_base = b_coef / rho;
     const double w = -radius / rho;
-    const double delta = std::acos(w);
+    const double sin_delta = std::sqrt(1.0 - w * w);
     const Vec2 image_axis = c_jac * t;  // image direction of the centreline, base -> tip
 
     Vec3 points[2];
@@ -275,11 +295,13 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     Eigen::Matrix<double, 2, 3> point_jac[2];
     bool valid[2] = {false, false};
     int sides[2] = {0, 0};
-    double angles[2] = {0.0, 0.0};
+    double cos_angle[2] = {0.0, 0.0};
+    double sin_angle[2] = {0.0, 0.0};
     for (int i = 0; i < 2; ++i) {
       const double sign = (i == 0) ? 1.0 : -1.0;
-      angles[i] = base_angle + sign * delta;
-      points[i] = c + radius * (std::cos(angles[i]) * n + std::sin(angles[i]) * b);
+      cos_angle[i] = cos_base * w - sign * sin_base * sin_delta;
+      sin_angle[i] = sin_base * w + sign * cos_base * sin_delta;
+      points[i] = c + radius * (cos_angle[i] * n + sin_angle[i] * b);
       valid[i] = camera.project(points[i], pixels[i], point_jac[i]);
       if (valid[i]) {
         const Vec2 v = pixels[i] - c_px;
@@ -296,12 +318,23 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     Mat37 dn;
     Mat37 db;
     if (jacobians != nullptr) {
-      const Vec3 dp_dk = arc_position_dk(f.curvature, s);
+      const Vec3 dp_dk = arc_position_dk(f.curvature, s, sin_ks, cos_ks);
       const Vec3 dn_dk = -s * t_local;  // d n(s)/dk
-      for (int q = 0; q < kNumParams; ++q) {
-        dc.col(q) = d_ob[q] + d_rb[q] * p_local;
+      // R_b depends on psi, mu, phi only and O_b on x_ch, y_ch, psi, mu,
+      // lambda: the other columns are skipped (the solver calls this every
+      // iteration).
+      dc.setZero();
+      dn.setZero();
+      db.setZero();
+      constexpr int kRotationParams[3] = {kPsi, kMu, kPhi};
+      for (int q : kRotationParams) {
+        dc.col(q) = d_rb[q] * p_local;
         dn.col(q) = d_rb[q] * n_local;
         db.col(q) = d_rb[q].col(1);
+      }
+      constexpr int kOriginParams[5] = {kXch, kYch, kPsi, kMu, kLambda};
+      for (int q : kOriginParams) {
+        dc.col(q) += d_ob[q];
       }
       dc.col(kTheta) += f.base_rotation * dp_dk * dk_dtheta;
       dn.col(kTheta) += f.base_rotation * dn_dk * dk_dtheta;
@@ -324,10 +357,10 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
         const Eigen::Matrix<double, 1, kNumParams> d_rho = (a_coef * d_a + b_coef * d_b) / rho;
         const Eigen::Matrix<double, 1, kNumParams> d_base = (a_coef * d_b - b_coef * d_a) / (rho * rho);
         const Eigen::Matrix<double, 1, kNumParams> d_w = (radius / (rho * rho)) * d_rho;
-        const Eigen::Matrix<double, 1, kNumParams> d_delta = (-1.0 / std::sqrt(1.0 - w * w)) * d_w;
+        const Eigen::Matrix<double, 1, kNumParams> d_delta = (-1.0 / sin_delta) * d_w;
         const Eigen::Matrix<double, 1, kNumParams> d_angle = d_base + sign * d_delta;
-        const double ca = std::cos(angles[i]);
-        const double sa = std::sin(angles[i]);
+        const double ca = cos_angle[i];
+        const double sa = sin_angle[i];
         const Vec3 along_circle = radius * (-sa * n + ca * b);
         const Mat37 d_point = dc + radius * (ca * dn + sa * db) + along_circle * d_angle;
         (*jacobians)[ku] = point_jac[i] * d_point;

@@ -1,0 +1,222 @@
+// A small dense Levenberg–Marquardt, shaped like Ceres' tiny_solver.h:
+// fixed-size Eigen matrices (parameters and residual rows known at compile
+// time), all scratch memory owned by the object, no allocation, no recursion,
+// one bounded loop. The problem is a function object:
+//
+//   bool f(const Params& x, Residuals& residuals, Jacobian* jacobian) noexcept;
+//
+// returning false when x is outside the function's domain (for the pose
+// problem: a corner in use has no model counterpart at x), and
+//
+//   void f.add_curvature(const Params& x, Normal& normal) noexcept;
+//
+// adding to J^T J any exact, positive semi-definite second-order term of
+// the cost's Hessian it knows (or nothing). Unused residual rows must be
+// zero (rows and Jacobian rows), they then add nothing.
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace tcpest {
+namespace solver {
+
+// Every way a solve ends. The first three are the converged ones.
+enum class SolveStatus : std::uint8_t {
+  ConvergedGradient,      // max |J^T r| <= gradient_tolerance
+  ConvergedStep,          // |dx| <= step_tolerance * (|x| + step_tolerance)
+  ConvergedCostChange,    // a step lowered (or would by the model lower) the cost by <= cost_change_tolerance * cost
+  MaxIterations,          // options.max_iterations trial steps without converging
+  NonFiniteResidual,      // a residual or the cost at the start is NaN/inf
+  NonFiniteJacobian,      // the Jacobian (or J^T J, J^T r) at the start is NaN/inf
+  SingularSystem,         // the damped normal equations could not be solved
+  TooFewCorners,          // fewer than 4 usable corners (empty mask included)
+  NonFiniteCorner,        // a visible measured corner is NaN/inf
+  CornerFarOutsideImage,  // a visible measured corner lies far outside the image
+  InvalidInput,           // bad options or a non-finite start
+};
+constexpr int kNumSolveStatuses = 11;
+
+// Stable snake_case name (JSON output), e.g. "converged_gradient".
+const char* to_string(SolveStatus status) noexcept;
+// One sentence for people.
+const char* describe(SolveStatus status) noexcept;
+bool is_converged(SolveStatus status) noexcept;
+
+// A hard cap on any options.max_iterations: the worst case of a solve is
+// bounded by it whatever the caller asks.
+constexpr int kMaxIterationsCap = 500;
+
+struct SolverOptions {
+  int max_iterations = 100;              // trial steps (accepted or rejected), 1..kMaxIterationsCap
+  double gradient_tolerance = 1e-8;      // on max |J^T r| (cost units per parameter unit)
+  double step_tolerance = 1e-9;          // relative step size
+  double cost_change_tolerance = 1e-6;  // relative cost decrease of an accepted step
+  double initial_damping = 1e-4;         // mu0, relative to diag(J^T J) (tiny_solver: 1 / 1e4)
+};
+
+// True when every field is in range (finite, positive where it must be).
+bool valid(const SolverOptions& options) noexcept;
+
+struct LmOutcome {
+  SolveStatus status = SolveStatus::InvalidInput;
+  int iterations = 0;         // trial steps evaluated (accepted or rejected)
+  double initial_cost = 0.0;  // 0.5 |r(x0)|^2
+  double final_cost = 0.0;    // 0.5 |r(x)|^2 at the returned x
+};
+
+template <int kParams, int kResiduals>
+class LevenbergMarquardt {
+ public:
+  using Params = Eigen::Matrix<double, kParams, 1>;
+  using Residuals = Eigen::Matrix<double, kResiduals, 1>;
+  using Jacobian = Eigen::Matrix<double, kResiduals, kParams>;
+  using Normal = Eigen::Matrix<double, kParams, kParams>;
+
+  // Minimises 0.5 |f(x)|^2 from x; x holds the best point found on return
+  // (the start when the solve is refused before the first step).
+  template <typename Function>
+  LmOutcome minimise(Function& f, Params& x, const SolverOptions& options) noexcept {
+    LmOutcome out;
+    if (!valid(options) || !x.allFinite()) {
+      out.status = SolveStatus::InvalidInput;
+      return out;
+    }
+    if (!f(x, residuals_, &jacobian_)) {
+      out.status = SolveStatus::InvalidInput;
+      return out;
+    }
+    double cost = 0.5 * residuals_.squaredNorm();
+    out.initial_cost = cost;
+    out.final_cost = cost;
+    if (!residuals_.allFinite() || !std::isfinite(cost)) {
+      out.status = SolveStatus::NonFiniteResidual;
+      return out;
+    }
+    if (!jacobian_.allFinite() || !update_normal_equations(f, x)) {
+      out.status = SolveStatus::NonFiniteJacobian;
+      return out;
+    }
+    double damping = options.initial_damping;
+    double damping_growth = 2.0;
+    for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+      out.iterations = iteration;
+      if (gradient_.template lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) {
+        out.status = SolveStatus::ConvergedGradient;
+        return out;
+      }
+      // Marquardt's scaling, clamped as tiny_solver does so that a parameter
+      // the residuals do not see (e.g. phi of a straight tube) still gets a
+      // finite, damped step.
+      damped_ = normal_;
+      for (int i = 0; i < kParams; ++i) {
+        damped_(i, i) += damping * std::min(std::max(normal_(i, i), kMinDiagonal), kMaxDiagonal);
+      }
+      llt_.compute(damped_);
+      if (llt_.info() != Eigen::Success) {
+        out.status = SolveStatus::SingularSystem;
+        return out;
+      }
+      step_ = llt_.solve(-gradient_);
+      if (!step_.allFinite()) {
+        out.status = SolveStatus::SingularSystem;
+        return out;
+      }
+      if (step_.norm() <= options.step_tolerance * (x.norm() + options.step_tolerance)) {
+        out.status = SolveStatus::ConvergedStep;
+        return out;
+      }
+      // Decrease the quadratic model promises for this step. When even that
+      // is below the cost-change tolerance, the step is not worth an
+      // evaluation: converged by cost change at the current x.
+      const double predicted = -(step_.dot(gradient_) + 0.5 * step_.dot(normal_ * step_));
+      if (predicted <= options.cost_change_tolerance * cost) {
+        out.status = SolveStatus::ConvergedCostChange;
+        return out;
+      }
+      out.iterations = iteration + 1;
+      trial_x_ = x + step_;
+      const bool in_domain = f(trial_x_, trial_residuals_, &trial_jacobian_);
+      const double trial_cost = 0.5 * trial_residuals_.squaredNorm();
+      // A trial outside the domain or with a non-finite value is a failed
+      // step like any other: more damping, shorter step, same x.
+      const bool usable = in_domain && std::isfinite(trial_cost) && trial_residuals_.allFinite() &&
+                          trial_jacobian_.allFinite();
+      if (usable && trial_cost < cost) {
+        const double actual = cost - trial_cost;
+        const double previous_cost = cost;
+        x = trial_x_;
+        residuals_ = trial_residuals_;
+        jacobian_ = trial_jacobian_;
+        cost = trial_cost;
+        out.final_cost = cost;
+        if (!update_normal_equations(f, x)) {
+          // A finite J whose J^T J overflows: no sound step can follow.
+          out.status = SolveStatus::NonFiniteJacobian;
+          return out;
+        }
+        if (actual <= options.cost_change_tolerance * previous_cost) {
+          out.status = SolveStatus::ConvergedCostChange;
+          return out;
+        }
+        const double ratio = (predicted > 0.0) ? actual / predicted : 0.0;
+        const double shape = 2.0 * ratio - 1.0;
+        damping *= std::max(1.0 / 3.0, 1.0 - shape * shape * shape);
+        damping = std::max(damping, kMinDamping);
+        damping_growth = 2.0;
+      } else {
+        damping = std::min(damping * damping_growth, kMaxDamping);
+        damping_growth = std::min(damping_growth * 2.0, kMaxDampingGrowth);
+      }
+    }
+    out.iterations = options.max_iterations;
+    out.status = SolveStatus::MaxIterations;
+    return out;
+  }
+
+  // The last evaluated residuals and Jacobian at the returned x.
+  const Residuals& residuals() const noexcept { return residuals_; }
+  const Jacobian& jacobian() const noexcept { return jacobian_; }
+
+ private:
+  static constexpr double kMinDiagonal = 1e-6;
+  static constexpr double kMaxDiagonal = 1e32;
+  static constexpr double kMinDamping = 1e-16;
+  static constexpr double kMaxDamping = 1e32;
+  static constexpr double kMaxDampingGrowth = 1073741824.0;  // 2^30
+
+  template <typename Function>
+  bool update_normal_equations(Function& f, const Params& x) noexcept {
+    // The lower triangle column by column, then mirrored: for these small
+    // fixed sizes faster than Eigen's blocked GEMM path.
+    for (int col = 0; col < kParams; ++col) {
+      for (int row = col; row < kParams; ++row) {
+        normal_(row, col) = jacobian_.col(row).dot(jacobian_.col(col));
+      }
+    }
+    normal_.template triangularView<Eigen::StrictlyUpper>() = normal_.transpose();
+    // Second-order terms sum_i e_i * Hessian(e_i) that the function knows to
+    // be exact and positive (the pose problem: its penalty residuals). They
+    // change the model of the cost the step is computed from, not the cost.
+    f.add_curvature(x, normal_);
+    gradient_.noalias() = jacobian_.transpose().lazyProduct(residuals_);
+    return normal_.allFinite() && gradient_.allFinite();
+  }
+
+  Residuals residuals_ = Residuals::Zero();
+  Residuals trial_residuals_ = Residuals::Zero();
+  Jacobian jacobian_ = Jacobian::Zero();
+  Jacobian trial_jacobian_ = Jacobian::Zero();
+  Normal normal_ = Normal::Zero();
+  Normal damped_ = Normal::Zero();
+  Params gradient_ = Params::Zero();
+  Params step_ = Params::Zero();
+  Params trial_x_ = Params::Zero();
+  Eigen::LLT<Normal> llt_;
+};
+
+}  // namespace solver
+}  // namespace tcpest
