@@ -594,8 +594,9 @@ void Renderer::Impl::build_instrument(const PoseVector& r, std::uint8_t index) n
   // Shaft: channel exit to the base, in pieces.
   const double lambda = r[solver::kLambda];
   if (lambda > 1e-6) {
-    int pieces = static_cast<int>(std::ceil(lambda / kShaftPieceMm));
-    pieces = std::min(std::max(pieces, 1), kMaxShaftPieces);
+    // Clamped in floating point first: an absurd lambda must not overflow the cast.
+    const double wanted = std::min(static_cast<double>(kMaxShaftPieces), std::max(1.0, std::ceil(lambda / kShaftPieceMm)));
+    const int pieces = static_cast<int>(wanted);
     for (int i = 0; i < pieces; ++i) {
       const Vec3 a = f.channel_origin + (lambda * i / pieces) * axis;
       const Vec3 b = f.channel_origin + (lambda * (i + 1) / pieces) * axis;

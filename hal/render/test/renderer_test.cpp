@@ -256,6 +256,22 @@ TEST_F(RendererTest, BadInputIsRefused) {
             RenderError::BadImage);
 }
 
+TEST_F(RendererTest, AbsurdButFiniteConfigurationsRenderWithoutHarm) {
+  test::Frame f(720, 576);
+  const double values[] = {0.0, -1e6, 1e-300, 1e12, 250.0};
+  int i = 0;
+  for (double a : values) {
+    for (double b : values) {
+      SceneSpec scene;
+      scene.r << a, -b, a * 0.01, b, b, a, a * 0.1;
+      scene.seed = static_cast<std::uint64_t>(++i);
+      scene.hard_cases = (i % 2 == 0) ? kAllHardCases : 0U;
+      GroundTruth truth;
+      ASSERT_TRUE(renderer_->render(scene, f.view, truth, f.coverage.data()).ok()) << scene.r.transpose();
+    }
+  }
+}
+
 TEST(RendererFold, PixelsBeyondTheFoldAreBlackAndNothingBreaks) {
   // An HD endoscope calibration whose polynomial folds inside the image's
   // corners: those pixels have no ray and stay black.
