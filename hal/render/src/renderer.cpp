@@ -44,15 +44,16 @@ constexpr double kPlaneEps = 1.0e-7;     // mm: overlap of neighbouring chords (
 constexpr double kLightNearMm = 15.0;
 double falloff(double dist2) noexcept { return 1.0 / std::max(dist2, kLightNearMm * kLightNearMm); }
 
-// Instrument parts (label = kLabelInstrument + 8 * instrument + part).
-enum Part : std::uint8_t { kPartShaft = 0, kPartStripe0 = 1, kPartGrasper = 6 };
+// Instrument parts (label = kLabelInstrument + 8 * instrument + part), the
+// public PixelLabel codes.
+enum Part : std::uint8_t { kPartShaft = kPartShaftLabel, kPartStripe0 = kPartMarker1Label, kPartGrasper = kPartGrasperLabel };
 enum Label : std::uint8_t {
-  kLabelTissue = 0,
-  kLabelDecoy = 1,
-  kLabelOccluder = 2,
-  kLabelReflection = 3,
-  kLabelInstrument = 8,
-  kLabelNoRay = 255,
+  kLabelTissue = kPixelTissue,
+  kLabelDecoy = kPixelDecoy,
+  kLabelOccluder = kPixelOccluder,
+  kLabelReflection = kPixelReflection,
+  kLabelInstrument = kPixelInstrument,
+  kLabelNoRay = kPixelNoRay,
 };
 
 struct Rgb {
@@ -1226,6 +1227,7 @@ Renderer::~Renderer() = default;
 
 const solver::CameraModel& Renderer::camera() const noexcept { return impl_->camera; }
 const solver::InstrumentModel& Renderer::instrument() const noexcept { return impl_->model; }
+const std::uint8_t* Renderer::labels() const noexcept { return impl_->labels.get(); }
 
 PoseVector Renderer::mirrored_nominal_pose(double lambda_mm, double phi_rad, double theta_rad) const noexcept {
   const auto& g = impl_->model.geometry();

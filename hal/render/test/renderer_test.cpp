@@ -186,6 +186,33 @@ TEST_F(RendererTest, OccluderHidesTheCornersUnderIt) {
   EXPECT_GT(hidden_by_occluder, 0);
 }
 
+TEST_F(RendererTest, LabelsTellWhatEachPixelShows) {
+  test::Frame f(720, 576);
+  SceneSpec scene;
+  scene.r = nominal(20.0, 0.0, 40.0);
+  scene.clean = true;
+  GroundTruth truth;
+  ASSERT_TRUE(renderer_->render(scene, f.view, truth, f.coverage.data()).ok());
+  const std::uint8_t* labels = renderer_->labels();
+  int per_marker[5] = {0, 0, 0, 0, 0};
+  for (std::size_t i = 0; i < 720U * 576U; ++i) {
+    const int l = labels[i];
+    const bool instrument = l >= kPixelInstrument && l < kPixelInstrument + 8;
+    // A pixel centre on the instrument is (almost) fully covered, and vice versa.
+    if (instrument) {
+      EXPECT_GT(f.coverage[i], 0.0F);
+    } else {
+      EXPECT_LT(f.coverage[i], 1.0F);
+    }
+    if (l >= kPixelInstrument + kPartMarker1Label && l < kPixelInstrument + kPartMarker1Label + 5) {
+      ++per_marker[l - kPixelInstrument - kPartMarker1Label];
+    }
+  }
+  for (int m = 0; m < 5; ++m) {
+    EXPECT_GT(per_marker[m], 50) << "marker " << m + 1;
+  }
+}
+
 TEST_F(RendererTest, InstrumentBehindTheCameraGivesAValidImageWithoutIt) {
   test::Frame f(720, 576);
   SceneSpec scene;
