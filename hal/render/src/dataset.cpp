@@ -1,0 +1,129 @@
+#include "tcpest/render/dataset.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "scene_random.hpp"
+#include "tcpest/render/renderer.hpp"
+
+namespace tcpest {
+namespace render {
+
+using solver::deg_to_rad;
+using solver::kPi;
+
+std::uint64_t image_seed(std::uint64_t seed, std::uint64_t index) noexcept {
+  return splitmix64(seed * 0x9E3779B97F4A7C15ULL + splitmix64(index));
+}
+
+void lab_grid_joints(int index, double& lambda_mm, double& phi_rad, double& theta_rad) noexcept {
+  const int i = std::min(std::max(index, 0), kLabGridSize - 1);
+  const int i_theta = i % kLabGridTheta;
+  const int i_phi = (i / kLabGridTheta) % kLabGridPhi;
+  const int i_lambda = i / (kLabGridTheta * kLabGridPhi);
+  lambda_mm = 10.0 + 30.0 * i_lambda / (kLabGridLambda - 1);
+  phi_rad = deg_to_rad(-90.0 + 180.0 * i_phi / (kLabGridPhi - 1));
+  theta_rad = deg_to_rad(-100.0 + 200.0 * i_theta / (kLabGridTheta - 1));
+}
+
+LabSample lab_sample(const solver::InstrumentGeometry& geometry, int index, std::uint64_t seed) noexcept {
+  LabSample out;
+  double lambda = 0.0;
+  double phi = 0.0;
+  double theta = 0.0;
+  lab_grid_joints(index, lambda, phi, theta);
+  Random rng(seed, std::uint64_t{0x1AB00000U} + static_cast<unsigned>(index));
+  out.r = geometry.nominal_pose(lambda, phi, theta);
+  out.r[solver::kXch] += kPlayPositionSigmaMm * rng.normal();
+  out.r[solver::kYch] += kPlayPositionSigmaMm * rng.normal();
+  out.r[solver::kPsi] += deg_to_rad(kPlayAngleSigmaDeg) * rng.normal();
+  out.r[solver::kMu] += deg_to_rad(kPlayAngleSigmaDeg) * rng.normal();
+  out.prior.joints[0] = lambda + rng.uniform(-kPriorLambdaMm, kPriorLambdaMm);
+  out.prior.joints[1] = phi + rng.uniform(-kPriorAngleRad, kPriorAngleRad);
+  out.prior.joints[2] = theta + rng.uniform(-kPriorAngleRad, kPriorAngleRad);
+  return out;
+}
+
+std::uint32_t hard_cases_for(int index, std::uint64_t seed) noexcept {
+  Random rng(seed, std::uint64_t{0x4A2D0000U} + static_cast<unsigned>(index));
+  const int count = 1 + rng.below(3);
+  std::uint32_t mask = 0U;
+  int chosen = 0;
+  for (int attempt = 0; attempt < 64 && chosen < count; ++attempt) {
+    const std::uint32_t bit = 1U << static_cast<unsigned>(rng.below(kNumHardCases));
+    if ((mask & bit) == 0U) {
+      mask |= bit;
+      ++chosen;
+    }
+  }
+  return mask;
+}
+
+SequenceGenerator::SequenceGenerator(const solver::InstrumentGeometry& geometry, std::uint64_t seed,
+                                     double frame_rate_hz) noexcept
+    : geometry_(geometry),
+      seed_(seed),
+      frame_rate_hz_(frame_rate_hz > 0.0 ? frame_rate_hz : 25.0),
+      world_seed_(splitmix64(seed ^ 0x3D0C1DULL) | 1U) {  // never 0 (0 means "derive from the frame seed")
+  Random rng(seed, 0x5E9ULL);
+  tissue_depth_mm_ = rng.uniform(70.0, 90.0);
+  // Amplitudes sum to the half range of each joint (the weights 0.5, 0.3, 0.2).
+  const double half_range[3] = {13.0, deg_to_rad(80.0), deg_to_rad(90.0)};
+  const double weight[kWaves] = {0.5, 0.3, 0.2};
+  for (std::size_t j = 0; j < 3; ++j) {
+    for (std::size_t w = 0; w < static_cast<std::size_t>(kWaves); ++w) {
+      joints_[j][w].amplitude = half_range[j] * weight[w];
+      joints_[j][w].frequency_hz = rng.uniform(0.02, 0.06) * (1.0 + static_cast<double>(w));
+      joints_[j][w].phase = rng.uniform(0.0, 2.0 * kPi);
+    }
+  }
+  const double play_sigma[4] = {kPlayPositionSigmaMm, kPlayPositionSigmaMm, deg_to_rad(kPlayAngleSigmaDeg),
+                                deg_to_rad(kPlayAngleSigmaDeg)};
+  for (std::size_t p = 0; p < 4; ++p) {
+    for (std::size_t w = 0; w < 2; ++w) {
+      play_[p][w].amplitude = play_sigma[p] * (w == 0 ? 1.0 : 0.5);
+      play_[p][w].frequency_hz = rng.uniform(0.004, 0.03);
+      play_[p][w].phase = rng.uniform(0.0, 2.0 * kPi);
+    }
+  }
+  const double bias[3] = {1.5, 0.08, 0.08};
+  for (std::size_t j = 0; j < 3; ++j) {
+    for (std::size_t w = 0; w < 2; ++w) {
+      bias_[j][w].amplitude = bias[j] * (w == 0 ? 1.0 : 0.5);
+      bias_[j][w].frequency_hz = rng.uniform(0.01, 0.05);
+      bias_[j][w].phase = rng.uniform(0.0, 2.0 * kPi);
+    }
+  }
+}
+
+SequenceSample SequenceGenerator::sample(std::uint32_t frame) const noexcept {
+  SequenceSample out;
+  out.time_s = static_cast<double>(frame) / frame_rate_hz_;
+  const double t = out.time_s;
+  auto wave_sum = [t](const auto& waves) {
+    double v = 0.0;
+    for (const auto& w : waves) {
+      v += w.amplitude * std::sin(2.0 * kPi * w.frequency_hz * t + w.phase);
+    }
+    return v;
+  };
+  const double lambda = 25.0 + wave_sum(joints_[0]);
+  const double phi = wave_sum(joints_[1]);
+  const double theta = wave_sum(joints_[2]);
+  out.r = geometry_.nominal_pose(lambda, phi, theta);
+  for (std::size_t p = 0; p < 4; ++p) {
+    out.r[static_cast<int>(p)] += wave_sum(play_[p]);
+  }
+  // Encoders: the truth plus a slowly varying bias (backlash, cable
+  // stretch) and a little frame-to-frame noise.
+  Random rng(seed_, 0xE7C0000000ULL + frame);
+  const double joints[3] = {lambda, phi, theta};
+  const double noise[3] = {0.1, 0.005, 0.005};
+  for (std::size_t j = 0; j < 3; ++j) {
+    out.prior.joints[j] = joints[j] + wave_sum(bias_[j]) + noise[j] * rng.normal();
+  }
+  return out;
+}
+
+}  // namespace render
+}  // namespace tcpest

@@ -1,0 +1,505 @@
+#include "tcpest/render/sidecar.hpp"
+
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+
+#include "tcpest/common/json.hpp"
+
+namespace tcpest {
+namespace render {
+
+namespace {
+
+using solver::kNumCorners;
+
+// Appends formatted text to a fixed buffer; remembers overflow.
+class Writer {
+ public:
+  Writer(char* out, std::size_t capacity) noexcept : out_(out), capacity_(capacity) {
+    if (capacity_ > 0U) {
+      out_[0] = '\0';
+    }
+  }
+  // NOLINTNEXTLINE(cert-dcl50-cpp): printf-style formatting into a fixed buffer is the project's allocation-free formatter; the format attribute lets the compiler check every call
+  void add(const char* format, ...) noexcept __attribute__((format(printf, 2, 3))) {
+    if (overflow_) {
+      return;
+    }
+    va_list args;
+    va_start(args, format);
+    const int n = std::vsnprintf(out_ + used_, capacity_ - used_, format, args);
+    va_end(args);
+    if (n < 0 || static_cast<std::size_t>(n) >= capacity_ - used_) {
+      overflow_ = true;
+      return;
+    }
+    used_ += static_cast<std::size_t>(n);
+  }
+  std::size_t length() const noexcept { return overflow_ ? 0U : used_; }
+
+ private:
+  char* out_;
+  std::size_t capacity_;
+  std::size_t used_ = 0U;
+  bool overflow_ = false;
+};
+
+void add_numbers(Writer& w, const double* values, int count) noexcept {
+  w.add("[");
+  for (int i = 0; i < count; ++i) {
+    w.add("%s%.12g", i > 0 ? ", " : "", values[i]);
+  }
+  w.add("]");
+}
+
+void add_bools(Writer& w, const std::array<bool, kNumCorners>& values) noexcept {
+  w.add("[");
+  for (int i = 0; i < kNumCorners; ++i) {
+    w.add("%s%s", i > 0 ? ", " : "", values[static_cast<std::size_t>(i)] ? "true" : "false");
+  }
+  w.add("]");
+}
+
+// Escapes nothing: names we write are plain file names; quotes and
+// backslashes are replaced so the JSON stays valid.
+void add_string(Writer& w, const char* text) noexcept {
+  char clean[160];
+  std::size_t n = 0U;
+  for (const char* p = text; *p != '\0' && n + 1U < sizeof clean; ++p) {
+    const char c = *p;
+    clean[n++] = (c == '"' || c == '\\' || static_cast<unsigned char>(c) < 0x20U) ? '_' : c;
+  }
+  clean[n] = '\0';
+  w.add("\"%s\"", clean);
+}
+
+void add_instrument(Writer& w, const SidecarInstrument& s, const char* indent) noexcept {
+  if (s.has_r) {
+    w.add("%s\"r\": ", indent);
+    add_numbers(w, s.r.data(), solver::kNumParams);
+    w.add(",\n");
+  }
+  if (s.has_tcp) {
+    w.add("%s\"tcp\": ", indent);
+    add_numbers(w, s.tcp.data(), 3);
+    w.add(",\n");
+  }
+  w.add("%s\"corners\": [", indent);
+  for (int k = 0; k < kNumCorners; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    w.add("%s", k > 0 ? ", " : "");
+    if (s.corner_present[ku]) {
+      w.add("[%.12g, %.12g]", s.corners[ku].x(), s.corners[ku].y());
+    } else {
+      w.add("null");
+    }
+  }
+  w.add("],\n%s\"corner_in_image\": ", indent);
+  add_bools(w, s.corner_in_image);
+  w.add(",\n%s\"corner_visible\": ", indent);
+  add_bools(w, s.corner_visible);
+  w.add(",\n%s\"instrument_view\": \"%s\"", indent, to_string(s.view));
+}
+
+SidecarInstrument from_truth(const InstrumentTruth& t) noexcept {
+  SidecarInstrument s;
+  s.has_r = true;
+  s.r = t.r;
+  s.has_tcp = true;
+  s.tcp = t.tcp;
+  s.corners = t.corners;
+  s.corner_present = t.present;
+  s.corner_in_image = t.in_image;
+  s.corner_visible = t.visible;
+  s.view = t.view;
+  return s;
+}
+
+constexpr std::size_t kMaxTokens = 1024U;
+
+class Reader {
+ public:
+  Reader(const json::Document& doc, const char* file) noexcept : doc_(doc), file_(file) {}
+  Diagnostic error(const char* field, const char* message) const noexcept {
+    return Diagnostic::make(file_, 0U, field, message);
+  }
+  // Optional member: kNone when absent.
+  std::size_t find(std::size_t object, const char* key) const noexcept {
+    const auto m = doc_.member(object, key);
+    return m.ok() ? m.value() : json::kNone;
+  }
+  bool numbers(std::size_t index, double* out, std::size_t count) const noexcept {
+    return doc_.numbers(index, out, count).ok();
+  }
+  bool bools(std::size_t index, std::array<bool, kNumCorners>& out) const noexcept {
+    if (doc_.type(index) != json::TokenType::Array || doc_.array_size(index) != static_cast<std::size_t>(kNumCorners)) {
+      return false;
+    }
+    for (std::size_t k = 0; k < static_cast<std::size_t>(kNumCorners); ++k) {
+      const auto e = doc_.element(index, k);
+      if (!e.ok()) {
+        return false;
+      }
+      const json::TokenType type = doc_.type(e.value());
+      if (type != json::TokenType::True && type != json::TokenType::False) {
+        return false;
+      }
+      out[k] = type == json::TokenType::True;
+    }
+    return true;
+  }
+  const json::Document& doc() const noexcept { return doc_; }
+
+ private:
+  const json::Document& doc_;
+  const char* file_;
+};
+
+bool parse_view(const json::Document& doc, std::size_t index, InstrumentView& view) noexcept {
+  const InstrumentView all[] = {InstrumentView::Visible, InstrumentView::BehindCamera, InstrumentView::OutOfView};
+  for (InstrumentView v : all) {
+    if (doc.string_equals(index, to_string(v))) {
+      view = v;
+      return true;
+    }
+  }
+  return false;
+}
+
+// Reads one instrument's keys from `object`. Returns nullptr on success,
+// else the failing field name (message in `message`).
+const char* parse_instrument(const Reader& rd, std::size_t object, SidecarInstrument& s, const char*& message) noexcept {
+  const json::Document& doc = rd.doc();
+  std::size_t i = rd.find(object, "r");
+  if (i != json::kNone) {
+    double r[solver::kNumParams];
+    if (!rd.numbers(i, r, solver::kNumParams)) {
+      message = "expected 7 numbers [x_ch, y_ch, psi, mu, lambda, phi, theta]";
+      return "r";
+    }
+    for (int q = 0; q < solver::kNumParams; ++q) {
+      s.r[q] = r[q];
+    }
+    s.has_r = true;
+  }
+  i = rd.find(object, "tcp");
+  if (i != json::kNone) {
+    double t[3];
+    if (!rd.numbers(i, t, 3U)) {
+      message = "expected 3 numbers [x, y, z] in mm";
+      return "tcp";
+    }
+    s.tcp = solver::Vec3(t[0], t[1], t[2]);
+    s.has_tcp = true;
+  }
+  i = rd.find(object, "corners");
+  if (i == json::kNone) {
+    message = "missing (12 entries, [u, v] or null, k = 2 j + side)";
+    return "corners";
+  }
+  if (doc.type(i) != json::TokenType::Array || doc.array_size(i) != static_cast<std::size_t>(kNumCorners)) {
+    message = "expected an array of 12 entries, each [u, v] or null";
+    return "corners";
+  }
+  for (std::size_t k = 0; k < static_cast<std::size_t>(kNumCorners); ++k) {
+    const auto e = doc.element(i, k);
+    if (!e.ok()) {
+      message = "expected an array of 12 entries";
+      return "corners";
+    }
+    if (doc.is_null(e.value())) {
+      s.corner_present[k] = false;
+      continue;
+    }
+    double uv[2];
+    if (!rd.numbers(e.value(), uv, 2U)) {
+      message = "each corner must be [u, v] (finite pixels) or null";
+      return "corners";
+    }
+    s.corners[k] = solver::Vec2(uv[0], uv[1]);
+    s.corner_present[k] = true;
+  }
+  s.corner_in_image = s.corner_present;
+  i = rd.find(object, "corner_in_image");
+  if (i != json::kNone && !rd.bools(i, s.corner_in_image)) {
+    message = "expected 12 booleans";
+    return "corner_in_image";
+  }
+  s.corner_visible = s.corner_in_image;
+  i = rd.find(object, "corner_visible");
+  if (i != json::kNone && !rd.bools(i, s.corner_visible)) {
+    message = "expected 12 booleans";
+    return "corner_visible";
+  }
+  for (std::size_t k = 0; k < static_cast<std::size_t>(kNumCorners); ++k) {
+    if (s.corner_visible[k] && !s.corner_present[k]) {
+      message = "a corner marked visible has no coordinates (null)";
+      return "corner_visible";
+    }
+  }
+  i = rd.find(object, "instrument_view");
+  if (i != json::kNone && !parse_view(doc, i, s.view)) {
+    message = "expected \"visible\", \"behind_camera\" or \"out_of_view\"";
+    return "instrument_view";
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+Sidecar make_sidecar(const GroundTruth& truth, const SceneSpec& scene, const RenderSettings& settings, int width,
+                     int height) noexcept {
+  Sidecar s;
+  s.width = width;
+  s.height = height;
+  s.seed = truth.seed;
+  s.instrument = from_truth(truth.instruments[0]);
+  s.hard_cases = truth.hard_cases;
+  s.has_render = true;
+  s.scene = scene;
+  s.tissue_depth_mm = truth.tissue_depth_mm;
+  s.supersample = settings.supersample;
+  s.has_second = truth.instrument_count > 1;
+  if (s.has_second) {
+    s.second = from_truth(truth.instruments[1]);
+  }
+  return s;
+}
+
+std::size_t format_sidecar(const Sidecar& s, char* out, std::size_t capacity) noexcept {
+  Writer w(out, capacity);
+  w.add("{\n  \"format\": \"%s\",\n  \"image\": ", kSidecarFormat);
+  add_string(w, s.image);
+  w.add(",\n  \"width\": %d,\n  \"height\": %d,\n  \"set\": ", s.width, s.height);
+  add_string(w, s.set);
+  w.add(",\n  \"index\": %d,\n  \"seed\": %llu,\n", s.index, static_cast<unsigned long long>(s.seed));
+  if (s.has_dataset_seed) {
+    w.add("  \"dataset_seed\": %llu,\n", static_cast<unsigned long long>(s.dataset_seed));
+  }
+  if (s.scene.world_seed != 0U) {
+    w.add("  \"world_seed\": %llu,\n", static_cast<unsigned long long>(s.scene.world_seed));
+  }
+  add_instrument(w, s.instrument, "  ");
+  w.add(",\n  \"prior\": ");
+  if (s.has_prior) {
+    add_numbers(w, s.prior.data(), 3);
+  } else {
+    w.add("null");
+  }
+  w.add(",\n  \"hard_cases\": [");
+  int n = 0;
+  for (int b = 0; b < kNumHardCases; ++b) {
+    if ((s.hard_cases & (1U << static_cast<unsigned>(b))) != 0U) {
+      w.add("%s\"%s\"", n > 0 ? ", " : "", hard_case_name(b));
+      ++n;
+    }
+  }
+  w.add("]");
+  if (s.has_time) {
+    w.add(",\n  \"time_s\": %.12g", s.time_s);
+  }
+  if (s.has_render) {
+    w.add(",\n  \"render\": {\"clean\": %s, \"noise_sigma\": %.6g, \"blur_sigma_px\": %.6g, \"vignetting\": %.6g, "
+          "\"exposure\": %.6g, \"tissue_depth_mm\": %.6g, \"supersample\": %d, \"jpeg_quality\": %d}",
+          s.scene.clean ? "true" : "false", s.scene.noise_sigma, s.scene.blur_sigma_px, s.scene.vignetting,
+          s.scene.exposure, s.tissue_depth_mm, s.supersample, s.jpeg_quality);
+  }
+  if (s.has_second) {
+    w.add(",\n  \"instrument2\": {\n");
+    add_instrument(w, s.second, "    ");
+    w.add("\n  }");
+  }
+  w.add("\n}\n");
+  return w.length();
+}
+
+Result<Sidecar, Diagnostic> parse_sidecar(const char* text, std::size_t length, const char* file) noexcept {
+  using R = Result<Sidecar, Diagnostic>;
+  static_assert(kMaxTokens * sizeof(json::Token) <= 32768U, "token array lives on the stack");
+  json::Token tokens[kMaxTokens];
+  json::Document doc(tokens, kMaxTokens);
+  const auto parsed = doc.parse(text, length);
+  if (!parsed.ok()) {
+    return R::failure(Diagnostic::make(file, parsed.error().line, "", json::to_string(parsed.error().code)));
+  }
+  if (doc.type(doc.root()) != json::TokenType::Object) {
+    return R::failure(Diagnostic::make(file, 1U, "", "a sidecar is a JSON object"));
+  }
+  Reader rd(doc, file);
+  Sidecar s;
+  const std::size_t root = doc.root();
+  const char* message = "";
+  const char* field = parse_instrument(rd, root, s.instrument, message);
+  if (field != nullptr) {
+    return R::failure(rd.error(field, message));
+  }
+  std::size_t i = rd.find(root, "image");
+  if (i != json::kNone && !doc.string(i, s.image, sizeof s.image).ok()) {
+    return R::failure(rd.error("image", "expected a file name (at most 127 characters)"));
+  }
+  i = rd.find(root, "set");
+  if (i != json::kNone && !doc.string(i, s.set, sizeof s.set).ok()) {
+    return R::failure(rd.error("set", "expected a short string"));
+  }
+  const char* int_keys[] = {"width", "height", "index"};
+  int* int_values[] = {&s.width, &s.height, &s.index};
+  for (std::size_t k = 0; k < 3U; ++k) {
+    i = rd.find(root, int_keys[k]);
+    if (i == json::kNone) {
+      continue;
+    }
+    const auto v = doc.number(i);
+    if (!v.ok() || v.value() != std::floor(v.value()) || std::fabs(v.value()) > 1e9) {
+      return R::failure(rd.error(int_keys[k], "expected an integer"));
+    }
+    *int_values[k] = static_cast<int>(v.value());
+  }
+  if (s.width < 0 || s.height < 0) {
+    return R::failure(rd.error("width", "image size must not be negative"));
+  }
+  const char* seed_keys[] = {"seed", "dataset_seed", "world_seed"};
+  std::uint64_t* seed_values[] = {&s.seed, &s.dataset_seed, &s.scene.world_seed};
+  for (std::size_t k = 0; k < 3U; ++k) {
+    i = rd.find(root, seed_keys[k]);
+    if (i == json::kNone) {
+      continue;
+    }
+    const auto v = doc.number(i);
+    if (!v.ok() || v.value() < 0.0 || v.value() != std::floor(v.value()) || v.value() > 1.8446744073709552e19) {
+      return R::failure(rd.error(seed_keys[k], "expected a non-negative 64-bit integer"));
+    }
+    // Seeds above 2^53 do not survive a double: read the digits.
+    const json::Token& t = doc.token(i);
+    std::uint64_t seed = 0U;
+    for (std::uint32_t c = t.start; c < t.end; ++c) {
+      const char ch = text[c];
+      if (ch < '0' || ch > '9') {
+        break;
+      }
+      seed = seed * 10U + static_cast<std::uint64_t>(ch - '0');
+    }
+    *seed_values[k] = seed;
+    s.has_dataset_seed = s.has_dataset_seed || k == 1U;
+    s.scene.seed = s.seed;
+  }
+  i = rd.find(root, "prior");
+  if (i != json::kNone && !doc.is_null(i)) {
+    if (!rd.numbers(i, s.prior.data(), 3U)) {
+      return R::failure(rd.error("prior", "expected [lambda mm, phi rad, theta rad] or null"));
+    }
+    s.has_prior = true;
+  }
+  i = rd.find(root, "hard_cases");
+  if (i != json::kNone) {
+    if (doc.type(i) != json::TokenType::Array) {
+      return R::failure(rd.error("hard_cases", "expected an array of names"));
+    }
+    for (std::size_t e = 0; e < doc.array_size(i); ++e) {
+      const auto el = doc.element(i, e);
+      bool known = false;
+      for (int b = 0; b < kNumHardCases && el.ok(); ++b) {
+        if (doc.string_equals(el.value(), hard_case_name(b))) {
+          s.hard_cases |= 1U << static_cast<unsigned>(b);
+          known = true;
+        }
+      }
+      if (!known) {
+        return R::failure(rd.error("hard_cases", "unknown hard case name"));
+      }
+    }
+  }
+  i = rd.find(root, "time_s");
+  if (i != json::kNone) {
+    const auto v = doc.number(i);
+    if (!v.ok()) {
+      return R::failure(rd.error("time_s", "expected a number"));
+    }
+    s.has_time = true;
+    s.time_s = v.value();
+  }
+  i = rd.find(root, "render");
+  if (i != json::kNone && doc.type(i) == json::TokenType::Object) {
+    s.has_render = true;
+    const char* keys[] = {"noise_sigma", "blur_sigma_px", "vignetting", "exposure", "tissue_depth_mm"};
+    double* values[] = {&s.scene.noise_sigma, &s.scene.blur_sigma_px, &s.scene.vignetting, &s.scene.exposure,
+                        &s.tissue_depth_mm};
+    for (std::size_t k = 0; k < 5U; ++k) {
+      const std::size_t m = rd.find(i, keys[k]);
+      if (m != json::kNone) {
+        const auto v = doc.number(m);
+        if (!v.ok()) {
+          return R::failure(rd.error(keys[k], "expected a number"));
+        }
+        *values[k] = v.value();
+      }
+    }
+    const char* int_render_keys[] = {"supersample", "jpeg_quality"};
+    int* int_render_values[] = {&s.supersample, &s.jpeg_quality};
+    for (std::size_t k = 0; k < 2U; ++k) {
+      const std::size_t m = rd.find(i, int_render_keys[k]);
+      if (m != json::kNone) {
+        const auto v = doc.number(m);
+        if (!v.ok() || std::fabs(v.value()) > 1e6) {
+          return R::failure(rd.error(int_render_keys[k], "expected an integer"));
+        }
+        *int_render_values[k] = static_cast<int>(v.value());
+      }
+    }
+    const std::size_t c = rd.find(i, "clean");
+    s.scene.clean = c != json::kNone && doc.type(c) == json::TokenType::True;
+  }
+  i = rd.find(root, "instrument2");
+  if (i != json::kNone && !doc.is_null(i)) {
+    if (doc.type(i) != json::TokenType::Object) {
+      return R::failure(rd.error("instrument2", "expected an object"));
+    }
+    field = parse_instrument(rd, i, s.second, message);
+    if (field != nullptr) {
+      char name[96];
+      static_cast<void>(std::snprintf(name, sizeof name, "instrument2.%s", field));  // truncation is harmless
+      return R::failure(rd.error(name, message));
+    }
+    s.has_second = true;
+  }
+  return R::success(s);
+}
+
+Result<Sidecar, Diagnostic> read_sidecar_file(const char* path) noexcept {
+  using R = Result<Sidecar, Diagnostic>;
+  static_assert(kSidecarMaxBytes <= 65536U, "read buffer lives on the stack");
+  char text[kSidecarMaxBytes];
+  std::FILE* file = std::fopen(path, "rb");
+  if (file == nullptr) {
+    return R::failure(Diagnostic::make(path, 0U, "", "cannot open the sidecar"));
+  }
+  const std::size_t n = std::fread(text, 1U, sizeof text, file);
+  const bool error = std::ferror(file) != 0;
+  const bool more = n == sizeof text && std::fgetc(file) != EOF;
+  static_cast<void>(std::fclose(file));  // read-only: a close error loses nothing
+  if (error) {
+    return R::failure(Diagnostic::make(path, 0U, "", "read error"));
+  }
+  if (more) {
+    return R::failure(Diagnostic::make(path, 0U, "", "sidecar larger than 16 KiB"));
+  }
+  return parse_sidecar(text, n, path);
+}
+
+bool write_sidecar_file(const char* path, const Sidecar& sidecar) noexcept {
+  char text[kSidecarMaxBytes];
+  const std::size_t n = format_sidecar(sidecar, text, sizeof text);
+  if (n == 0U) {
+    return false;
+  }
+  std::FILE* file = std::fopen(path, "wb");
+  if (file == nullptr) {
+    return false;
+  }
+  const bool ok = std::fwrite(text, 1U, n, file) == n;
+  return (std::fclose(file) == 0) && ok;
+}
+
+}  // namespace render
+}  // namespace tcpest

@@ -1,0 +1,94 @@
+#include "tcpest/render/dataset.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "tcpest/render/renderer.hpp"
+
+namespace tcpest {
+namespace render {
+namespace {
+
+using solver::deg_to_rad;
+
+TEST(LabGrid, CoversModelMdRangesWithEndsIncluded) {
+  double l = 0.0;
+  double p = 0.0;
+  double t = 0.0;
+  lab_grid_joints(0, l, p, t);
+  EXPECT_DOUBLE_EQ(l, 10.0);
+  EXPECT_NEAR(p, deg_to_rad(-90.0), 1e-12);
+  EXPECT_NEAR(t, deg_to_rad(-100.0), 1e-12);
+  lab_grid_joints(kLabGridSize - 1, l, p, t);
+  EXPECT_DOUBLE_EQ(l, 40.0);
+  EXPECT_NEAR(p, deg_to_rad(90.0), 1e-12);
+  EXPECT_NEAR(t, deg_to_rad(100.0), 1e-12);
+  EXPECT_EQ(kLabGridSize, 294);
+}
+
+TEST(LabGrid, PlayAndPriorHaveTheStatedSize) {
+  const solver::InstrumentGeometry g;
+  double sum_sq_x = 0.0;
+  double sum_sq_psi = 0.0;
+  for (int i = 0; i < kLabGridSize; ++i) {
+    const LabSample s = lab_sample(g, i, 5U);
+    double l = 0.0;
+    double p = 0.0;
+    double t = 0.0;
+    lab_grid_joints(i, l, p, t);
+    EXPECT_DOUBLE_EQ(s.r[solver::kLambda], l);
+    EXPECT_LE(std::fabs(s.prior.joints[0] - l), kPriorLambdaMm);
+    EXPECT_LE(std::fabs(s.prior.joints[1] - p), kPriorAngleRad);
+    EXPECT_LE(std::fabs(s.prior.joints[2] - t), kPriorAngleRad);
+    sum_sq_x += std::pow(s.r[solver::kXch] - g.nominal_x_ch_mm, 2);
+    sum_sq_psi += std::pow(s.r[solver::kPsi] - g.nominal_psi_rad, 2);
+  }
+  EXPECT_NEAR(std::sqrt(sum_sq_x / kLabGridSize), kPlayPositionSigmaMm, 0.3);
+  EXPECT_NEAR(std::sqrt(sum_sq_psi / kLabGridSize), deg_to_rad(kPlayAngleSigmaDeg), deg_to_rad(0.6));
+  // Deterministic in (index, seed), different across seeds.
+  EXPECT_EQ(lab_sample(g, 17, 5U).r, lab_sample(g, 17, 5U).r);
+  EXPECT_NE(lab_sample(g, 17, 5U).r, lab_sample(g, 17, 6U).r);
+}
+
+TEST(HardCases, OneToThreeDistinctCasesPerImage) {
+  int counts[4] = {0, 0, 0, 0};
+  std::uint32_t seen = 0U;
+  for (int i = 0; i < kLabGridSize; ++i) {
+    const std::uint32_t mask = hard_cases_for(i, 8U);
+    const int n = __builtin_popcount(mask);
+    ASSERT_GE(n, 1);
+    ASSERT_LE(n, 3);
+    ++counts[n];
+    seen |= mask;
+    EXPECT_EQ(mask & ~kAllHardCases, 0U);
+  }
+  EXPECT_EQ(seen, kAllHardCases);
+  EXPECT_GT(counts[1], 0);
+  EXPECT_GT(counts[3], 0);
+}
+
+TEST(Sequence, SmoothInRangeAndRandomAccess) {
+  const solver::InstrumentGeometry g;
+  const SequenceGenerator seq(g, 3U, 25.0);
+  SequenceSample previous = seq.sample(0U);
+  for (std::uint32_t f = 1U; f < 3000U; ++f) {
+    const SequenceSample s = seq.sample(f);
+    EXPECT_NEAR(s.time_s, f / 25.0, 1e-12);
+    // Joints: at most 0.5 mm and 2.5 deg per frame at 25 Hz (surgeon-like speeds).
+    EXPECT_LT(std::fabs(s.r[solver::kLambda] - previous.r[solver::kLambda]), 0.5);
+    EXPECT_LT(std::fabs(s.r[solver::kPhi] - previous.r[solver::kPhi]), deg_to_rad(2.5));
+    EXPECT_LT(std::fabs(s.r[solver::kTheta] - previous.r[solver::kTheta]), deg_to_rad(2.5));
+    // Play drifts slowly.
+    EXPECT_LT(std::fabs(s.r[solver::kXch] - previous.r[solver::kXch]), 0.01);
+    EXPECT_GE(s.r[solver::kLambda], 12.0 - 1e-9);
+    EXPECT_LE(s.r[solver::kLambda], 38.0 + 1e-9);
+    EXPECT_LE(std::fabs(s.r[solver::kTheta]), deg_to_rad(90.0) + 1e-9);
+    previous = s;
+  }
+  EXPECT_EQ(seq.sample(1234U).r, SequenceGenerator(g, 3U, 25.0).sample(1234U).r);
+}
+
+}  // namespace
+}  // namespace render
+}  // namespace tcpest

@@ -1,0 +1,142 @@
+#include "tcpest/render/sidecar.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "render_test_support.hpp"
+
+namespace tcpest {
+namespace render {
+namespace {
+
+Sidecar rendered_sidecar(bool two) {
+  static const auto camera = test::pal_camera();
+  static auto renderer = test::make_renderer(camera);
+  test::Frame f(720, 576);
+  SceneSpec scene;
+  scene.r = solver::InstrumentGeometry{}.nominal_pose(22.5, 0.3, 1.1);
+  scene.seed = 0xFFFFFFFFFFFFFFF1ULL;  // beyond 2^53: must survive the round trip
+  scene.world_seed = 0xFFFFFFFFFFFFFF07ULL;
+  scene.hard_cases = kHardHaze | kHardDecoy;
+  scene.second_instrument = two;
+  scene.r2 = renderer->mirrored_nominal_pose(20.0, -0.2, 0.9);
+  GroundTruth truth;
+  EXPECT_TRUE(renderer->render(scene, f.view, truth).ok());
+  Sidecar s = make_sidecar(truth, scene, RenderSettings{}, 720, 576);
+  std::snprintf(s.image, sizeof s.image, "0007.jpg");
+  std::snprintf(s.set, sizeof s.set, "hard");
+  s.index = 7;
+  s.has_dataset_seed = true;
+  s.dataset_seed = 99U;
+  s.has_prior = true;
+  s.prior = {23.1, 0.25, 1.2};
+  s.jpeg_quality = 90;
+  return s;
+}
+
+void expect_same_instrument(const SidecarInstrument& a, const SidecarInstrument& b) {
+  EXPECT_EQ(a.has_r, b.has_r);
+  EXPECT_LT((a.r - b.r).norm(), 1e-9);
+  EXPECT_LT((a.tcp - b.tcp).norm(), 1e-9);
+  EXPECT_EQ(a.corner_present, b.corner_present);
+  EXPECT_EQ(a.corner_in_image, b.corner_in_image);
+  EXPECT_EQ(a.corner_visible, b.corner_visible);
+  EXPECT_EQ(a.view, b.view);
+  for (std::size_t k = 0; k < 12U; ++k) {
+    if (a.corner_present[k]) {
+      EXPECT_LT((a.corners[k] - b.corners[k]).norm(), 1e-8);
+    }
+  }
+}
+
+TEST(Sidecar, RoundTripKeepsEveryField) {
+  for (bool two : {false, true}) {
+    const Sidecar s = rendered_sidecar(two);
+    char text[kSidecarMaxBytes];
+    const std::size_t n = format_sidecar(s, text, sizeof text);
+    ASSERT_GT(n, 0U);
+    const auto parsed = parse_sidecar(text, n, "mem.json");
+    ASSERT_TRUE(parsed.ok()) << parsed.error().message << " " << parsed.error().field;
+    const Sidecar& p = parsed.value();
+    EXPECT_STREQ(p.image, "0007.jpg");
+    EXPECT_STREQ(p.set, "hard");
+    EXPECT_EQ(p.index, 7);
+    EXPECT_EQ(p.width, 720);
+    EXPECT_EQ(p.height, 576);
+    EXPECT_EQ(p.seed, s.seed);
+    EXPECT_EQ(p.scene.world_seed, s.scene.world_seed);
+    EXPECT_TRUE(p.has_dataset_seed);
+    EXPECT_EQ(p.dataset_seed, 99U);
+    EXPECT_EQ(p.hard_cases, s.hard_cases);
+    EXPECT_TRUE(p.has_prior);
+    EXPECT_DOUBLE_EQ(p.prior[0], 23.1);
+    EXPECT_EQ(p.jpeg_quality, 90);
+    EXPECT_NEAR(p.tissue_depth_mm, s.tissue_depth_mm, 1e-3);
+    expect_same_instrument(s.instrument, p.instrument);
+    EXPECT_EQ(p.has_second, two);
+    if (two) {
+      expect_same_instrument(s.second, p.second);
+    }
+  }
+}
+
+TEST(Sidecar, FileRoundTrip) {
+  const Sidecar s = rendered_sidecar(false);
+  const std::string path = ::testing::TempDir() + "sidecar_round_trip.json";
+  ASSERT_TRUE(write_sidecar_file(path.c_str(), s));
+  const auto read = read_sidecar_file(path.c_str());
+  ASSERT_TRUE(read.ok()) << read.error().message;
+  expect_same_instrument(s.instrument, read.value().instrument);
+  std::remove(path.c_str());
+  EXPECT_FALSE(read_sidecar_file(path.c_str()).ok());
+}
+
+TEST(Sidecar, MinimalForeignAnnotationIsAccepted) {
+  // Someone's own annotated image: corners only, some null.
+  const char* text =
+      "{\"corners\": [[10,20],[30,40],null,null,[1,2],[3,4],[5,6],[7,8],[9,10],[11,12],null,[13,14]]}";
+  const auto parsed = parse_sidecar(text, std::strlen(text), "own.json");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  const Sidecar& s = parsed.value();
+  EXPECT_FALSE(s.instrument.has_r);
+  EXPECT_FALSE(s.has_prior);
+  EXPECT_FALSE(s.instrument.corner_present[2]);
+  EXPECT_TRUE(s.instrument.corner_visible[0]);
+  EXPECT_FALSE(s.instrument.corner_visible[10]);
+  EXPECT_DOUBLE_EQ(s.instrument.corners[11].x(), 13.0);
+}
+
+TEST(Sidecar, ErrorsNameTheField) {
+  struct Case {
+    const char* text;
+    const char* field;
+  };
+  const Case cases[] = {
+      {"{}", "corners"},
+      {"{\"corners\": [1,2]}", "corners"},
+      {"{\"corners\": [[1,2],[3,4],null,null,null,null,null,null,null,null,null,[1]]}", "corners"},
+      {"{\"corners\": [null,null,null,null,null,null,null,null,null,null,null,null], \"r\": [1,2,3]}", "r"},
+      {"{\"corners\": [null,null,null,null,null,null,null,null,null,null,null,null], "
+       "\"corner_visible\": [true,false,false,false,false,false,false,false,false,false,false,false]}",
+       "corner_visible"},
+      {"{\"corners\": [null,null,null,null,null,null,null,null,null,null,null,null], \"hard_cases\": [\"rain\"]}",
+       "hard_cases"},
+      {"{\"corners\": [null,null,null,null,null,null,null,null,null,null,null,null], \"instrument2\": {}}",
+       "instrument2.corners"},
+  };
+  for (const Case& c : cases) {
+    const auto parsed = parse_sidecar(c.text, std::strlen(c.text), "bad.json");
+    ASSERT_FALSE(parsed.ok()) << c.text;
+    EXPECT_STREQ(parsed.error().field, c.field) << c.text;
+  }
+  const char* broken = "{\"corners\": [";
+  EXPECT_FALSE(parse_sidecar(broken, std::strlen(broken), "broken.json").ok());
+  EXPECT_FALSE(parse_sidecar("[1]", 3U, "array.json").ok());
+}
+
+}  // namespace
+}  // namespace render
+}  // namespace tcpest
