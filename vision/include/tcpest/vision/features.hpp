@@ -176,7 +176,7 @@ struct ExtractorConfig {
   int profile_samples = 160;                // chroma profile samples along each border
   // The profiles are read along curves parallel to the border, from this far
   // inside to profile_max_inset times the tube's half width (see find_corners).
-  double profile_min_inset_px = 1.5;
+  double profile_min_inset_px = 3.0;
   double profile_max_inset = 1.1;
   // Stage 4 refits each border locally, on the edge points within this many
   // tube widths of the corner.
