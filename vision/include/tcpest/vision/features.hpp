@@ -184,9 +184,9 @@ struct ExtractorConfig {
   // At an end boundary the local fit keeps the edge points on the marker's
   // side, and at most this far beyond.
   double end_margin_px = 2.0;
-  // Corners of lower confidence are not reported (docs/vision.md: below ~0.35
+  // Corners of lower confidence are not reported (docs/vision.md: below ~0.45
   // most are misplaced).
-  double min_corner_confidence = 0.35;
+  double min_corner_confidence = 0.45;
   double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
 };
 
