@@ -1,14 +1,227 @@
-// Placeholder until this command's issue lands.
-#include <cstdio>
+// tcpest evaluate: runs the pipeline over a dataset directory (images and
+// their JSON sidecars, docs/dataset-format.md) and scores it against the
+// ground truth: corners found within 1.5 px with the right label, median
+// corner error, wrongly labelled corners, the per-frame success criterion
+// of the hard set, TCP error, and the time of each stage.
+#include <dirent.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "cli/args.hpp"
 #include "cli/commands.hpp"
+#include "cli/setup.hpp"
+#include "cli/vision_run.hpp"
+#include "tcpest/render/sidecar.hpp"
 
 namespace tcpest {
 namespace cli {
+namespace {
 
-int cmd_evaluate(int /*argc*/, char** argv) {
-  std::fprintf(stderr, "tcpest %s: not available in this build yet\n", argv[0]);
-  return kExitFailure;
+const OptionSpec kSpecs[] = {
+    {"calib", "CAM.yaml", "camera calibration (ROS camera_info); default: built-in PAL camera"},
+    {"config", "CFG.yaml", "instrument configuration; default: built-in geometry"},
+    {"colors", "MODEL.json", "colour model; default: the built-in model"},
+    {"fixed-model", nullptr, "solve with the channel pose held at its nominal value"},
+    {"no-prior", nullptr, "ignore the sidecars' encoder priors (generic / temporal priors only)"},
+    {"max", "N", "score at most N images"},
+    {"tolerance", "PX", "distance under which a corner counts as found (default 1.5)"},
+    {"verbose", nullptr, "one line per image"},
+};
+constexpr std::size_t kSpecCount = sizeof kSpecs / sizeof kSpecs[0];
+
+double median_of(std::vector<double>& v) noexcept {
+  if (v.empty()) {
+    return 0.0;
+  }
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2U];
+}
+
+}  // namespace
+
+int cmd_evaluate(int argc, char** argv) {
+  Args args;
+  char error[512];
+  if (!args.parse(argc, argv, 1, kSpecs, kSpecCount, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest evaluate: %s\n", error);
+    return kExitUsage;
+  }
+  if (args.help_requested() || args.positional_count() != 1U) {
+    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--no-prior] "
+                "[--max N] [--verbose] DATASET_DIR",
+                "Runs extraction and the solver on every image of a dataset and scores them against the sidecars.",
+                kSpecs, kSpecCount);
+    return args.help_requested() ? kExitOk : kExitUsage;
+  }
+  double tolerance_px = 1.5;
+  if (args.value("tolerance") != nullptr && (!parse_number(args.value("tolerance"), tolerance_px) || tolerance_px <= 0.0)) {
+    std::fprintf(stderr, "tcpest evaluate: --tolerance needs a positive number\n");
+    return kExitUsage;
+  }
+  unsigned long long max_images = ~0ULL;
+  if (args.value("max") != nullptr && !parse_unsigned(args.value("max"), max_images)) {
+    std::fprintf(stderr, "tcpest evaluate: --max needs a non-negative integer\n");
+    return kExitUsage;
+  }
+  const std::string dir = args.positional(0U);
+  std::vector<std::string> sidecars;
+  DIR* d = opendir(dir.c_str());
+  if (d == nullptr) {
+    std::fprintf(stderr, "tcpest evaluate: cannot open directory %s: %s\n", dir.c_str(), std::strerror(errno));
+    return kExitConfig;
+  }
+  for (const dirent* entry = readdir(d); entry != nullptr; entry = readdir(d)) {
+    const std::size_t n = std::strlen(entry->d_name);
+    if (n > 5U && std::strcmp(entry->d_name + n - 5U, ".json") == 0) {
+      sidecars.emplace_back(entry->d_name);
+    }
+  }
+  static_cast<void>(closedir(d));  // read-only directory handle
+  std::sort(sidecars.begin(), sidecars.end());
+  if (sidecars.empty()) {
+    std::fprintf(stderr, "tcpest evaluate: no sidecar (*.json) in %s\n", dir.c_str());
+    return kExitConfig;
+  }
+  ModelSetup setup;
+  if (!load_model_setup("evaluate", args.value("calib"), args.value("config"), setup)) {
+    return kExitConfig;
+  }
+  vision::ColorModel colors;
+  if (!load_color_model("evaluate", args.value("colors"), colors)) {
+    return kExitConfig;
+  }
+  static EstimatePipeline pipeline;
+  if (!pipeline.init("evaluate", setup, colors, args.flag("fixed-model"))) {
+    return kExitConfig;
+  }
+  ImageReader reader;
+  if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {
+    std::fprintf(stderr, "tcpest evaluate: JPEG decoder initialisation failed\n");
+    return kExitFailure;
+  }
+  const bool verbose = args.flag("verbose");
+  std::vector<std::uint8_t> pixels;
+  long visible = 0, found_ok = 0, found_total = 0, wrong = 0;
+  int frames = 0, frames_with_visible = 0, successes = 0, unreadable = 0, valid_estimates = 0;
+  std::vector<double> errors, tcp_errors, stage[4], stages_total, solve_times;
+  double tcp_sq[3] = {0.0, 0.0, 0.0};
+  bool sequence = false;
+  for (const std::string& name : sidecars) {
+    if (static_cast<unsigned long long>(frames) + static_cast<unsigned long long>(unreadable) >= max_images) {
+      break;
+    }
+    std::string sidecar_path = dir;
+    sidecar_path += "/";
+    sidecar_path += name;
+    const auto parsed = render::read_sidecar_file(sidecar_path.c_str());
+    if (!parsed.ok()) {
+      parsed.error().format(error, sizeof error);
+      std::fprintf(stderr, "tcpest evaluate: %s\n", error);
+      ++unreadable;
+      continue;
+    }
+    const render::Sidecar& truth = parsed.value();
+    std::string image_path = dir;
+    image_path += "/";
+    image_path += truth.image;
+    ImageView view;
+    if (!reader.read(image_path.c_str(), pixels, view, error, sizeof error)) {
+      std::fprintf(stderr, "tcpest evaluate: %s: %s\n", image_path.c_str(), error);
+      ++unreadable;
+      continue;
+    }
+    if (view.width != setup.camera.width() || view.height != setup.camera.height()) {
+      std::fprintf(stderr, "tcpest evaluate: %s: size differs from the calibration\n", image_path.c_str());
+      ++unreadable;
+      continue;
+    }
+    sequence = std::strcmp(truth.set, "seq") == 0;
+    if (!sequence) {
+      pipeline.reset_sequence();  // independent images
+    }
+    const bool use_prior = truth.has_prior && !args.flag("no-prior");
+    const EstimateResult result = pipeline.process(view, use_prior ? truth.prior.data() : nullptr);
+    const vision::Extraction& e = pipeline.extractor().result();
+    ++frames;
+    int frame_visible = 0, frame_ok = 0;
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+      const bool is_visible = truth.instrument.corner_visible[k];
+      const bool found = result.extraction_ok && e.corners[k].found;
+      if (is_visible) {
+        ++frame_visible;
+      }
+      if (!found) {
+        continue;
+      }
+      ++found_total;
+      const bool has_truth = truth.instrument.corner_present[k];
+      const double err = has_truth ? std::hypot(e.corners[k].pixel.x - truth.instrument.corners[k].x(),
+                                                e.corners[k].pixel.y - truth.instrument.corners[k].y())
+                                   : 1e9;
+      if (err <= tolerance_px) {
+        if (is_visible) {
+          ++frame_ok;
+          errors.push_back(err);
+        }
+      } else {
+        ++wrong;
+      }
+    }
+    visible += frame_visible;
+    found_ok += frame_ok;
+    if (frame_visible > 0) {
+      ++frames_with_visible;
+      if (frame_ok * 10 >= frame_visible * 8) {
+        ++successes;
+      }
+    }
+    for (int s = 0; s < 4; ++s) {
+      stage[s].push_back(result.times.stage_us[s]);
+    }
+    stages_total.push_back(result.times.stage_us[0] + result.times.stage_us[1] + result.times.stage_us[2] +
+                           result.times.stage_us[3]);
+    solve_times.push_back(result.times.solve_us);
+    double tcp_err = -1.0;
+    if (result.status == EstimateStatus::Valid && truth.instrument.has_tcp) {
+      ++valid_estimates;
+      const solver::Vec3 diff = result.tcp - truth.instrument.tcp;
+      tcp_err = diff.norm();
+      tcp_errors.push_back(tcp_err);
+      for (int c = 0; c < 3; ++c) {
+        tcp_sq[c] += diff[c] * diff[c];
+      }
+    }
+    if (verbose) {
+      std::printf("%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
+                  truth.image, to_string(result.status), frame_visible, frame_ok, e.corner_count,
+                  result.extraction_ok ? "extraction ok" : "extraction: ", result.extraction_ok ? "" : result.extraction_error,
+                  tcp_err, stages_total.back());
+    }
+  }
+  const double n_tcp = tcp_errors.empty() ? 1.0 : static_cast<double>(tcp_errors.size());
+  std::printf("dataset %s: %d images scored (%d unreadable), %ld visible corners\n", dir.c_str(), frames, unreadable,
+              visible);
+  std::printf("corners found within %.1f px and correctly labelled: %.2f %% of visible\n", tolerance_px,
+              visible > 0 ? 100.0 * static_cast<double>(found_ok) / static_cast<double>(visible) : 0.0);
+  std::printf("median corner error (found ones): %.3f px\n", median_of(errors));
+  std::printf("wrongly labelled / misplaced corners: %.2f %% of %ld found\n",
+              found_total > 0 ? 100.0 * static_cast<double>(wrong) / static_cast<double>(found_total) : 0.0,
+              found_total);
+  std::printf("frame success (>= 80 %% of visible corners found and labelled): %.1f %% of %d frames\n",
+              frames_with_visible > 0 ? 100.0 * successes / frames_with_visible : 0.0, frames_with_visible);
+  std::printf("valid estimates: %d; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n", valid_estimates,
+              median_of(tcp_errors), std::sqrt(tcp_sq[0] / n_tcp), std::sqrt(tcp_sq[1] / n_tcp),
+              std::sqrt(tcp_sq[2] / n_tcp));
+  std::printf("median time: stage 1 %.0f us, stage 2 %.0f us, stage 3 %.0f us, stage 4 %.0f us, stages 1-4 %.0f us, "
+              "solver %.0f us\n",
+              median_of(stage[0]), median_of(stage[1]), median_of(stage[2]), median_of(stage[3]),
+              median_of(stages_total), median_of(solve_times));
+  return frames > 0 ? kExitOk : kExitFailure;
 }
 
 }  // namespace cli

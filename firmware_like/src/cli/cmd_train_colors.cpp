@@ -1,14 +1,354 @@
-// Placeholder until this command's issue lands.
-#include <cstdio>
+// tcpest train-colors: trains the blue/yellow colour model (two Gaussians in
+// the a*b* plane of CIE L*a*b*, D65, sRGB) from frames with hand-marked
+// regions, and writes it with its thresholds (docs/vision.md).
+// Marked regions come as polygons in a small JSON file:
+//   {"frames": [{"image": "0001.jpg", "blue": [[[x, y], ...], ...], "yellow": [...]}, ...]}
+// (image paths relative to the JSON file), or from rendered datasets'
+// sidecars (--sidecars DIR: the pixels where the middle markers' surface
+// faces the camera, from the true configuration r). Background samples are the pixels far from
+// every marked region (outside their joint bounding box grown by half its size).
+#include <dirent.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "cli/args.hpp"
 #include "cli/commands.hpp"
+#include "cli/setup.hpp"
+#include "cli/vision_run.hpp"
+#include "tcpest/common/json.hpp"
+#include "tcpest/render/sidecar.hpp"
 
 namespace tcpest {
 namespace cli {
+namespace {
 
-int cmd_train_colors(int /*argc*/, char** argv) {
-  std::fprintf(stderr, "tcpest %s: not available in this build yet\n", argv[0]);
-  return kExitFailure;
+const OptionSpec kSpecs[] = {
+    {"polygons", "FILE.json", "frames and their marked blue/yellow polygons"},
+    {"sidecars", "DIR", "a rendered dataset: marker polygons from the sidecars' true corners"},
+    {"calib", "CAM.yaml", "with --sidecars: the dataset's camera (default: built-in PAL camera)"},
+    {"config", "CFG.yaml", "with --sidecars: the instrument configuration (default: built-in geometry)"},
+    {"out", "MODEL.json", "where to write the model (default: standard output)"},
+    {"max", "N", "use at most N frames"},
+};
+constexpr std::size_t kSpecCount = sizeof kSpecs / sizeof kSpecs[0];
+
+struct Polygon {
+  vision::PixelClass cls = vision::PixelClass::Blue;
+  std::vector<vision::Point> points;
+};
+
+struct MarkedPixel {
+  int x = 0;
+  int y = 0;
+  vision::PixelClass cls = vision::PixelClass::Blue;
+};
+
+struct Frame {
+  std::string image;
+  std::vector<Polygon> polygons;
+  std::vector<MarkedPixel> pixels;  // marked pixels (from sidecars)
+};
+
+bool inside(const std::vector<vision::Point>& poly, double x, double y) noexcept {
+  bool in = false;
+  const std::size_t n = poly.size();
+  for (std::size_t i = 0U, j = n - 1U; i < n; j = i++) {
+    const vision::Point& a = poly[i];
+    const vision::Point& b = poly[j];
+    if (((a.y > y) != (b.y > y)) && (x < (b.x - a.x) * (y - a.y) / (b.y - a.y) + a.x)) {
+      in = !in;
+    }
+  }
+  return in;
+}
+
+std::string directory_of(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  return slash == std::string::npos ? std::string(".") : path.substr(0U, slash);
+}
+
+bool read_text(const char* path, std::string& out) {
+  std::FILE* f = std::fopen(path, "rb");
+  if (f == nullptr) {
+    return false;
+  }
+  char buffer[65536];
+  std::size_t n = 0U;
+  while ((n = std::fread(buffer, 1U, sizeof buffer, f)) > 0U) {
+    out.append(buffer, n);
+  }
+  static_cast<void>(std::fclose(f));  // read-only
+  return true;
+}
+
+bool load_polygons(const char* path, std::vector<Frame>& frames) {
+  std::string text;
+  if (!read_text(path, text)) {
+    std::fprintf(stderr, "tcpest train-colors: cannot read %s\n", path);
+    return false;
+  }
+  std::vector<json::Token> tokens(text.size() / 2U + 64U);
+  json::Document doc(tokens.data(), tokens.size());
+  const auto parsed = doc.parse(text.c_str(), text.size());
+  if (!parsed.ok()) {
+    std::fprintf(stderr, "tcpest train-colors: %s:%u: %s\n", path, parsed.error().line,
+                 json::to_string(parsed.error().code));
+    return false;
+  }
+  const auto list = doc.member(doc.root(), "frames");
+  if (!list.ok() || doc.type(list.value()) != json::TokenType::Array) {
+    std::fprintf(stderr, "tcpest train-colors: %s: field 'frames': expected an array\n", path);
+    return false;
+  }
+  const std::string base = directory_of(path);
+  for (std::size_t f = 0U; f < doc.array_size(list.value()); ++f) {
+    const std::size_t object = doc.element(list.value(), f).value();
+    Frame frame;
+    char name[512];
+    const auto image = doc.member(object, "image");
+    if (!image.ok() || !doc.string(image.value(), name, sizeof name).ok()) {
+      std::fprintf(stderr, "tcpest train-colors: %s: frame %zu: field 'image': expected a string\n", path, f);
+      return false;
+    }
+    frame.image = name[0] == '/' ? std::string(name) : base + "/" + name;
+    const char* classes[2] = {"blue", "yellow"};
+    for (int c = 0; c < 2; ++c) {
+      const auto polys = doc.member(object, classes[c]);
+      if (!polys.ok()) {
+        continue;
+      }
+      for (std::size_t p = 0U; p < doc.array_size(polys.value()); ++p) {
+        const std::size_t poly = doc.element(polys.value(), p).value();
+        Polygon polygon;
+        polygon.cls = c == 0 ? vision::PixelClass::Blue : vision::PixelClass::Yellow;
+        for (std::size_t v = 0U; v < doc.array_size(poly); ++v) {
+          double xy[2] = {0.0, 0.0};
+          if (!doc.numbers(doc.element(poly, v).value(), xy, 2U).ok()) {
+            std::fprintf(stderr, "tcpest train-colors: %s: frame %zu: field '%s': points must be [x, y]\n", path, f,
+                         classes[c]);
+            return false;
+          }
+          polygon.points.push_back(vision::Point{xy[0], xy[1]});
+        }
+        if (polygon.points.size() >= 3U) {
+          frame.polygons.push_back(polygon);
+        }
+      }
+    }
+    frames.push_back(frame);
+  }
+  return true;
+}
+
+bool load_sidecars(const char* dir, const ModelSetup& setup, std::vector<Frame>& frames) {
+  std::vector<std::string> names;
+  DIR* d = opendir(dir);
+  if (d == nullptr) {
+    std::fprintf(stderr, "tcpest train-colors: cannot open %s\n", dir);
+    return false;
+  }
+  for (const dirent* e = readdir(d); e != nullptr; e = readdir(d)) {
+    const std::size_t n = std::strlen(e->d_name);
+    if (n > 5U && std::strcmp(e->d_name + n - 5U, ".json") == 0) {
+      names.emplace_back(e->d_name);
+    }
+  }
+  static_cast<void>(closedir(d));  // read-only
+  std::sort(names.begin(), names.end());
+  for (const std::string& name : names) {
+    const auto s = render::read_sidecar_file((std::string(dir) + "/" + name).c_str());
+    if (!s.ok()) {
+      continue;
+    }
+    const render::Sidecar& sc = s.value();
+    Frame frame;
+    frame.image = std::string(dir) + "/" + sc.image;
+    if (!sc.instrument.has_r) {
+      continue;
+    }
+    // Marked pixels from the true configuration: points of the middle markers'
+    // surface, away from the stripe ends, facing the camera, projected (the
+    // shaft or grasper may hide parts of the end markers). Each becomes a
+    // tiny polygon (a pixel square).
+    const solver::PoseFrames pf = setup.instrument.frames(sc.instrument.r);
+    const auto& g = setup.instrument.geometry();
+    for (int m = 1; m + 1 < solver::kNumMarkers; ++m) {
+      const vision::PixelClass cls = g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue
+                                         ? vision::PixelClass::Blue
+                                         : vision::PixelClass::Yellow;
+      const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
+      const double s1 = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
+      for (int i = 0; i <= 24; ++i) {
+        const double s_mm = s0 + (s1 - s0) * (0.25 + 0.5 * i / 24.0);
+        const solver::CentrelineFrame c = setup.instrument.centreline(pf, s_mm);
+        for (int a = 0; a < 120; ++a) {
+          const double angle = 2.0 * solver::kPi * a / 120.0;
+          const solver::Vec3 normal = std::cos(angle) * c.normal + std::sin(angle) * c.binormal;
+          const solver::Vec3 x = c.position + g.radius_mm * normal;
+          if (normal.dot(x.normalized()) > -0.35) {
+            continue;  // grazing or turned away: near the silhouette
+          }
+          solver::Vec2 px;
+          if (!setup.camera.project(x, px)) {
+            continue;
+          }
+          frame.pixels.push_back(MarkedPixel{static_cast<int>(std::lround(px.x())), static_cast<int>(std::lround(px.y())), cls});
+        }
+      }
+    }
+    if (!frame.pixels.empty()) {
+      frames.push_back(frame);
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+int cmd_train_colors(int argc, char** argv) {
+  Args args;
+  char error[512];
+  if (!args.parse(argc, argv, 1, kSpecs, kSpecCount, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest train-colors: %s\n", error);
+    return kExitUsage;
+  }
+  if (args.help_requested() || (args.value("polygons") == nullptr && args.value("sidecars") == nullptr)) {
+    print_usage("tcpest train-colors (--polygons FILE.json | --sidecars DIR) [--out MODEL.json] [--max N]",
+                "Trains the blue/yellow colour model (a*b* Gaussians, Mahalanobis thresholds) from marked frames.",
+                kSpecs, kSpecCount);
+    return args.help_requested() ? kExitOk : kExitUsage;
+  }
+  std::vector<Frame> frames;
+  if (args.value("polygons") != nullptr && !load_polygons(args.value("polygons"), frames)) {
+    return kExitConfig;
+  }
+  ModelSetup setup;
+  if (!load_model_setup("train-colors", args.value("calib"), args.value("config"), setup)) {
+    return kExitConfig;
+  }
+  if (args.value("sidecars") != nullptr && !load_sidecars(args.value("sidecars"), setup, frames)) {
+    return kExitConfig;
+  }
+  unsigned long long max_frames = ~0ULL;
+  if (args.value("max") != nullptr && !parse_unsigned(args.value("max"), max_frames)) {
+    std::fprintf(stderr, "tcpest train-colors: --max needs a non-negative integer\n");
+    return kExitUsage;
+  }
+  if (frames.size() > max_frames) {
+    frames.resize(static_cast<std::size_t>(max_frames));
+  }
+  ImageReader reader;
+  if (!reader.init(3840, 2160)) {
+    std::fprintf(stderr, "tcpest train-colors: JPEG decoder initialisation failed\n");
+    return kExitFailure;
+  }
+  vision::ColorTrainer trainer;
+  std::vector<std::uint8_t> pixels;
+  std::vector<std::uint8_t> label;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (const Frame& frame : frames) {
+      ImageView view;
+      if (!reader.read(frame.image.c_str(), pixels, view, error, sizeof error)) {
+        std::fprintf(stderr, "tcpest train-colors: %s: %s (skipped)\n", frame.image.c_str(), error);
+        continue;
+      }
+      // Labels: 1 blue, 2 yellow, 0 background, 3 unused (near the marks).
+      constexpr std::uint8_t kUnused = 3U;
+      label.assign(static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height), 0U);
+      double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+      const auto grow = [&](double x, double y) {
+        x0 = std::min(x0, x);
+        y0 = std::min(y0, y);
+        x1 = std::max(x1, x);
+        y1 = std::max(y1, y);
+      };
+      for (const Polygon& p : frame.polygons) {
+        for (const vision::Point& q : p.points) {
+          grow(q.x, q.y);
+        }
+      }
+      for (const MarkedPixel& m : frame.pixels) {
+        grow(m.x, m.y);
+      }
+      const double gx = 0.5 * (x1 - x0) + 10.0;
+      const double gy = 0.5 * (y1 - y0) + 10.0;
+      const auto clamp_x = [&view](double v) { return std::max(0, std::min(view.width - 1, static_cast<int>(v))); };
+      const auto clamp_y = [&view](double v) { return std::max(0, std::min(view.height - 1, static_cast<int>(v))); };
+      for (int y = clamp_y(y0 - gy); y <= clamp_y(y1 + gy); ++y) {
+        for (int x = clamp_x(x0 - gx); x <= clamp_x(x1 + gx); ++x) {
+          label[static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x)] = kUnused;
+        }
+      }
+      for (const Polygon& p : frame.polygons) {
+        double px0 = 1e30, py0 = 1e30, px1 = -1e30, py1 = -1e30;
+        for (const vision::Point& q : p.points) {
+          px0 = std::min(px0, q.x);
+          py0 = std::min(py0, q.y);
+          px1 = std::max(px1, q.x);
+          py1 = std::max(py1, q.y);
+        }
+        for (int y = clamp_y(py0); y <= clamp_y(py1 + 1.0); ++y) {
+          for (int x = clamp_x(px0); x <= clamp_x(px1 + 1.0); ++x) {
+            if (inside(p.points, x, y)) {
+              label[static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x)] =
+                  static_cast<std::uint8_t>(p.cls);
+            }
+          }
+        }
+      }
+      for (const MarkedPixel& m : frame.pixels) {
+        if (m.x >= 0 && m.y >= 0 && m.x < view.width && m.y < view.height) {
+          label[static_cast<std::size_t>(m.y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(m.x)] =
+              static_cast<std::uint8_t>(m.cls);
+        }
+      }
+      for (int y = 0; y < view.height; ++y) {
+        const std::uint8_t* row = view.row(y);
+        const std::uint8_t* lab_row = label.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width);
+        for (int x = 0; x < view.width; ++x) {
+          if (lab_row[x] == kUnused) {
+            continue;
+          }
+          const auto cls = static_cast<vision::PixelClass>(lab_row[x]);
+          const std::uint8_t* c = row + static_cast<std::ptrdiff_t>(3) * x;
+          if (pass == 0) {
+            trainer.add_sample(cls, c[0], c[1], c[2]);
+          } else {
+            trainer.add_threshold_sample(cls, c[0], c[1], c[2]);
+          }
+        }
+      }
+    }
+    if (pass == 0 && !trainer.finish_gaussians()) {
+      std::fprintf(stderr, "tcpest train-colors: too few marked pixels (blue %llu, yellow %llu; need %llu each)\n",
+                   static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Blue)),
+                   static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Yellow)),
+                   static_cast<unsigned long long>(vision::ColorTrainer::kMinSamples));
+      return kExitFailure;
+    }
+  }
+  const vision::ColorModel model = trainer.finish();
+  char text[2048];
+  const std::size_t n = vision::format_color_model(model, text, sizeof text);
+  std::fprintf(stderr, "tcpest train-colors: %zu frames, %llu blue, %llu yellow, %llu background pixels\n",
+               frames.size(), static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Blue)),
+               static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Yellow)),
+               static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Background)));
+  if (args.value("out") == nullptr) {
+    std::fwrite(text, 1U, n, stdout);
+    return kExitOk;
+  }
+  std::FILE* f = std::fopen(args.value("out"), "wb");
+  if (f == nullptr || std::fwrite(text, 1U, n, f) != n || std::fclose(f) != 0) {
+    std::fprintf(stderr, "tcpest train-colors: cannot write %s\n", args.value("out"));
+    return kExitFailure;
+  }
+  return kExitOk;
 }
 
 }  // namespace cli

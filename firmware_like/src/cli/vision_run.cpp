@@ -1,0 +1,385 @@
+#include "cli/vision_run.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <new>
+
+#include "tcpest/vision/overlay.hpp"
+
+namespace tcpest {
+namespace cli {
+namespace {
+
+constexpr std::size_t kMaxFileBytes = std::size_t{64U} * 1024U * 1024U;
+
+bool read_file(const char* path, std::vector<std::uint8_t>& out, char* error, std::size_t capacity) noexcept {
+  std::FILE* f = std::fopen(path, "rb");
+  if (f == nullptr) {
+    static_cast<void>(std::snprintf(error, capacity, "cannot open: %s", std::strerror(errno)));  // message only
+    return false;
+  }
+  out.clear();
+  std::uint8_t chunk[65536];
+  bool ok = true;
+  for (;;) {  // bounded by kMaxFileBytes
+    const std::size_t n = std::fread(chunk, 1U, sizeof chunk, f);
+    if (n > 0U) {
+      if (out.size() + n > kMaxFileBytes) {
+        static_cast<void>(std::snprintf(error, capacity, "file larger than %zu bytes", kMaxFileBytes));  // message only
+        ok = false;
+        break;
+      }
+      out.insert(out.end(), chunk, chunk + n);
+    }
+    if (n < sizeof chunk) {
+      if (std::ferror(f) != 0) {
+        static_cast<void>(std::snprintf(error, capacity, "read error"));  // message only
+        ok = false;
+      }
+      break;
+    }
+  }
+  static_cast<void>(std::fclose(f));  // read-only: nothing to flush
+  return ok;
+}
+
+// Parses a binary PPM header; returns the offset of the pixels or 0.
+std::size_t parse_ppm(const std::vector<std::uint8_t>& data, int& width, int& height) noexcept {
+  if (data.size() < 8U || data[0] != 'P' || data[1] != '6') {
+    return 0U;
+  }
+  std::size_t i = 2U;
+  long values[3] = {0, 0, 0};
+  for (int v = 0; v < 3; ++v) {
+    // Skip white space and comments.
+    while (i < data.size() && (data[i] == ' ' || data[i] == '\n' || data[i] == '\r' || data[i] == '\t' ||
+                               data[i] == '#')) {
+      if (data[i] == '#') {
+        while (i < data.size() && data[i] != '\n') {
+          ++i;
+        }
+      } else {
+        ++i;
+      }
+    }
+    long value = 0;
+    int digits = 0;
+    while (i < data.size() && data[i] >= '0' && data[i] <= '9' && digits < 7) {
+      value = value * 10 + (data[i] - '0');
+      ++i;
+      ++digits;
+    }
+    if (digits == 0) {
+      return 0U;
+    }
+    values[v] = value;
+  }
+  if (i >= data.size() || values[2] != 255 || values[0] <= 0 || values[1] <= 0) {
+    return 0U;
+  }
+  width = static_cast<int>(values[0]);
+  height = static_cast<int>(values[1]);
+  return i + 1U;
+}
+
+// Outlier rejection after the solve (see process()).
+constexpr int kOutlierRounds = 2;
+constexpr double kOutlierRmsPx = 1.0;
+constexpr double kOutlierMinPx = 2.5;
+
+double elapsed_us(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) noexcept {
+  return std::chrono::duration<double, std::micro>(b - a).count();
+}
+
+}  // namespace
+
+bool ImageReader::init(int max_width, int max_height) noexcept {
+  max_width_ = max_width;
+  max_height_ = max_height;
+  file_.reserve(std::size_t{4U} * 1024U * 1024U);
+  return decoder_.init(max_width, max_height).ok();
+}
+
+bool ImageReader::read(const char* path, std::vector<std::uint8_t>& pixels, ImageView& view, char* error,
+                       std::size_t error_capacity) noexcept {
+  if (!read_file(path, file_, error, error_capacity)) {
+    return false;
+  }
+  int width = 0;
+  int height = 0;
+  const std::size_t ppm_offset = parse_ppm(file_, width, height);
+  if (ppm_offset > 0U) {
+    const std::size_t bytes = static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * 3U;
+    if (width > max_width_ || height > max_height_ || file_.size() < ppm_offset + bytes) {
+      static_cast<void>(std::snprintf(error, error_capacity, "PPM too large or truncated"));  // message only
+      return false;
+    }
+    pixels.assign(file_.begin() + static_cast<std::ptrdiff_t>(ppm_offset),
+                  file_.begin() + static_cast<std::ptrdiff_t>(ppm_offset + bytes));
+  } else {
+    const auto info = decoder_.inspect(file_.data(), file_.size());
+    if (!info.ok()) {
+      static_cast<void>(std::snprintf(error, error_capacity, "not a readable JPEG or PPM (%s)",  // message only
+                                      hal::to_string(info.error())));
+      return false;
+    }
+    width = info.value().width;
+    height = info.value().height;
+    if (width > max_width_ || height > max_height_) {
+      static_cast<void>(std::snprintf(error, error_capacity, "image %dx%d larger than %dx%d", width,  // message only
+                                      height, max_width_, max_height_));
+      return false;
+    }
+    pixels.resize(static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * 3U);
+    const MutableImageView out{pixels.data(), width, height, static_cast<std::size_t>(width) * 3U};
+    const auto decoded = decoder_.decode(file_.data(), file_.size(), out);
+    if (!decoded.ok()) {
+      static_cast<void>(std::snprintf(error, error_capacity, "JPEG decoding failed (%s)",  // message only
+                                      hal::to_string(decoded.error())));
+      return false;
+    }
+  }
+  view = ImageView{pixels.data(), width, height, static_cast<std::size_t>(width) * 3U};
+  return true;
+}
+
+bool load_color_model(const char* command, const char* path, vision::ColorModel& out) noexcept {
+  if (path == nullptr) {
+    out = vision::default_color_model();
+    return true;
+  }
+  std::vector<std::uint8_t> data;
+  char error[256];
+  if (!read_file(path, data, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest %s: colour model %s: %s\n", command, path, error);
+    return false;
+  }
+  const auto parsed =
+      vision::parse_color_model(reinterpret_cast<const char*>(data.data()), data.size(), path);  // NOLINT(cppcoreguidelines-pro-type-reinterpret-cast): bytes to text
+  if (!parsed.ok()) {
+    char message[768];
+    parsed.error().format(message, sizeof message);
+    std::fprintf(stderr, "tcpest %s: colour model: %s\n", command, message);
+    return false;
+  }
+  out = parsed.value();
+  return true;
+}
+
+const char* to_string(EstimateStatus s) noexcept {
+  switch (s) {
+    case EstimateStatus::Valid: return "valid";
+    case EstimateStatus::Degraded: return "degraded";
+    case EstimateStatus::None: return "none";
+  }
+  return "none";
+}
+
+bool EstimatePipeline::init(const char* command, const ModelSetup& setup, const vision::ColorModel& colors,
+                            bool fixed_model) noexcept {
+  setup_ = setup;
+  vision::ExtractorConfig config;
+  config.max_width = setup.camera.width() > 1920 ? setup.camera.width() : 1920;
+  config.max_height = setup.camera.height() > 1080 ? setup.camera.height() : 1080;
+  const auto& g = setup.instrument.geometry();
+  for (std::size_t m = 0U; m < static_cast<std::size_t>(vision::kNumMarkers); ++m) {
+    config.marker_classes[m] =
+        g.marker_colors[m] == solver::MarkerColor::Blue ? vision::PixelClass::Blue : vision::PixelClass::Yellow;
+  }
+  auto created = vision::FeatureExtractor::create(config, colors);
+  if (!created.ok()) {
+    std::fprintf(stderr, "tcpest %s: feature extractor: %s\n", command, vision::to_string(created.error()));
+    return false;
+  }
+  extractor_ = std::move(created.value());
+  solver_.reset(new (std::nothrow) solver::PoseSolver(setup_.camera, setup_.instrument));
+  if (solver_ == nullptr) {
+    std::fprintf(stderr, "tcpest %s: out of memory\n", command);
+    return false;
+  }
+  fixed_model_ = fixed_model;
+  reset_sequence();
+  return true;
+}
+
+void EstimatePipeline::reset_sequence() noexcept {
+  temporal_.reset();
+  have_previous_ = false;
+}
+
+EstimateResult EstimatePipeline::process(const ImageView& image, const double* prior_joints) noexcept {
+  EstimateResult out;
+  const auto& g = setup_.instrument.geometry();
+  solver::PoseVector start = g.nominal_pose(25.0, 0.0, 0.0);
+  vision::MarkerPriors priors;
+  if (prior_joints != nullptr) {
+    start = g.nominal_pose(prior_joints[0], prior_joints[1], prior_joints[2]);
+    priors = vision::model_priors(setup_.camera, setup_.instrument, start);
+  } else if (!temporal_.priors(priors)) {
+    priors = vision::generic_priors(setup_.camera, setup_.instrument);
+  }
+  if (prior_joints == nullptr && have_previous_) {
+    start = previous_r_;
+  }
+  vision::FeatureExtractor& fx = *extractor_;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto status = fx.find_regions(image);
+  const auto t1 = std::chrono::steady_clock::now();
+  if (status.ok()) {
+    status = fx.interpret(priors);
+  }
+  const auto t2 = std::chrono::steady_clock::now();
+  if (status.ok()) {
+    status = fx.fit_borders(image);
+  }
+  const auto t3 = std::chrono::steady_clock::now();
+  if (status.ok()) {
+    status = fx.find_corners(image);
+  }
+  const auto t4 = std::chrono::steady_clock::now();
+  out.times.stage_us[0] = elapsed_us(t0, t1);
+  out.times.stage_us[1] = elapsed_us(t1, t2);
+  out.times.stage_us[2] = elapsed_us(t2, t3);
+  out.times.stage_us[3] = elapsed_us(t3, t4);
+  out.extraction_ok = status.ok();
+  out.extraction_error = status.ok() ? "" : vision::to_string(status.error());
+  const vision::Extraction& e = fx.result();
+  solver::CornerObservation observed;
+  vision::corners_to_arrays(e, observed.pixel, observed.visible);
+  solver::PoseVector r = start;
+  const auto t5 = std::chrono::steady_clock::now();
+  const solver::SolveMode mode = fixed_model_ ? solver::SolveMode::FixedModel : solver::SolveMode::Adaptive;
+  out.summary = solver_->solve(observed, mode, r);
+  // Misplaced corners (a boundary read off along a flat tangency, a shaft
+  // hiding the base stripe) would pull the pose: drop the corners far from
+  // the model at the estimate and solve again, at most twice.
+  for (int round = 0; round < kOutlierRounds && out.summary.rms_px > kOutlierRmsPx; ++round) {
+    solver::CornerSet predicted;
+    setup_.instrument.corners(setup_.camera, r, predicted);
+    std::array<double, solver::kNumCorners> residual{};
+    std::array<double, solver::kNumCorners> sorted{};
+    std::size_t n = 0U;
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+      if (observed.visible[k] && predicted.present[k]) {
+        residual[k] = (observed.pixel[k] - predicted.pixel[k]).norm();
+        sorted[n++] = residual[k];
+      }
+    }
+    if (n < 7U) {
+      break;
+    }
+    std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n));
+    const double limit = std::max(kOutlierMinPx, 3.0 * sorted[n / 2U]);
+    int removed = 0;
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+      if (observed.visible[k] && (!predicted.present[k] || residual[k] > limit)) {
+        observed.visible[k] = false;
+        ++removed;
+      }
+    }
+    if (removed == 0 || observed.count_visible() < 6) {
+      break;
+    }
+    solver::PoseVector retry = r;
+    const solver::SolveSummary again = solver_->solve(observed, mode, retry);
+    if (again.rms_px < out.summary.rms_px) {
+      out.summary = again;
+      r = retry;
+    }
+  }
+  const auto t6 = std::chrono::steady_clock::now();
+  out.times.solve_us = elapsed_us(t5, t6);
+  out.total_us = elapsed_us(t0, t6);
+  const solver::SolveStatus s = out.summary.status;
+  const bool converged = s == solver::SolveStatus::ConvergedGradient || s == solver::SolveStatus::ConvergedStep ||
+                         s == solver::SolveStatus::ConvergedCostChange;
+  const bool solved = converged || s == solver::SolveStatus::MaxIterations;
+  if (solved) {
+    out.r = r;
+    out.tcp = setup_.instrument.tcp(r);
+    // Valid: converged on enough corners with a small residual.
+    const bool good = converged && out.summary.corners_used >= 6 && out.summary.rms_px <= 2.0;
+    out.status = good ? EstimateStatus::Valid : EstimateStatus::Degraded;
+    if (good) {
+      previous_r_ = r;
+      have_previous_ = true;
+      temporal_.add(e.interpretation);
+    }
+  }
+  return out;
+}
+
+void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept {
+  vision::ReprojectedModel model;
+  if (result.status != EstimateStatus::None) {
+    solver::CornerSet cs;
+    setup_.instrument.corners(setup_.camera, result.r, cs);
+    model.valid = true;
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
+      model.present[k] = cs.present[k];
+      model.corners[k] = vision::Point{cs.pixel[k].x(), cs.pixel[k].y()};
+    }
+    solver::Vec2 tcp_px;
+    if (setup_.camera.project(result.tcp, tcp_px)) {
+      model.tcp_valid = true;
+      model.tcp = vision::Point{tcp_px.x(), tcp_px.y()};
+    }
+  }
+  vision::draw_extraction(image, extractor_->result(), model);
+}
+
+void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,
+                          char* out, std::size_t capacity) noexcept {
+  if (capacity == 0U) {
+    return;
+  }
+  out[0] = '\0';
+  std::size_t used = 0U;
+  // Each snprintf below writes at out + used; a truncated line stays terminated.
+  const auto advance = [&used, capacity](int n) noexcept {
+    if (n > 0) {
+      used = std::min(capacity - 1U, used + static_cast<std::size_t>(n));
+    }
+  };
+  advance(std::snprintf(out + used, capacity - used, "{\"image\": \""));
+  // The image path as a JSON string (quotes, backslashes and controls escaped).
+  for (const char* c = image; *c != '\0' && used + 8U < capacity; ++c) {
+    const auto byte = static_cast<unsigned char>(*c);
+    if (*c == '"' || *c == '\\') {
+      advance(std::snprintf(out + used, capacity - used, "\\%c", *c));
+    } else if (byte < 0x20U) {
+      advance(std::snprintf(out + used, capacity - used, "\\u%04x", static_cast<unsigned>(byte)));
+    } else {
+      advance(std::snprintf(out + used, capacity - used, "%c", *c));
+    }
+  }
+  advance(std::snprintf(out + used, capacity - used, "\", \"status\": \"%s\"", to_string(result.status)));
+  if (result.status != EstimateStatus::None) {
+    advance(std::snprintf(out + used, capacity - used, ", \"tcp\": [%.4f, %.4f, %.4f], \"r\": [", result.tcp.x(),
+                          result.tcp.y(), result.tcp.z()));
+    for (int i = 0; i < solver::kNumParams; ++i) {
+      advance(std::snprintf(out + used, capacity - used, i == 0 ? "%.6f" : ", %.6f", result.r[i]));
+    }
+    advance(std::snprintf(out + used, capacity - used, "]"));
+  } else {
+    advance(std::snprintf(out + used, capacity - used, ", \"tcp\": null, \"r\": null"));
+  }
+  advance(std::snprintf(out + used, capacity - used, ", \"corners\": ["));
+  for (std::size_t k = 0U; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
+    const vision::Corner& c = extraction.corners[k];
+    const char* separator = k == 0U ? "" : ", ";
+    if (c.found && result.extraction_ok) {
+      advance(std::snprintf(out + used, capacity - used, "%s[%.3f, %.3f]", separator, c.pixel.x, c.pixel.y));
+    } else {
+      advance(std::snprintf(out + used, capacity - used, "%snull", separator));
+    }
+  }
+  advance(std::snprintf(out + used, capacity - used, "], \"rms_px\": %.4f, \"iterations\": %d, \"time_us\": %.0f}",
+                        result.summary.rms_px, result.summary.iterations, result.total_us));
+}
+
+}  // namespace cli
+}  // namespace tcpest

@@ -1,0 +1,84 @@
+// What `tcpest estimate`, `tcpest evaluate` and `tcpest train-colors` share:
+// reading image files (JPEG through hal/camera's decoder, binary PPM), loading
+// the colour model, and one estimation step (extraction, then the solver) with
+// the priors of a sequence.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "cli/setup.hpp"
+#include "tcpest/hal/camera/jpeg_decoder.hpp"
+#include "tcpest/solver/pose_solver.hpp"
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace cli {
+
+// Reads a JPEG or binary PPM (P6) file into `pixels` (RGB24, resized to fit).
+class ImageReader {
+ public:
+  bool init(int max_width, int max_height) noexcept;
+  // False with a message in `error` (file missing, corrupt, too large ...).
+  bool read(const char* path, std::vector<std::uint8_t>& pixels, ImageView& view, char* error,
+            std::size_t error_capacity) noexcept;
+
+ private:
+  hal::JpegDecoder decoder_;
+  std::vector<std::uint8_t> file_;
+  int max_width_ = 0;
+  int max_height_ = 0;
+};
+
+// --colors FILE or the built-in model. False after printing an error.
+bool load_color_model(const char* command, const char* path, vision::ColorModel& out) noexcept;
+
+enum class EstimateStatus : std::uint8_t { Valid, Degraded, None };
+const char* to_string(EstimateStatus s) noexcept;
+
+struct StageTimes {
+  double stage_us[4] = {0.0, 0.0, 0.0, 0.0};
+  double solve_us = 0.0;
+};
+
+struct EstimateResult {
+  EstimateStatus status = EstimateStatus::None;
+  solver::PoseVector r = solver::PoseVector::Zero();
+  solver::Vec3 tcp = solver::Vec3::Zero();
+  solver::SolveSummary summary{};
+  bool extraction_ok = false;
+  const char* extraction_error = "";
+  StageTimes times{};
+  double total_us = 0.0;
+};
+
+class EstimatePipeline {
+ public:
+  bool init(const char* command, const ModelSetup& setup, const vision::ColorModel& colors,
+            bool fixed_model) noexcept;
+  // One frame of a sequence. `prior_joints` (lambda, phi, theta) may be null.
+  EstimateResult process(const ImageView& image, const double* prior_joints) noexcept;
+  void reset_sequence() noexcept;
+  const vision::FeatureExtractor& extractor() const noexcept { return *extractor_; }
+  const ModelSetup& setup() const noexcept { return setup_; }
+  // Overlay of the last frame (extraction, model at the estimate, TCP) into `pixels`.
+  void draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept;
+
+ private:
+  ModelSetup setup_{};
+  std::unique_ptr<vision::FeatureExtractor> extractor_;
+  std::unique_ptr<solver::PoseSolver> solver_;
+  vision::TemporalPriors temporal_{};
+  bool fixed_model_ = false;
+  bool have_previous_ = false;
+  solver::PoseVector previous_r_ = solver::PoseVector::Zero();
+};
+
+// The JSON line of `tcpest estimate --json` (no newline).
+void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,
+                          char* out, std::size_t capacity) noexcept;
+
+}  // namespace cli
+}  // namespace tcpest

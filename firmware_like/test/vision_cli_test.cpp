@@ -1,0 +1,138 @@
+// tcpest estimate / evaluate / train-colors on a tiny rendered dataset: exit
+// codes, a bad image in the middle of a run, the overlay file, the JSON line.
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "cli/commands.hpp"
+#include "cli/setup.hpp"
+#include "cli/vision_run.hpp"
+#include "tcpest/render/image_io.hpp"
+#include "tcpest/render/renderer.hpp"
+#include "tcpest/render/sidecar.hpp"
+
+namespace tcpest {
+namespace cli {
+namespace {
+
+int run(std::vector<std::string> words) {
+  std::vector<std::vector<char>> storage;
+  std::vector<char*> argv;
+  for (const std::string& w : words) {
+    storage.emplace_back(w.begin(), w.end());
+    storage.back().push_back('\0');
+  }
+  for (auto& s : storage) {
+    argv.push_back(s.data());
+  }
+  int count = 0;
+  const Command* table = commands(count);
+  for (int i = 0; i < count; ++i) {
+    if (std::strcmp(table[i].name, argv[0]) == 0) {
+      return table[i].run(static_cast<int>(argv.size()), argv.data());
+    }
+  }
+  return -1;
+}
+
+bool exists(const std::string& path) {
+  struct stat st {};
+  return stat(path.c_str(), &st) == 0;
+}
+
+// Two rendered frames (PPM) with their sidecars in a fresh directory.
+std::string make_dataset(const char* name) {
+  const std::string dir = ::testing::TempDir() + name;
+  mkdir(dir.c_str(), 0755);
+  ModelSetup setup;
+  EXPECT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
+  auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
+  auto renderer = std::move(created.value());
+  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
+  const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
+                             static_cast<std::size_t>(setup.camera.width()) * 3U};
+  const double joints[2][3] = {{25.0, 0.5, 0.6}, {30.0, -0.3, -0.8}};
+  for (int i = 0; i < 2; ++i) {
+    render::SceneSpec spec;
+    spec.r = setup.instrument.geometry().nominal_pose(joints[i][0], joints[i][1], joints[i][2]);
+    spec.seed = static_cast<std::uint64_t>(i + 3);
+    render::GroundTruth truth;
+    EXPECT_TRUE(renderer->render(spec, out, truth).ok());
+    char stem[32];
+    std::snprintf(stem, sizeof stem, "%04d", i);
+    EXPECT_TRUE(render::write_ppm_file(out.view(), (dir + "/" + stem + ".ppm").c_str()).ok());
+    render::Sidecar sidecar = render::make_sidecar(truth, spec, render::RenderSettings{}, setup.camera.width(),
+                                                   setup.camera.height());
+    std::snprintf(sidecar.image, sizeof sidecar.image, "%s.ppm", stem);
+    sidecar.has_prior = true;
+    sidecar.prior = {{joints[i][0], joints[i][1], joints[i][2]}};
+    EXPECT_TRUE(render::write_sidecar_file((dir + "/" + stem + ".json").c_str(), sidecar));
+  }
+  return dir;
+}
+
+TEST(VisionCommands, UsageErrorsAndHelp) {
+  EXPECT_EQ(run({"estimate", "--help"}), kExitOk);
+  EXPECT_EQ(run({"evaluate", "--help"}), kExitOk);
+  EXPECT_EQ(run({"train-colors", "--help"}), kExitOk);
+  EXPECT_EQ(run({"estimate"}), kExitUsage);
+  EXPECT_EQ(run({"estimate", "--prior", "1,2", "x.jpg"}), kExitUsage);
+  EXPECT_EQ(run({"estimate", "--colors", "/nonexistent.json", "x.jpg"}), kExitConfig);
+  EXPECT_EQ(run({"evaluate"}), kExitUsage);
+  EXPECT_EQ(run({"evaluate", "/nonexistent-dir"}), kExitConfig);
+  EXPECT_EQ(run({"train-colors"}), kExitUsage);
+}
+
+TEST(VisionCommands, EstimateGoesOnAfterABadImageAndWritesOverlays) {
+  const std::string dir = make_dataset("vision_cli_estimate");
+  const std::string bad = dir + "/corrupt.jpg";
+  std::FILE* f = std::fopen(bad.c_str(), "wb");
+  ASSERT_NE(f, nullptr);
+  std::fputs("\xff\xd8 not really a jpeg", f);
+  std::fclose(f);
+  // The bad image in the middle: the run goes on, and reports failure.
+  EXPECT_EQ(run({"estimate", "--json", "--overlay", dir, dir + "/0000.ppm", bad, dir + "/0001.ppm"}), kExitFailure);
+  EXPECT_TRUE(exists(dir + "/0000.ppm.overlay.jpg"));
+  EXPECT_TRUE(exists(dir + "/0001.ppm.overlay.jpg"));
+  EXPECT_EQ(run({"estimate", "--prior", "25,0.5,0.6", "--fixed-model", dir + "/0000.ppm"}), kExitOk);
+}
+
+TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
+  const std::string dir = make_dataset("vision_cli_evaluate");
+  EXPECT_EQ(run({"evaluate", dir}), kExitOk);
+  EXPECT_EQ(run({"evaluate", "--no-prior", "--max", "1", dir}), kExitOk);
+  const std::string model = dir + "/colors.json";
+  ASSERT_EQ(run({"train-colors", "--sidecars", dir, "--out", model}), kExitOk);
+  // The trained model is readable and close to the shipped one.
+  vision::ColorModel trained;
+  ASSERT_TRUE(load_color_model("test", model.c_str(), trained));
+  const vision::ColorModel shipped = vision::default_color_model();
+  EXPECT_NEAR(trained.blue.mean_b, shipped.blue.mean_b, 10.0);
+  EXPECT_NEAR(trained.yellow.mean_b, shipped.yellow.mean_b, 10.0);
+  EXPECT_EQ(run({"evaluate", "--colors", model, dir}), kExitOk);
+}
+
+TEST(VisionCommands, EstimateJsonLineHasEveryMember) {
+  EstimateResult result;
+  vision::Extraction extraction;
+  extraction.corners[3].found = true;
+  extraction.corners[3].pixel = vision::Point{12.5, 40.25};
+  result.extraction_ok = true;
+  char line[4096];
+  format_estimate_json("a \"quoted\" name.jpg", result, extraction, line, sizeof line);
+  const std::string s(line);
+  for (const char* key : {"\"image\": \"a \\\"quoted\\\" name.jpg\"", "\"status\": \"none\"", "\"tcp\": null",
+                          "\"r\": null", "\"corners\": [null, null, null, [12.500, 40.250], null",
+                          "\"rms_px\"", "\"iterations\"", "\"time_us\""}) {
+    EXPECT_NE(s.find(key), std::string::npos) << key << " in " << s;
+  }
+}
+
+}  // namespace
+}  // namespace cli
+}  // namespace tcpest

@@ -1,0 +1,600 @@
+#include "tcpest/hal/camera/file_sources.hpp"
+
+#include <dirent.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <new>
+
+namespace tcpest {
+namespace hal {
+
+namespace {
+
+constexpr std::size_t kMaxPath = 4096U;
+constexpr std::size_t kMaxHeaderLine = 512U;
+
+CameraError from_errno(int error) noexcept {
+  switch (error) {
+    case ENOENT:
+    case ENOTDIR:
+      return CameraError::kNotFound;
+    case ENODEV:
+    case ENXIO:
+      return CameraError::kDeviceLost;
+    case ENOMEM:
+      return CameraError::kOutOfMemory;
+    default:
+      return CameraError::kIo;
+  }
+}
+
+bool ends_with_jpeg(const char* name) noexcept {
+  const std::size_t n = std::strlen(name);
+  const char* suffixes[] = {".jpg", ".jpeg", ".JPG", ".JPEG"};
+  for (const char* suffix : suffixes) {
+    const std::size_t s = std::strlen(suffix);
+    if (n > s && std::strcmp(name + n - s, suffix) == 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// Reads exactly `size` bytes unless the file ends first; EINTR is retried.
+Result<std::size_t, CameraError> read_fully(int fd, std::uint8_t* out, std::size_t size) noexcept {
+  std::size_t done = 0U;
+  while (done < size) {
+    const ssize_t n = ::read(fd, out + done, size - done);
+    if (n < 0) {
+      if (errno == EINTR) {
+        continue;
+      }
+      return Result<std::size_t, CameraError>::failure(from_errno(errno));
+    }
+    if (n == 0) {
+      break;
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  return Result<std::size_t, CameraError>::success(done);
+}
+
+void close_quietly(int fd) noexcept {
+  if (fd >= 0) {
+    static_cast<void>(::close(fd));  // read-only descriptor: nothing to flush, nothing to report
+  }
+}
+
+bool parse_int(const char* text, std::size_t length, int& out) noexcept {
+  if (length == 0U || length > 9U) {
+    return false;
+  }
+  int value = 0;
+  for (std::size_t i = 0; i < length; ++i) {
+    if (text[i] < '0' || text[i] > '9') {
+      return false;
+    }
+    value = value * 10 + (text[i] - '0');
+  }
+  out = value;
+  return true;
+}
+
+}  // namespace
+
+std::int64_t monotonic_now_ns() noexcept {
+  timespec ts{};
+  static_cast<void>(clock_gettime(CLOCK_MONOTONIC, &ts));  // cannot fail with a valid pointer
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000LL + static_cast<std::int64_t>(ts.tv_nsec);
+}
+
+// ---------------------------------------------------------------- JPEG files
+
+JpegFileSource::~JpegFileSource() = default;
+
+Result<std::unique_ptr<JpegFileSource>, CameraError> JpegFileSource::open(const char* path,
+                                                                        const ReplayOptions& options) noexcept {
+  using R = Result<std::unique_ptr<JpegFileSource>, CameraError>;
+  if (path == nullptr || options.max_files == 0U) {
+    return R::failure(CameraError::kBadArgument);
+  }
+  std::unique_ptr<JpegFileSource> source(new (std::nothrow) JpegFileSource());
+  if (!source) {
+    return R::failure(CameraError::kOutOfMemory);
+  }
+  struct stat st {};
+  if (::stat(path, &st) != 0) {
+    return R::failure(from_errno(errno));
+  }
+  // First pass: the total size of the names, so that one block holds them all.
+  std::size_t bytes = 0U;
+  std::size_t count = 0U;
+  char prefix[kMaxPath] = {};
+  const bool is_dir = S_ISDIR(st.st_mode);
+  if (is_dir) {
+    static_cast<void>(std::snprintf(prefix, sizeof prefix, "%s/", path));  // paths longer than 4 KiB fail open() later
+    DIR* dir = ::opendir(path);
+    if (dir == nullptr) {
+      return R::failure(from_errno(errno));
+    }
+    for (const dirent* e = ::readdir(dir); e != nullptr; e = ::readdir(dir)) {  // NOLINT(concurrency-mt-unsafe): start-up, one thread
+      if (ends_with_jpeg(e->d_name) && count < options.max_files) {
+        bytes += std::strlen(prefix) + std::strlen(e->d_name) + 1U;
+        ++count;
+      }
+    }
+    ::closedir(dir);
+    if (count == 0U) {
+      return R::failure(CameraError::kNotFound);
+    }
+    source->names_.reset(new (std::nothrow) char[bytes]);
+    source->offsets_.reset(new (std::nothrow) std::size_t[count]);
+    if (!source->names_ || !source->offsets_) {
+      return R::failure(CameraError::kOutOfMemory);
+    }
+    dir = ::opendir(path);
+    if (dir == nullptr) {
+      return R::failure(from_errno(errno));
+    }
+    std::size_t at = 0U;
+    std::size_t n = 0U;
+    for (const dirent* e = ::readdir(dir); e != nullptr && n < count; e = ::readdir(dir)) {  // NOLINT(concurrency-mt-unsafe): start-up, one thread
+      if (ends_with_jpeg(e->d_name)) {
+        const int written = std::snprintf(source->names_.get() + at, bytes - at, "%s%s", prefix, e->d_name);
+        if (written < 0 || static_cast<std::size_t>(written) >= bytes - at) {
+          break;  // the directory changed between the passes: keep what fits
+        }
+        source->offsets_[n++] = at;
+        at += static_cast<std::size_t>(written) + 1U;
+      }
+    }
+    ::closedir(dir);
+    count = n;
+    const char* names = source->names_.get();
+    std::sort(source->offsets_.get(), source->offsets_.get() + count,
+              [names](std::size_t a, std::size_t b) { return std::strcmp(names + a, names + b) < 0; });
+  } else {
+    // A list file: read it whole, one path per line.
+    const int fd = ::open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+      return R::failure(from_errno(errno));
+    }
+    const auto list_size = static_cast<std::size_t>(st.st_size);
+    std::unique_ptr<char[]> text(new (std::nothrow) char[list_size + 1U]);
+    if (!text) {
+      close_quietly(fd);
+      return R::failure(CameraError::kOutOfMemory);
+    }
+    const auto got = read_fully(fd, reinterpret_cast<std::uint8_t*>(text.get()), list_size);  // NOLINT(cppcoreguidelines-pro-type-reinterpret-cast): bytes of a text file
+    close_quietly(fd);
+    if (!got.ok()) {
+      return R::failure(got.error());
+    }
+    text[got.value()] = '\0';
+    const char* slash = std::strrchr(path, '/');
+    if (slash != nullptr) {
+      const auto dir_len = static_cast<std::size_t>(slash - path) + 1U;
+      if (dir_len < sizeof prefix) {
+        std::memcpy(prefix, path, dir_len);
+        prefix[dir_len] = '\0';
+      }
+    }
+    const std::size_t prefix_len = std::strlen(prefix);
+    // Every line costs at most prefix + line + NUL.
+    std::size_t lines = 1U;
+    for (std::size_t i = 0; i < got.value(); ++i) {
+      if (text[i] == '\n') {
+        ++lines;
+      }
+    }
+    bytes = got.value() + lines * (prefix_len + 1U) + 1U;
+    source->names_.reset(new (std::nothrow) char[bytes]);
+    source->offsets_.reset(new (std::nothrow) std::size_t[lines]);
+    if (!source->names_ || !source->offsets_) {
+      return R::failure(CameraError::kOutOfMemory);
+    }
+    std::size_t at = 0U;
+    char* line = text.get();
+    for (std::size_t l = 0; l < lines && count < options.max_files; ++l) {
+      char* end = std::strchr(line, '\n');
+      if (end != nullptr) {
+        *end = '\0';
+      }
+      std::size_t len = std::strlen(line);
+      while (len > 0U && (line[len - 1U] == '\r' || line[len - 1U] == ' ')) {
+        line[--len] = '\0';
+      }
+      if (len > 0U && line[0] != '#') {
+        const char* use_prefix = line[0] == '/' ? "" : prefix;
+        const int written = std::snprintf(source->names_.get() + at, bytes - at, "%s%s", use_prefix, line);
+        if (written > 0 && static_cast<std::size_t>(written) < bytes - at) {
+          source->offsets_[count++] = at;
+          at += static_cast<std::size_t>(written) + 1U;
+        }
+      }
+      if (end == nullptr) {
+        break;
+      }
+      line = end + 1;
+    }
+    if (count == 0U) {
+      return R::failure(CameraError::kNotFound);
+    }
+  }
+  source->count_ = count;
+  source->rate_hz_ = options.rate_hz > 0.0 ? options.rate_hz : 25.0;
+  source->loop_ = options.loop;
+  source->width_ = options.width;
+  source->height_ = options.height;
+  // The image size: configured, else the first readable file's.
+  source->file_capacity_ = std::size_t{16U} * 1024U * 1024U;
+  if (options.width > 0 && options.height > 0) {
+    source->file_capacity_ = static_cast<std::size_t>(options.width) * static_cast<std::size_t>(options.height) * 3U +
+                             std::size_t{1024U} * 1024U;
+  }
+  source->file_buffer_.reset(new (std::nothrow) std::uint8_t[source->file_capacity_]);
+  if (!source->file_buffer_) {
+    return R::failure(CameraError::kOutOfMemory);
+  }
+  JpegDecoder probe;
+  if (!probe.init(16384, 16384).ok()) {
+    return R::failure(CameraError::kOutOfMemory);
+  }
+  if (source->width_ <= 0 || source->height_ <= 0) {
+    std::size_t size = 0U;
+    const auto read = source->read_file(source->file_name(0U), size);
+    if (!read.ok()) {
+      return R::failure(read.error());
+    }
+    const auto info = probe.inspect(source->file_buffer_.get(), size);
+    if (!info.ok()) {
+      return R::failure(info.error());
+    }
+    source->width_ = info.value().width;
+    source->height_ = info.value().height;
+    // Now the file buffer can shrink to what this image size needs.
+    source->file_capacity_ = static_cast<std::size_t>(source->width_) * static_cast<std::size_t>(source->height_) * 3U +
+                             std::size_t{1024U} * 1024U;
+    source->file_buffer_.reset(new (std::nothrow) std::uint8_t[source->file_capacity_]);
+    if (!source->file_buffer_) {
+      return R::failure(CameraError::kOutOfMemory);
+    }
+  }
+  const auto init = source->decoder_.init(source->width_, source->height_);
+  if (!init.ok()) {
+    return R::failure(init.error());
+  }
+  return R::success(std::move(source));
+}
+
+const char* JpegFileSource::file_name(std::size_t i) const noexcept {
+  return i < count_ ? names_.get() + offsets_[i] : "";
+}
+
+Status<CameraError> JpegFileSource::read_file(const char* path, std::size_t& size) noexcept {
+  const int fd = ::open(path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    return Status<CameraError>::failure(from_errno(errno));
+  }
+  // One byte more than the buffer's capacity tells a too-large file from a full one.
+  const auto got = read_fully(fd, file_buffer_.get(), file_capacity_);
+  close_quietly(fd);
+  if (!got.ok()) {
+    return Status<CameraError>::failure(got.error());
+  }
+  if (got.value() == file_capacity_) {
+    return Status<CameraError>::failure(CameraError::kOutOfMemory);
+  }
+  size = got.value();
+  return ok_status<CameraError>();
+}
+
+Status<CameraError> JpegFileSource::acquire(const MutableImageView& out, FrameInfo& info) noexcept {
+  if (next_ >= count_) {
+    if (!loop_) {
+      return Status<CameraError>::failure(CameraError::kEndOfStream);
+    }
+    next_ = 0U;
+  }
+  info.timestamp_ns = monotonic_now_ns();
+  info.sequence = sequence_++;
+  info.truth.valid = false;
+  last_file_ = file_name(next_);
+  ++next_;
+  std::size_t size = 0U;
+  const auto read = read_file(last_file_, size);
+  if (!read.ok()) {
+    return read;
+  }
+  return decoder_.decode(file_buffer_.get(), size, out);
+}
+
+Status<CameraError> JpegFileSource::reopen() noexcept {
+  next_ = 0U;
+  return ok_status<CameraError>();
+}
+
+// ---------------------------------------------------------------------- Y4M
+
+Result<Y4mHeader, CameraError> parse_y4m_header(const char* line, std::size_t length) noexcept {
+  using R = Result<Y4mHeader, CameraError>;
+  constexpr char kMagic[] = "YUV4MPEG2";
+  constexpr std::size_t kMagicLen = sizeof kMagic - 1U;
+  if (line == nullptr || length < kMagicLen || std::strncmp(line, kMagic, kMagicLen) != 0) {
+    return R::failure(CameraError::kCorrupt);
+  }
+  Y4mHeader header;
+  bool chroma_given = false;
+  std::size_t i = kMagicLen;
+  while (i < length) {
+    while (i < length && line[i] == ' ') {
+      ++i;
+    }
+    std::size_t end = i;
+    while (end < length && line[end] != ' ') {
+      ++end;
+    }
+    if (end == i) {
+      break;
+    }
+    const char tag = line[i];
+    const char* value = line + i + 1;
+    const std::size_t value_len = end - i - 1U;
+    switch (tag) {
+      case 'W':
+        if (!parse_int(value, value_len, header.width)) {
+          return R::failure(CameraError::kCorrupt);
+        }
+        break;
+      case 'H':
+        if (!parse_int(value, value_len, header.height)) {
+          return R::failure(CameraError::kCorrupt);
+        }
+        break;
+      case 'F': {
+        const char* colon = static_cast<const char*>(std::memchr(value, ':', value_len));
+        if (colon == nullptr || !parse_int(value, static_cast<std::size_t>(colon - value), header.rate_num) ||
+            !parse_int(colon + 1, value_len - static_cast<std::size_t>(colon - value) - 1U, header.rate_den)) {
+          return R::failure(CameraError::kCorrupt);
+        }
+        break;
+      }
+      case 'I':
+        header.interlaced = value_len > 0U && value[0] != 'p' && value[0] != '?';
+        break;
+      case 'C':
+        chroma_given = true;
+        if (value_len >= 3U && std::strncmp(value, "420", 3U) == 0) {
+          header.layout = ChromaLayout::k420;  // jpeg, mpeg2, paldv: siting ignored (nearest sample)
+        } else if (value_len == 3U && std::strncmp(value, "422", 3U) == 0) {
+          header.layout = ChromaLayout::k422;
+        } else if (value_len == 3U && std::strncmp(value, "444", 3U) == 0) {
+          header.layout = ChromaLayout::k444;
+        } else if (value_len == 4U && std::strncmp(value, "mono", 4U) == 0) {
+          header.layout = ChromaLayout::kMono;
+        } else {
+          return R::failure(CameraError::kUnsupported);  // 411, 444alpha, high bit depths
+        }
+        break;
+      case 'X':
+        if (value_len == 15U && std::strncmp(value, "COLORRANGE=FULL", 15U) == 0) {
+          header.range = YuvRange::kFull;
+        }
+        break;
+      default:
+        break;  // A (aspect) and unknown tags do not change the pixels
+    }
+    i = end;
+  }
+  static_cast<void>(chroma_given);  // no C tag: 4:2:0, the format's default
+  if (header.width <= 0 || header.height <= 0 || header.width > 16384 || header.height > 16384 ||
+      header.rate_num < 0 || header.rate_den <= 0) {
+    return R::failure(CameraError::kCorrupt);
+  }
+  return R::success(header);
+}
+
+Y4mSource::~Y4mSource() { close_quietly(fd_); }
+
+double Y4mSource::rate_hz() const noexcept {
+  return header_.rate_den > 0 ? static_cast<double>(header_.rate_num) / static_cast<double>(header_.rate_den) : 0.0;
+}
+
+Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path, const ReplayOptions& options) noexcept {
+  using R = Result<std::unique_ptr<Y4mSource>, CameraError>;
+  if (path == nullptr) {
+    return R::failure(CameraError::kBadArgument);
+  }
+  std::unique_ptr<Y4mSource> source(new (std::nothrow) Y4mSource());
+  if (!source) {
+    return R::failure(CameraError::kOutOfMemory);
+  }
+  source->fd_ = ::open(path, O_RDONLY | O_CLOEXEC);
+  if (source->fd_ < 0) {
+    return R::failure(from_errno(errno));
+  }
+  char line[kMaxHeaderLine] = {};
+  std::size_t length = 0U;
+  bool complete = false;
+  while (length + 1U < sizeof line) {
+    std::uint8_t c = 0U;
+    const auto got = read_fully(source->fd_, &c, 1U);
+    if (!got.ok()) {
+      return R::failure(got.error());
+    }
+    if (got.value() == 0U) {
+      break;
+    }
+    if (c == '\n') {
+      complete = true;
+      break;
+    }
+    line[length++] = static_cast<char>(c);
+  }
+  if (!complete) {
+    return R::failure(length == 0U ? CameraError::kTruncated : CameraError::kCorrupt);
+  }
+  const auto header = parse_y4m_header(line, length);
+  if (!header.ok()) {
+    return R::failure(header.error());
+  }
+  source->header_ = header.value();
+  if ((options.width > 0 && options.width != source->header_.width) ||
+      (options.height > 0 && options.height != source->header_.height)) {
+    return R::failure(CameraError::kWrongSize);
+  }
+  source->data_offset_ = static_cast<long long>(length + 1U);
+  source->frame_bytes_ = planar_frame_bytes(source->header_.width, source->header_.height, source->header_.layout);
+  source->frame_.reset(new (std::nothrow) std::uint8_t[source->frame_bytes_]);
+  if (!source->frame_) {
+    return R::failure(CameraError::kOutOfMemory);
+  }
+  std::memset(source->frame_.get(), 0, source->frame_bytes_);  // pre-fault
+  source->loop_ = options.loop;
+  return R::success(std::move(source));
+}
+
+Status<CameraError> Y4mSource::read_frame() noexcept {
+  // "FRAME" then optional parameters, then '\n'.
+  std::uint8_t tag[6] = {};
+  auto got = read_fully(fd_, tag, sizeof tag);
+  if (!got.ok()) {
+    return Status<CameraError>::failure(got.error());
+  }
+  if (got.value() == 0U) {
+    return Status<CameraError>::failure(CameraError::kEndOfStream);
+  }
+  if (got.value() < sizeof tag) {
+    return Status<CameraError>::failure(CameraError::kTruncated);
+  }
+  if (std::memcmp(tag, "FRAME", 5U) != 0) {
+    return Status<CameraError>::failure(CameraError::kCorrupt);
+  }
+  if (tag[5] != '\n') {
+    if (tag[5] != ' ') {
+      return Status<CameraError>::failure(CameraError::kCorrupt);
+    }
+    std::size_t skipped = 0U;
+    std::uint8_t c = 0U;
+    do {
+      got = read_fully(fd_, &c, 1U);
+      if (!got.ok()) {
+        return Status<CameraError>::failure(got.error());
+      }
+      if (got.value() == 0U) {
+        return Status<CameraError>::failure(CameraError::kTruncated);
+      }
+      ++skipped;
+    } while (c != '\n' && skipped < kMaxHeaderLine);
+    if (c != '\n') {
+      return Status<CameraError>::failure(CameraError::kCorrupt);
+    }
+  }
+  got = read_fully(fd_, frame_.get(), frame_bytes_);
+  if (!got.ok()) {
+    return Status<CameraError>::failure(got.error());
+  }
+  if (got.value() < frame_bytes_) {
+    return Status<CameraError>::failure(CameraError::kTruncated);
+  }
+  return ok_status<CameraError>();
+}
+
+Status<CameraError> Y4mSource::acquire(const MutableImageView& out, FrameInfo& info) noexcept {
+  if (!out.valid()) {
+    return Status<CameraError>::failure(CameraError::kBadArgument);
+  }
+  if (out.width != header_.width || out.height != header_.height) {
+    return Status<CameraError>::failure(CameraError::kWrongSize);
+  }
+  info.timestamp_ns = monotonic_now_ns();
+  info.truth.valid = false;
+  auto status = read_frame();
+  if (!status.ok() && status.error() == CameraError::kEndOfStream && loop_) {
+    const auto rewound = reopen();
+    if (!rewound.ok()) {
+      return rewound;
+    }
+    status = read_frame();
+  }
+  if (!status.ok()) {
+    return status;
+  }
+  info.sequence = sequence_++;
+  planar_yuv_to_rgb(frame_.get(), header_.width, header_.height, header_.layout, header_.range, out);
+  return ok_status<CameraError>();
+}
+
+Status<CameraError> Y4mSource::reopen() noexcept {
+  if (::lseek(fd_, static_cast<off_t>(data_offset_), SEEK_SET) < 0) {
+    return Status<CameraError>::failure(from_errno(errno));
+  }
+  return ok_status<CameraError>();
+}
+
+Y4mWriter::~Y4mWriter() { static_cast<void>(close()); }  // a destructor cannot report; call close() to know
+
+Status<CameraError> Y4mWriter::open(const char* path, int width, int height, int rate_num, int rate_den) noexcept {
+  if (fd_ >= 0 || path == nullptr || width <= 0 || height <= 0 || rate_num <= 0 || rate_den <= 0) {
+    return Status<CameraError>::failure(CameraError::kBadArgument);
+  }
+  width_ = width;
+  height_ = height;
+  frame_bytes_ = planar_frame_bytes(width, height, ChromaLayout::k420);
+  frame_.reset(new (std::nothrow) std::uint8_t[frame_bytes_]);
+  if (!frame_) {
+    return Status<CameraError>::failure(CameraError::kOutOfMemory);
+  }
+  fd_ = ::open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) {
+    return Status<CameraError>::failure(from_errno(errno));
+  }
+  char header[128] = {};
+  const int n = std::snprintf(header, sizeof header, "YUV4MPEG2 W%d H%d F%d:%d Ip A1:1 C420jpeg XYSCSS=420JPEG XCOLORRANGE=FULL\n",
+                              width, height, rate_num, rate_den);
+  if (n <= 0 || ::write(fd_, header, static_cast<std::size_t>(n)) != n) {
+    return Status<CameraError>::failure(CameraError::kIo);
+  }
+  return ok_status<CameraError>();
+}
+
+Status<CameraError> Y4mWriter::write(const ImageView& rgb) noexcept {
+  if (fd_ < 0 || !rgb.valid() || rgb.width != width_ || rgb.height != height_) {
+    return Status<CameraError>::failure(CameraError::kBadArgument);
+  }
+  rgb_to_planar_yuv420(rgb, YuvRange::kFull, frame_.get());
+  if (::write(fd_, "FRAME\n", 6U) != 6) {
+    return Status<CameraError>::failure(CameraError::kIo);
+  }
+  std::size_t done = 0U;
+  while (done < frame_bytes_) {
+    const ssize_t n = ::write(fd_, frame_.get() + done, frame_bytes_ - done);
+    if (n <= 0) {
+      if (n < 0 && errno == EINTR) {
+        continue;
+      }
+      return Status<CameraError>::failure(CameraError::kIo);
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  return ok_status<CameraError>();
+}
+
+Status<CameraError> Y4mWriter::close() noexcept {
+  if (fd_ < 0) {
+    return ok_status<CameraError>();
+  }
+  const int rc = ::close(fd_);
+  fd_ = -1;
+  return rc == 0 ? ok_status<CameraError>() : Status<CameraError>::failure(CameraError::kIo);
+}
+
+}  // namespace hal
+}  // namespace tcpest

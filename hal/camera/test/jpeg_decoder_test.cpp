@@ -1,0 +1,182 @@
+#include "tcpest/hal/camera/jpeg_decoder.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <vector>
+
+#include "jpeg_test_images.hpp"
+#include "tcpest/test/alloc_counter.hpp"
+
+namespace tcpest {
+namespace hal {
+namespace {
+
+using testing::encode_jpeg;
+using testing::EncodeOptions;
+using testing::make_pattern;
+
+constexpr int kW = 96;
+constexpr int kH = 64;
+
+struct Buffer {
+  std::vector<std::uint8_t> bytes;
+  MutableImageView view;
+  Buffer(int w, int h, std::size_t pad = 0U)
+      : bytes(static_cast<std::size_t>(h) * (static_cast<std::size_t>(w) * 3U + pad)) {
+    view = MutableImageView{bytes.data(), w, h, static_cast<std::size_t>(w) * 3U + pad};
+  }
+};
+
+double mean_abs_difference(const std::vector<std::uint8_t>& rgb, const MutableImageView& view) {
+  double sum = 0.0;
+  for (int y = 0; y < view.height; ++y) {
+    for (int x = 0; x < view.width * 3; ++x) {
+      sum += std::abs(static_cast<int>(view.row(y)[x]) - static_cast<int>(rgb[static_cast<std::size_t>(y * view.width * 3 + x)]));
+    }
+  }
+  return sum / (view.width * view.height * 3.0);
+}
+
+TEST(JpegDecoder, DecodesBaselineIntoAStridedBuffer) {
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  const auto rgb = make_pattern(kW, kH, 1);
+  const auto jpeg = encode_jpeg(rgb, kW, kH);
+  Buffer out(kW, kH, 13U);
+  const auto status = decoder.decode(jpeg.data(), jpeg.size(), out.view);
+  ASSERT_TRUE(status.ok()) << to_string(status.error()) << " " << decoder.last_message();
+  EXPECT_LT(mean_abs_difference(rgb, out.view), 3.0);
+}
+
+TEST(JpegDecoder, InspectReadsTheHeader) {
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  const auto jpeg = encode_jpeg(make_pattern(40, 30, 2), 40, 30);
+  const auto info = decoder.inspect(jpeg.data(), jpeg.size());
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info.value().width, 40);
+  EXPECT_EQ(info.value().height, 30);
+  EXPECT_EQ(info.value().components, 3);
+}
+
+TEST(JpegDecoder, WrongSizeIsAnErrorAndTheDecoderCarriesOn) {
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  const auto small = encode_jpeg(make_pattern(48, 32, 3), 48, 32);
+  Buffer out(kW, kH);
+  const auto status = decoder.decode(small.data(), small.size(), out.view);
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error(), CameraError::kWrongSize);
+  const auto good = encode_jpeg(make_pattern(kW, kH, 3), kW, kH);
+  EXPECT_TRUE(decoder.decode(good.data(), good.size(), out.view).ok());
+}
+
+TEST(JpegDecoder, TruncatedIsAnError) {
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  const auto jpeg = encode_jpeg(make_pattern(kW, kH, 4), kW, kH);
+  Buffer out(kW, kH);
+  const auto status = decoder.decode(jpeg.data(), jpeg.size() / 2U, out.view);
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error(), CameraError::kTruncated);
+}
+
+TEST(JpegDecoder, GarbageIsCorrupt) {
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  std::vector<std::uint8_t> garbage(4000U);
+  for (std::size_t i = 0; i < garbage.size(); ++i) {
+    garbage[i] = static_cast<std::uint8_t>((i * 2654435761U) >> 13U);
+  }
+  Buffer out(kW, kH);
+  const auto status = decoder.decode(garbage.data(), garbage.size(), out.view);
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error(), CameraError::kCorrupt);
+  const auto empty = decoder.decode(garbage.data(), 0U, out.view);
+  EXPECT_FALSE(empty.ok());
+}
+
+// Every prefix and many single-byte corruptions: each is ok or an error value,
+// never a crash, and a good image still decodes afterwards.
+TEST(JpegDecoder, SurvivesEveryTruncationAndByteFlips) {
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  const auto rgb = make_pattern(kW, kH, 5);
+  const auto jpeg = encode_jpeg(rgb, kW, kH);
+  Buffer out(kW, kH);
+  std::size_t failures = 0U;
+  for (std::size_t n = 0; n < jpeg.size(); n += 7U) {
+    if (!decoder.decode(jpeg.data(), n, out.view).ok()) {
+      ++failures;
+    }
+  }
+  EXPECT_GT(failures, 0U);
+  for (std::size_t i = 0; i < jpeg.size(); i += 3U) {
+    auto corrupt = jpeg;
+    corrupt[i] = static_cast<std::uint8_t>(corrupt[i] ^ 0xA5U);
+    static_cast<void>(decoder.decode(corrupt.data(), corrupt.size(), out.view));  // any value is fine
+  }
+  ASSERT_TRUE(decoder.decode(jpeg.data(), jpeg.size(), out.view).ok());
+  EXPECT_LT(mean_abs_difference(rgb, out.view), 3.0);
+}
+
+TEST(JpegDecoder, GreyscaleIsExpandedToRgb) {
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  EncodeOptions options;
+  options.grayscale = true;
+  const auto jpeg = encode_jpeg(make_pattern(kW, kH, 6), kW, kH, options);
+  Buffer out(kW, kH);
+  ASSERT_TRUE(decoder.decode(jpeg.data(), jpeg.size(), out.view).ok());
+  EXPECT_EQ(out.view.row(10)[30], out.view.row(10)[31]);
+  EXPECT_EQ(out.view.row(10)[30], out.view.row(10)[32]);
+}
+
+TEST(JpegDecoder, ProgressiveDecodesWithTheCountedFallback) {
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  EncodeOptions options;
+  options.progressive = true;
+  const auto rgb = make_pattern(kW, kH, 7);
+  const auto jpeg = encode_jpeg(rgb, kW, kH, options);
+  Buffer out(kW, kH);
+  ASSERT_TRUE(decoder.decode(jpeg.data(), jpeg.size(), out.view).ok());
+  EXPECT_LT(mean_abs_difference(rgb, out.view), 3.0);
+  EXPECT_EQ(decoder.arena_stats().fallback_allocations, 1U);
+}
+
+TEST(JpegDecoder, BaselineDecodeMakesNoHeapAllocation) {
+  constexpr int kPalW = 720;
+  constexpr int kPalH = 576;
+  JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(kPalW, kPalH).ok());
+  const auto jpeg = encode_jpeg(make_pattern(kPalW, kPalH, 8), kPalW, kPalH);
+  Buffer out(kPalW, kPalH);
+  ASSERT_TRUE(decoder.decode(jpeg.data(), jpeg.size(), out.view).ok());  // first decode: permanent tables
+  test::AllocationScope scope;
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(decoder.decode(jpeg.data(), jpeg.size(), out.view).ok());
+  }
+  EXPECT_EQ(scope.count(), 0U);
+  const auto stats = decoder.arena_stats();
+  EXPECT_LT(stats.image_high_water_bytes + stats.permanent_bytes, stats.capacity_bytes);
+  std::printf("arena: capacity %zu B, permanent %zu B, per-image high water %zu B (720x576)\n",
+              stats.capacity_bytes, stats.permanent_bytes, stats.image_high_water_bytes);
+}
+
+TEST(JpegDecoder, UninitialisedOrBadViewIsAnError) {
+  JpegDecoder decoder;
+  std::uint8_t byte = 0U;
+  Buffer out(kW, kH);
+  EXPECT_FALSE(decoder.decode(&byte, 1U, out.view).ok());
+  ASSERT_TRUE(decoder.init(kW, kH).ok());
+  EXPECT_FALSE(decoder.init(kW, kH).ok());
+  EXPECT_FALSE(decoder.decode(&byte, 1U, MutableImageView{}).ok());
+  Buffer big(kW * 2, kH);
+  EXPECT_EQ(decoder.decode(&byte, 1U, big.view).error(), CameraError::kBadArgument);
+}
+
+}  // namespace
+}  // namespace hal
+}  // namespace tcpest

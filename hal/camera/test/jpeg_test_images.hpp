@@ -1,0 +1,25 @@
+// Test helpers: synthetic RGB images and their JPEG encodings (libjpeg).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace tcpest {
+namespace hal {
+namespace testing {
+
+// A smooth RGB pattern, width x height, tightly packed.
+std::vector<std::uint8_t> make_pattern(int width, int height, int seed);
+
+struct EncodeOptions {
+  int quality = 95;
+  bool progressive = false;
+  bool grayscale = false;
+};
+
+std::vector<std::uint8_t> encode_jpeg(const std::vector<std::uint8_t>& rgb, int width, int height,
+                                      const EncodeOptions& options = EncodeOptions{});
+
+}  // namespace testing
+}  // namespace hal
+}  // namespace tcpest

@@ -1,0 +1,261 @@
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
+#include <cstdlib>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "jpeg_test_images.hpp"
+#include "tcpest/hal/camera/file_sources.hpp"
+#include "tcpest/hal/camera/pixel_formats.hpp"
+#include "tcpest/hal/camera/sim_camera.hpp"
+#include "tcpest/hal/camera/v4l2_source.hpp"
+#include "tcpest/test/alloc_counter.hpp"
+
+namespace tcpest {
+namespace hal {
+namespace {
+
+std::string temp_dir(const char* tag) {
+  std::string pattern = std::string(::testing::TempDir()) + "tcpest_" + tag + "_XXXXXX";
+  std::vector<char> buf(pattern.begin(), pattern.end());
+  buf.push_back('\0');
+  const char* made = ::mkdtemp(buf.data());
+  return made != nullptr ? std::string(made) : std::string();
+}
+
+void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes) {
+  std::ofstream f(path, std::ios::binary);
+  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+struct Image {
+  std::vector<std::uint8_t> bytes;
+  MutableImageView view;
+  Image(int w, int h) : bytes(static_cast<std::size_t>(w * h * 3)) {
+    view = MutableImageView{bytes.data(), w, h, static_cast<std::size_t>(w) * 3U};
+  }
+};
+
+TEST(Y4mHeader, ParsesWhatFfmpegWrites) {
+  const char line[] = "YUV4MPEG2 W720 H576 F25:1 Ip A64:45 C420jpeg XYSCSS=420JPEG";
+  const auto h = parse_y4m_header(line, sizeof line - 1U);
+  ASSERT_TRUE(h.ok());
+  EXPECT_EQ(h.value().width, 720);
+  EXPECT_EQ(h.value().height, 576);
+  EXPECT_EQ(h.value().rate_num, 25);
+  EXPECT_EQ(h.value().rate_den, 1);
+  EXPECT_EQ(h.value().layout, ChromaLayout::k420);
+  EXPECT_EQ(h.value().range, YuvRange::kLimited);
+  const char full[] = "YUV4MPEG2 W64 H48 F30000:1001 C444 XCOLORRANGE=FULL";
+  const auto f = parse_y4m_header(full, sizeof full - 1U);
+  ASSERT_TRUE(f.ok());
+  EXPECT_EQ(f.value().layout, ChromaLayout::k444);
+  EXPECT_EQ(f.value().range, YuvRange::kFull);
+}
+
+TEST(Y4mHeader, RefusesBadHeaders) {
+  const char* bad[] = {"YUV4MPEG W720 H576", "YUV4MPEG2 W0 H576", "YUV4MPEG2 W720", "YUV4MPEG2 Wabc H5",
+                       "YUV4MPEG2 W720 H576 F25:0", "YUV4MPEG2 W720 H576 C411", "YUV4MPEG2 W99999 H576"};
+  for (const char* line : bad) {
+    EXPECT_FALSE(parse_y4m_header(line, std::strlen(line)).ok()) << line;
+  }
+}
+
+TEST(PixelFormats, Yuv420RoundTripIsClose) {
+  const int w = 33;
+  const int h = 17;
+  const auto rgb = testing::make_pattern(w, h, 1);
+  const ImageView in{rgb.data(), w, h, static_cast<std::size_t>(w) * 3U};
+  std::vector<std::uint8_t> yuv(planar_frame_bytes(w, h, ChromaLayout::k420));
+  rgb_to_planar_yuv420(in, YuvRange::kFull, yuv.data());
+  Image out(w, h);
+  planar_yuv_to_rgb(yuv.data(), w, h, ChromaLayout::k420, YuvRange::kFull, out.view);
+  double sum = 0.0;
+  for (std::size_t i = 0; i < rgb.size(); ++i) {
+    sum += std::abs(static_cast<int>(rgb[i]) - static_cast<int>(out.bytes[i]));
+  }
+  EXPECT_LT(sum / static_cast<double>(rgb.size()), 6.0);  // 4:2:0 loses chroma detail only
+}
+
+TEST(PixelFormats, YuyvGreyAndWhite) {
+  // Limited range: Y 16 = black, 235 = white, C 128 = no colour.
+  const std::uint8_t yuyv[8] = {16, 128, 235, 128, 126, 128, 126, 128};
+  Image out(4, 1);
+  yuyv_to_rgb(yuyv, 8U, 4, 1, YuvRange::kLimited, out.view);
+  EXPECT_EQ(out.bytes[0], 0);
+  EXPECT_EQ(out.bytes[3], 255);
+  EXPECT_EQ(out.bytes[4], 255);
+  EXPECT_NEAR(out.bytes[6], 128, 1);
+}
+
+TEST(Y4mSource, WriterAndSourceRoundTripWithoutAllocating) {
+  const std::string dir = temp_dir("y4m");
+  const std::string path = dir + "/clip.y4m";
+  const int w = 64;
+  const int h = 48;
+  {
+    Y4mWriter writer;
+    ASSERT_TRUE(writer.open(path.c_str(), w, h, 25, 1).ok());
+    for (int i = 0; i < 3; ++i) {
+      const auto rgb = testing::make_pattern(w, h, i);
+      ASSERT_TRUE(writer.write(ImageView{rgb.data(), w, h, static_cast<std::size_t>(w) * 3U}).ok());
+    }
+    ASSERT_TRUE(writer.close().ok());
+  }
+  ReplayOptions options;
+  options.loop = true;
+  auto source = Y4mSource::open(path.c_str(), options);
+  ASSERT_TRUE(source.ok());
+  EXPECT_EQ(source.value()->width(), w);
+  EXPECT_DOUBLE_EQ(source.value()->rate_hz(), 25.0);
+  EXPECT_EQ(source.value()->header().range, YuvRange::kFull);
+  Image out(w, h);
+  FrameInfo info;
+  test::AllocationScope scope;
+  for (int i = 0; i < 10; ++i) {  // loops over the three frames
+    ASSERT_TRUE(source.value()->acquire(out.view, info).ok());
+    EXPECT_EQ(info.sequence, static_cast<std::uint32_t>(i));
+  }
+  EXPECT_EQ(scope.count(), 0U);
+}
+
+TEST(Y4mSource, EndOfStreamTruncationAndWrongSize) {
+  const std::string dir = temp_dir("y4m2");
+  const std::string path = dir + "/clip.y4m";
+  const int w = 16;
+  const int h = 8;
+  {
+    Y4mWriter writer;
+    ASSERT_TRUE(writer.open(path.c_str(), w, h, 25, 1).ok());
+    const auto rgb = testing::make_pattern(w, h, 0);
+    ASSERT_TRUE(writer.write(ImageView{rgb.data(), w, h, static_cast<std::size_t>(w) * 3U}).ok());
+    ASSERT_TRUE(writer.write(ImageView{rgb.data(), w, h, static_cast<std::size_t>(w) * 3U}).ok());
+    ASSERT_TRUE(writer.close().ok());
+  }
+  // Cut the second frame in half.
+  std::ifstream in(path, std::ios::binary);
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  bytes.resize(bytes.size() - 50U);
+  write_bytes(path, bytes);
+  auto source = Y4mSource::open(path.c_str(), ReplayOptions{});
+  ASSERT_TRUE(source.ok());
+  Image out(w, h);
+  FrameInfo info;
+  EXPECT_TRUE(source.value()->acquire(out.view, info).ok());
+  EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kTruncated);
+  EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kEndOfStream);
+  Image wrong(w + 2, h);
+  EXPECT_EQ(source.value()->acquire(wrong.view, info).error(), CameraError::kWrongSize);
+  ReplayOptions sized;
+  sized.width = 32;
+  sized.height = 8;
+  EXPECT_EQ(Y4mSource::open(path.c_str(), sized).error(), CameraError::kWrongSize);
+  EXPECT_EQ(Y4mSource::open((dir + "/none.y4m").c_str(), ReplayOptions{}).error(), CameraError::kNotFound);
+  write_bytes(dir + "/bad.y4m", std::vector<std::uint8_t>{'J', 'U', 'N', 'K', '\n'});
+  EXPECT_EQ(Y4mSource::open((dir + "/bad.y4m").c_str(), ReplayOptions{}).error(), CameraError::kCorrupt);
+}
+
+TEST(JpegFileSource, DirectorySortedWithACorruptFileDropped) {
+  const std::string dir = temp_dir("jpg");
+  const int w = 40;
+  const int h = 30;
+  write_bytes(dir + "/frame_002.jpg", testing::encode_jpeg(testing::make_pattern(w, h, 2), w, h));
+  write_bytes(dir + "/frame_000.jpg", testing::encode_jpeg(testing::make_pattern(w, h, 0), w, h));
+  auto broken = testing::encode_jpeg(testing::make_pattern(w, h, 1), w, h);
+  broken.resize(broken.size() / 3U);
+  write_bytes(dir + "/frame_001.jpg", broken);
+  write_bytes(dir + "/notes.txt", std::vector<std::uint8_t>{'x'});
+  auto source = JpegFileSource::open(dir.c_str(), ReplayOptions{});
+  ASSERT_TRUE(source.ok());
+  ASSERT_EQ(source.value()->file_count(), 3U);
+  EXPECT_EQ(source.value()->width(), w);
+  EXPECT_NE(std::string(source.value()->file_name(0)).find("frame_000"), std::string::npos);
+  Image out(w, h);
+  FrameInfo info;
+  EXPECT_TRUE(source.value()->acquire(out.view, info).ok());
+  const auto second = source.value()->acquire(out.view, info);
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.error(), CameraError::kTruncated);
+  EXPECT_TRUE(source.value()->acquire(out.view, info).ok());
+  EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kEndOfStream);
+}
+
+TEST(JpegFileSource, ListFileWithRelativePaths) {
+  const std::string dir = temp_dir("jpglist");
+  const int w = 24;
+  const int h = 16;
+  write_bytes(dir + "/a.jpg", testing::encode_jpeg(testing::make_pattern(w, h, 0), w, h));
+  write_bytes(dir + "/b.jpg", testing::encode_jpeg(testing::make_pattern(48, 16, 0), 48, 16));
+  {
+    std::ofstream list(dir + "/list.txt");
+    list << "# frames\nb.jpg\n" << dir << "/a.jpg\n\n";
+  }
+  ReplayOptions options;
+  options.width = w;
+  options.height = h;
+  auto source = JpegFileSource::open((dir + "/list.txt").c_str(), options);
+  ASSERT_TRUE(source.ok());
+  ASSERT_EQ(source.value()->file_count(), 2U);
+  Image out(w, h);
+  FrameInfo info;
+  EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kWrongSize);
+  EXPECT_TRUE(source.value()->acquire(out.view, info).ok());
+  EXPECT_EQ(JpegFileSource::open((dir + "/missing").c_str(), options).error(), CameraError::kNotFound);
+}
+
+class StripesRenderer final : public SceneRenderer {
+ public:
+  int width() const noexcept override { return 8; }
+  int height() const noexcept override { return 4; }
+  std::uint32_t frame_count() const noexcept override { return 2U; }
+  Status<CameraError> render(std::uint32_t index, const MutableImageView& out, FrameTruth& truth) noexcept override {
+    for (int y = 0; y < out.height; ++y) {
+      for (int x = 0; x < out.width * 3; ++x) {
+        out.row(y)[x] = static_cast<std::uint8_t>(index * 10U);
+      }
+    }
+    truth.valid = true;
+    truth.tcp_mm = {1.0, 2.0, static_cast<double>(index)};
+    return ok_status<CameraError>();
+  }
+};
+
+TEST(SimCamera, CarriesTruthAndLoops) {
+  StripesRenderer renderer;
+  SimCamera camera(renderer, 25.0, true);
+  Image out(8, 4);
+  FrameInfo info;
+  for (std::uint32_t i = 0; i < 5U; ++i) {
+    ASSERT_TRUE(camera.acquire(out.view, info).ok());
+    EXPECT_TRUE(info.truth.valid);
+    EXPECT_DOUBLE_EQ(info.truth.tcp_mm[2], static_cast<double>(i % 2U));
+    EXPECT_EQ(info.sequence, i);
+  }
+  SimCamera once(renderer, 25.0, false);
+  ASSERT_TRUE(once.acquire(out.view, info).ok());
+  ASSERT_TRUE(once.acquire(out.view, info).ok());
+  EXPECT_EQ(once.acquire(out.view, info).error(), CameraError::kEndOfStream);
+  Image wrong(4, 4);
+  EXPECT_EQ(camera.acquire(wrong.view, info).error(), CameraError::kWrongSize);
+}
+
+TEST(V4l2Source, MissingDeviceAndNonVideoDeviceAreErrors) {
+  V4l2Options options;
+  EXPECT_EQ(V4l2Source::open("/dev/video-does-not-exist", options).error(), CameraError::kNotFound);
+  EXPECT_EQ(V4l2Source::open("/dev/null", options).error(), CameraError::kUnsupported);
+  options.buffers = 1;
+  EXPECT_EQ(V4l2Source::open("/dev/null", options).error(), CameraError::kBadArgument);
+  V4l2PixelFormat format{};
+  EXPECT_TRUE(parse_v4l2_pixel_format("mjpeg", format));
+  EXPECT_EQ(format, V4l2PixelFormat::kMjpeg);
+  EXPECT_FALSE(parse_v4l2_pixel_format("nv12", format));
+}
+
+}  // namespace
+}  // namespace hal
+}  // namespace tcpest

@@ -1,0 +1,66 @@
+#include "tcpest/hal/clock/clock.hpp"
+
+#include <gtest/gtest.h>
+
+namespace tcpest {
+namespace hal {
+namespace {
+
+TEST(MonotonicClock, NeverGoesBackAndSleepsToAbsoluteDeadlines) {
+  MonotonicClock clock;
+  const std::int64_t t0 = clock.now_ns();
+  const std::int64_t deadline = t0 + 2 * kNsPerMs;
+  ASSERT_TRUE(clock.sleep_until_ns(deadline).ok());
+  EXPECT_GE(clock.now_ns(), deadline);
+  // A deadline in the past returns at once.
+  ASSERT_TRUE(clock.sleep_until_ns(t0).ok());
+  EXPECT_FALSE(clock.sleep_until_ns(-1).ok());
+}
+
+TEST(SimulatedClock, MovesOnlyWhenTold) {
+  SimulatedClock clock(100);
+  EXPECT_EQ(clock.now_ns(), 100);
+  ASSERT_TRUE(clock.sleep_until_ns(50).ok());
+  EXPECT_EQ(clock.now_ns(), 100);
+  ASSERT_TRUE(clock.sleep_until_ns(400).ok());
+  EXPECT_EQ(clock.now_ns(), 400);
+  clock.advance_ns(25);
+  EXPECT_EQ(clock.now_ns(), 425);
+}
+
+TEST(PeriodicTimer, DeadlinesAreAbsoluteAndDoNotDrift) {
+  SimulatedClock clock(0);
+  PeriodicTimer timer(clock, 40 * kNsPerMs);
+  timer.start(0);
+  for (int n = 1; n <= 100; ++n) {
+    clock.advance_ns(3 * kNsPerMs);  // work of the cycle
+    const auto tick = timer.wait_next();
+    ASSERT_TRUE(tick.ok());
+    EXPECT_EQ(tick.value().deadline_ns, n * 40 * kNsPerMs);
+    EXPECT_EQ(tick.value().slipped, 0U);
+  }
+}
+
+TEST(PeriodicTimer, OverrunsSkipMissedPeriodsAndCountThem) {
+  SimulatedClock clock(0);
+  PeriodicTimer timer(clock, 10);
+  timer.start(0);
+  ASSERT_TRUE(timer.wait_next().ok());  // t = 10
+  clock.advance_ns(35);                 // t = 45: deadlines 20, 30, 40 missed
+  const auto tick = timer.wait_next();
+  ASSERT_TRUE(tick.ok());
+  EXPECT_EQ(tick.value().slipped, 3U);
+  EXPECT_EQ(tick.value().deadline_ns, 50);
+  EXPECT_EQ(timer.total_slips(), 3U);
+}
+
+TEST(PeriodicTimer, ZeroPeriodIsAnError) {
+  SimulatedClock clock(0);
+  PeriodicTimer timer(clock, 0);
+  timer.start(0);
+  EXPECT_FALSE(timer.wait_next().ok());
+}
+
+}  // namespace
+}  // namespace hal
+}  // namespace tcpest

@@ -1,0 +1,388 @@
+// Stage 1: per-pixel classification through the lookup table, then connected
+// components (8-connected) over runs of equal class, with union-find on the
+// runs and moments accumulated per run in closed form.
+#include <cmath>
+#include <new>
+
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace vision {
+namespace {
+
+// Run indices are int32 (they are also union-find parents); never negative.
+std::size_t idx(std::int32_t i) noexcept { return static_cast<std::size_t>(i); }
+
+}  // namespace
+
+bool ClassifierLut::build(const ColorModel& model) noexcept {
+  model_ = model;
+  table_.reset(new (std::nothrow) std::uint8_t[kEntries]);
+  constexpr int kLevels = 1 << kBitsPerChannel;
+  constexpr int kCell = 1 << kShift;
+  // Class at both ends of every cell, per channel: values q*kCell and
+  // q*kCell + kCell - 1 (start-up scratch, 2 MiB).
+  constexpr int kEnds = 2 * kLevels;
+  std::unique_ptr<std::uint8_t[]> ends(new (std::nothrow) std::uint8_t[static_cast<std::size_t>(kEnds * kEnds * kEnds)]);
+  if (table_ == nullptr || ends == nullptr) {
+    table_.reset();
+    return false;
+  }
+  const auto value = [](int e) noexcept { return static_cast<std::uint8_t>((e / 2) * kCell + (e % 2) * (kCell - 1)); };
+  const auto at = [](int r, int g, int b) noexcept {
+    return (static_cast<std::size_t>(r) * kEnds + static_cast<std::size_t>(g)) * kEnds + static_cast<std::size_t>(b);
+  };
+  for (int r = 0; r < kEnds; ++r) {
+    for (int g = 0; g < kEnds; ++g) {
+      for (int b = 0; b < kEnds; ++b) {
+        ends[at(r, g, b)] = static_cast<std::uint8_t>(model.classify(value(r), value(g), value(b)));
+      }
+    }
+  }
+  block_count_ = 0U;
+  for (int r = 0; r < kLevels; ++r) {
+    for (int g = 0; g < kLevels; ++g) {
+      for (int b = 0; b < kLevels; ++b) {
+        const std::uint8_t first = ends[at(2 * r, 2 * g, 2 * b)];
+        std::uint8_t cls = first;
+        for (int corner = 1; corner < 8; ++corner) {
+          if (ends[at(2 * r + (corner & 1), 2 * g + ((corner >> 1) & 1), 2 * b + ((corner >> 2) & 1))] != first) {
+            cls = kAmbiguous;
+            break;
+          }
+        }
+        if (cls == kAmbiguous) {
+          ++block_count_;
+        }
+        table_[(static_cast<std::size_t>(r) << (2 * kBitsPerChannel)) | (static_cast<std::size_t>(g) << kBitsPerChannel) |
+               static_cast<std::size_t>(b)] = cls;
+      }
+    }
+  }
+  // Second level: the exact class of every colour of the ambiguous cells.
+  block_of_cell_.reset(new (std::nothrow) std::uint32_t[kEntries]);
+  blocks_.reset(new (std::nothrow) std::uint8_t[static_cast<std::size_t>(block_count_) * kBlockSize + 1U]);
+  if (block_of_cell_ == nullptr || blocks_ == nullptr) {
+    table_.reset();
+    return false;
+  }
+  std::uint32_t next = 0U;
+  for (std::uint32_t cell = 0U; cell < kEntries; ++cell) {
+    block_of_cell_[cell] = 0U;
+    if (table_[cell] != kAmbiguous) {
+      continue;
+    }
+    block_of_cell_[cell] = next;
+    const std::uint32_t r0 = (cell >> (2 * kBitsPerChannel)) << kShift;
+    const std::uint32_t g0 = ((cell >> kBitsPerChannel) & (kLevels - 1U)) << kShift;
+    const std::uint32_t b0 = (cell & (kLevels - 1U)) << kShift;
+    for (std::uint32_t o = 0U; o < kBlockSize; ++o) {
+      const auto red = static_cast<std::uint8_t>(r0 + (o >> (2 * kShift)));
+      const auto green = static_cast<std::uint8_t>(g0 + ((o >> kShift) & ((1U << kShift) - 1U)));
+      const auto blue = static_cast<std::uint8_t>(b0 + (o & ((1U << kShift) - 1U)));
+      blocks_[static_cast<std::size_t>(next) * kBlockSize + o] = static_cast<std::uint8_t>(model.classify(red, green, blue));
+    }
+    ++next;
+  }
+  return true;
+}
+
+const char* to_string(VisionError e) noexcept {
+  switch (e) {
+    case VisionError::BadImage: return "bad image (null, empty or bad stride)";
+    case VisionError::ImageTooLarge: return "image larger than the extractor was configured for";
+    case VisionError::TooManyRuns: return "too many colour regions (image too fragmented)";
+    case VisionError::NoInstrument: return "no chain of marker regions found";
+    case VisionError::BorderFitFailed: return "too few edge points to fit the borders";
+    case VisionError::BadParameter: return "invalid extractor configuration";
+  }
+  return "unknown vision error";
+}
+
+void Region::merge(const Region& other) noexcept {
+  const double n0 = static_cast<double>(area);
+  const double n1 = static_cast<double>(other.area);
+  const double n = n0 + n1;
+  if (!(n > 0.0)) {
+    return;
+  }
+  const Point c{(n0 * centroid.x + n1 * other.centroid.x) / n, (n0 * centroid.y + n1 * other.centroid.y) / n};
+  // Parallel-axis theorem: second moments about the joint centroid.
+  const auto shifted = [&c](const Region& r, double& xx, double& xy, double& yy) noexcept {
+    const double dx = r.centroid.x - c.x;
+    const double dy = r.centroid.y - c.y;
+    xx = r.cov_xx + dx * dx;
+    xy = r.cov_xy + dx * dy;
+    yy = r.cov_yy + dy * dy;
+  };
+  double xx0 = 0.0, xy0 = 0.0, yy0 = 0.0, xx1 = 0.0, xy1 = 0.0, yy1 = 0.0;
+  shifted(*this, xx0, xy0, yy0);
+  shifted(other, xx1, xy1, yy1);
+  cov_xx = (n0 * xx0 + n1 * xx1) / n;
+  cov_xy = (n0 * xy0 + n1 * xy1) / n;
+  cov_yy = (n0 * yy0 + n1 * yy1) / n;
+  centroid = c;
+  area += other.area;
+  x_min = x_min < other.x_min ? x_min : other.x_min;
+  y_min = y_min < other.y_min ? y_min : other.y_min;
+  x_max = x_max > other.x_max ? x_max : other.x_max;
+  y_max = y_max > other.y_max ? y_max : other.y_max;
+  update_shape();
+}
+
+void Region::update_shape() noexcept {
+  const double mean = 0.5 * (cov_xx + cov_yy);
+  const double diff = 0.5 * (cov_xx - cov_yy);
+  const double root = std::sqrt(diff * diff + cov_xy * cov_xy);
+  const double l1 = mean + root;
+  const double l2 = mean - root;
+  // Uniform ellipse: variance along a half axis h is h^2 / 4.
+  half_major = 2.0 * std::sqrt(l1 > 0.0 ? l1 : 0.0);
+  half_minor = 2.0 * std::sqrt(l2 > 0.0 ? l2 : 0.0);
+  orientation_rad = 0.5 * std::atan2(2.0 * cov_xy, cov_xx - cov_yy);
+}
+
+double Region::extent_along(double dx, double dy) const noexcept {
+  // Support function of the equivalent ellipse: sqrt(4 u^T C u).
+  const double v = cov_xx * dx * dx + 2.0 * cov_xy * dx * dy + cov_yy * dy * dy;
+  return 2.0 * std::sqrt(v > 0.0 ? v : 0.0);
+}
+
+Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(const ExtractorConfig& config,
+                                                                                const ColorModel& colors) noexcept {
+  using R = Result<std::unique_ptr<FeatureExtractor>, VisionError>;
+  if (config.max_width <= 0 || config.max_height <= 0 || config.max_width > 8192 || config.max_height > 8192 ||
+      config.skeleton_samples < 8 || config.skeleton_samples > static_cast<int>(kMaxSkeletonSamples) ||
+      config.irls_iterations < 1 || config.irls_iterations > 50 || config.profile_samples < 16 ||
+      config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0)) {
+    return R::failure(VisionError::BadParameter);
+  }
+  std::unique_ptr<FeatureExtractor> e(new (std::nothrow) FeatureExtractor());
+  if (e == nullptr) {
+    return R::failure(VisionError::BadParameter);
+  }
+  e->config_ = config;
+  e->colors_ = colors;
+  if (!e->lut_.build(colors)) {
+    return R::failure(VisionError::BadParameter);
+  }
+  const std::size_t pixels = static_cast<std::size_t>(config.max_width) * static_cast<std::size_t>(config.max_height);
+  // A run needs at least one classified pixel and one separating pixel.
+  e->max_runs_ = static_cast<std::int32_t>(pixels / 2U + 1U);
+  e->classes_.reset(new (std::nothrow) std::uint8_t[pixels]);
+  e->runs_.reset(new (std::nothrow) Run[static_cast<std::size_t>(e->max_runs_)]);
+  e->region_of_root_.reset(new (std::nothrow) std::int32_t[static_cast<std::size_t>(e->max_runs_)]);
+  e->candidates_.reset(new (std::nothrow) Region[kMaxCandidates]);
+  if (e->classes_ == nullptr || e->runs_ == nullptr || e->region_of_root_ == nullptr || e->candidates_ == nullptr) {
+    return R::failure(VisionError::BadParameter);
+  }
+  return R::success(std::move(e));
+}
+
+std::int32_t FeatureExtractor::find_root(std::int32_t run) noexcept {
+  // Path halving; terminates because parents always point to lower indices.
+  std::int32_t i = run;
+  while (runs_[idx(i)].parent != i) {
+    runs_[idx(i)].parent = runs_[idx(runs_[idx(i)].parent)].parent;
+    i = runs_[idx(i)].parent;
+  }
+  return i;
+}
+
+Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexcept {
+  RegionSet& out = result_.regions;
+  out.regions.clear();
+  out.too_many_regions = false;
+  out.run_count = 0;
+  if (!image.valid()) {
+    return Status<VisionError>::failure(VisionError::BadImage);
+  }
+  if (image.width > config_.max_width || image.height > config_.max_height) {
+    return Status<VisionError>::failure(VisionError::ImageTooLarge);
+  }
+  width_ = image.width;
+  height_ = image.height;
+  image_ = image;
+  const std::uint8_t* table = lut_.table();
+  std::int32_t run_count = 0;
+  std::int32_t prev_begin = 0;
+  std::int32_t prev_end = 0;
+  for (int y = 0; y < height_; ++y) {
+    const std::uint8_t* px = image.row(y);
+    std::uint8_t* cls_row = classes_.get() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width_);
+    const std::int32_t row_begin = run_count;
+    // Classify and cut the row into runs of one class in the same pass.
+    std::uint8_t previous = 0U;
+    int run_start = 0;
+    for (int x = 0; x <= width_; ++x) {
+      std::uint8_t c = 0U;
+      if (x < width_) {
+        c = table[ClassifierLut::index(px[0], px[1], px[2])];
+        if (c == ClassifierLut::kAmbiguous) {
+          c = lut_.fine(ClassifierLut::index(px[0], px[1], px[2]), px[0], px[1], px[2]);
+        }
+        cls_row[x] = c;
+        px += 3;
+      }
+      if (c == previous) {
+        continue;
+      }
+      if (previous != 0U) {
+        if (run_count >= max_runs_) {
+          out.too_many_regions = true;
+          return Status<VisionError>::failure(VisionError::TooManyRuns);
+        }
+        Run& r = runs_[idx(run_count)];
+        r.parent = run_count;
+        r.y = static_cast<std::int16_t>(y);
+        r.x0 = static_cast<std::int16_t>(run_start);
+        r.x1 = static_cast<std::int16_t>(x);
+        r.cls = previous;
+        ++run_count;
+      }
+      run_start = x;
+      previous = c;
+    }
+    // 8-connectivity with the previous row: runs overlap when
+    // [x0 - 1, x1] and [p.x0, p.x1) intersect.
+    std::int32_t p = prev_begin;
+    for (std::int32_t i = row_begin; i < run_count; ++i) {
+      const Run& cur = runs_[idx(i)];
+      while (p < prev_end && runs_[idx(p)].x1 < cur.x0) {
+        ++p;
+      }
+      for (std::int32_t q = p; q < prev_end && runs_[idx(q)].x0 <= cur.x1; ++q) {
+        if (runs_[idx(q)].cls != cur.cls) {
+          continue;
+        }
+        const std::int32_t a = find_root(i);
+        const std::int32_t b = find_root(q);
+        if (a != b) {
+          // The lower index becomes the root: parents point backwards.
+          if (a < b) {
+            runs_[idx(b)].parent = a;
+          } else {
+            runs_[idx(a)].parent = b;
+          }
+        }
+      }
+    }
+    prev_begin = row_begin;
+    prev_end = run_count;
+  }
+  out.run_count = run_count;
+
+  // Moments per component, accumulated per run in closed form.
+  // Areas per component first (indexed by root), so that only components of
+  // at least the minimum area take one of the kMaxCandidates slots.
+  for (std::int32_t i = 0; i < run_count; ++i) {
+    region_of_root_[idx(i)] = 0;
+  }
+  for (std::int32_t i = 0; i < run_count; ++i) {
+    region_of_root_[idx(find_root(i))] += runs_[idx(i)].x1 - runs_[idx(i)].x0;
+  }
+  std::size_t candidate_count = 0U;
+  bool overflow = false;
+  for (std::int32_t i = 0; i < run_count; ++i) {
+    const std::int32_t root = find_root(i);
+    std::int32_t slot = -1;
+    if (root == i) {
+      const std::int32_t area = region_of_root_[idx(i)];
+      if (area >= config_.min_region_area) {
+        if (candidate_count < kMaxCandidates) {
+          slot = static_cast<std::int32_t>(candidate_count);
+          Region& reg = candidates_[candidate_count];
+          reg = Region{};
+          reg.cls = static_cast<PixelClass>(runs_[idx(i)].cls);
+          reg.x_min = runs_[idx(i)].x0;
+          reg.x_max = runs_[idx(i)].x1 - 1;
+          reg.y_min = runs_[idx(i)].y;
+          reg.y_max = runs_[idx(i)].y;
+          ++candidate_count;
+        } else {
+          overflow = true;
+        }
+      }
+      region_of_root_[idx(i)] = slot;
+    } else {
+      slot = region_of_root_[idx(root)];
+    }
+    if (slot < 0) {
+      continue;
+    }
+    const Run& r = runs_[idx(i)];
+    Region& reg = candidates_[static_cast<std::size_t>(slot)];
+    const double n = static_cast<double>(r.x1 - r.x0);
+    const double a = static_cast<double>(r.x0);
+    const double b = static_cast<double>(r.x1 - 1);
+    const double y = static_cast<double>(r.y);
+    const double sx = n * (a + b) * 0.5;
+    // sum of x^2 over a..b
+    const double sxx = (b * (b + 1.0) * (2.0 * b + 1.0) - (a - 1.0) * a * (2.0 * a - 1.0)) / 6.0;
+    // Raw sums are kept in the covariance fields until the end (see below).
+    reg.area += r.x1 - r.x0;
+    reg.centroid.x += sx;
+    reg.centroid.y += n * y;
+    reg.cov_xx += sxx;
+    reg.cov_xy += sx * y;
+    reg.cov_yy += n * y * y;
+    if (r.x0 < reg.x_min) {
+      reg.x_min = r.x0;
+    }
+    if (r.x1 - 1 > reg.x_max) {
+      reg.x_max = r.x1 - 1;
+    }
+    reg.y_max = r.y;  // rows are visited in order
+  }
+  // Raw sums to centroid and central moments; drop the small ones.
+  std::size_t kept = 0U;
+  for (std::size_t i = 0U; i < candidate_count; ++i) {
+    Region reg = candidates_[i];
+    if (reg.area < config_.min_region_area) {
+      continue;
+    }
+    const double n = static_cast<double>(reg.area);
+    const double mx = reg.centroid.x / n;
+    const double my = reg.centroid.y / n;
+    reg.cov_xx = reg.cov_xx / n - mx * mx + 1.0 / 12.0;  // + pixel footprint
+    reg.cov_xy = reg.cov_xy / n - mx * my;
+    reg.cov_yy = reg.cov_yy / n - my * my + 1.0 / 12.0;
+    reg.centroid = Point{mx, my};
+    reg.update_shape();
+    candidates_[kept] = reg;
+    ++kept;
+  }
+  if (overflow) {
+    out.too_many_regions = true;
+  }
+  select_regions(kept);
+  return ok_status<VisionError>();
+}
+
+void FeatureExtractor::select_regions(std::size_t candidate_count) noexcept {
+  RegionSet& out = result_.regions;
+  if (candidate_count > kMaxRegions) {
+    out.too_many_regions = true;
+    // Partial selection sort: the kMaxRegions largest first.
+    for (std::size_t i = 0U; i < kMaxRegions; ++i) {
+      std::size_t best = i;
+      for (std::size_t j = i + 1U; j < candidate_count; ++j) {
+        if (candidates_[j].area > candidates_[best].area) {
+          best = j;
+        }
+      }
+      if (best != i) {
+        const Region tmp = candidates_[i];
+        candidates_[i] = candidates_[best];
+        candidates_[best] = tmp;
+      }
+    }
+    candidate_count = kMaxRegions;
+  }
+  for (std::size_t i = 0U; i < candidate_count; ++i) {
+    static_cast<void>(out.regions.push_back(candidates_[i]));  // cannot fail: at most kMaxRegions
+  }
+}
+
+}  // namespace vision
+}  // namespace tcpest

@@ -1,0 +1,129 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace vision {
+namespace {
+
+constexpr std::uint8_t kBlue[3] = {80, 156, 233};
+constexpr std::uint8_t kYellow[3] = {218, 205, 80};
+constexpr std::uint8_t kTissue[3] = {185, 95, 85};
+
+struct Canvas {
+  int w, h;
+  std::vector<std::uint8_t> px;
+  Canvas(int width, int height) : w(width), h(height), px(static_cast<std::size_t>(width * height * 3)) {
+    fill_rect(0, 0, w, h, kTissue);
+  }
+  void fill_rect(int x0, int y0, int x1, int y1, const std::uint8_t* c) {
+    for (int y = y0; y < y1; ++y) {
+      for (int x = x0; x < x1; ++x) {
+        for (int k = 0; k < 3; ++k) {
+          px[static_cast<std::size_t>((y * w + x) * 3 + k)] = c[k];
+        }
+      }
+    }
+  }
+  ImageView view() const { return ImageView{px.data(), w, h, static_cast<std::size_t>(w) * 3U}; }
+};
+
+std::unique_ptr<FeatureExtractor> make(int w, int h) {
+  ExtractorConfig c;
+  c.max_width = w;
+  c.max_height = h;
+  auto e = FeatureExtractor::create(c, default_color_model());
+  EXPECT_TRUE(e.ok());
+  return std::move(e.value());
+}
+
+TEST(Regions, RectanglesGiveAreaCentroidAxesAndOrientation) {
+  Canvas canvas(200, 120);
+  canvas.fill_rect(10, 20, 70, 40, kBlue);     // 60 x 20
+  canvas.fill_rect(100, 10, 120, 90, kYellow);  // 20 x 80
+  auto fx = make(200, 120);
+  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  const RegionSet& set = fx->result().regions;
+  ASSERT_EQ(set.regions.size(), 2U);
+  EXPECT_FALSE(set.too_many_regions);
+  for (const Region& r : set.regions) {
+    if (r.cls == PixelClass::Blue) {
+      EXPECT_EQ(r.area, 1200);
+      EXPECT_NEAR(r.centroid.x, 39.5, 1e-9);
+      EXPECT_NEAR(r.centroid.y, 29.5, 1e-9);
+      // Uniform rectangle: half axes l / sqrt(3) with the pixel footprint.
+      EXPECT_NEAR(r.half_major, 60.0 / std::sqrt(3.0), 0.05);
+      EXPECT_NEAR(r.half_minor, 20.0 / std::sqrt(3.0), 0.05);
+      EXPECT_NEAR(std::fabs(r.orientation_rad), 0.0, 1e-6);
+      EXPECT_EQ(r.x_min, 10);
+      EXPECT_EQ(r.x_max, 69);
+      EXPECT_EQ(r.y_min, 20);
+      EXPECT_EQ(r.y_max, 39);
+    } else {
+      EXPECT_EQ(r.cls, PixelClass::Yellow);
+      EXPECT_EQ(r.area, 1600);
+      EXPECT_NEAR(std::fabs(r.orientation_rad), solver::kPi / 2.0, 1e-6);
+    }
+  }
+}
+
+TEST(Regions, DiagonalNeighboursAreConnectedAndColoursSeparate) {
+  Canvas canvas(50, 50);
+  // A staircase of blue pixels touching only by corners: one region (8-connected).
+  for (int i = 0; i < 20; ++i) {
+    canvas.fill_rect(5 + i, 5 + i, 6 + i, 6 + i, kBlue);
+  }
+  // A yellow block touching a blue block: two regions.
+  canvas.fill_rect(30, 30, 40, 40, kBlue);
+  canvas.fill_rect(40, 30, 45, 40, kYellow);
+  auto fx = make(50, 50);
+  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  ASSERT_EQ(fx->result().regions.regions.size(), 3U);
+}
+
+TEST(Regions, TooManyRegionsIsReportedNotACrash) {
+  Canvas canvas(400, 400);
+  // 40 x 40 blobs of 4 x 4 pixels, well above the minimum area: 1600 regions.
+  for (int by = 0; by < 40; ++by) {
+    for (int bx = 0; bx < 40; ++bx) {
+      canvas.fill_rect(bx * 10, by * 10, bx * 10 + 4, by * 10 + 4, (bx + by) % 2 == 0 ? kBlue : kYellow);
+    }
+  }
+  ExtractorConfig c;
+  c.max_width = 400;
+  c.max_height = 400;
+  c.min_region_area = 4;
+  auto created = FeatureExtractor::create(c, default_color_model());
+  ASSERT_TRUE(created.ok());
+  auto fx = std::move(created.value());
+  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  EXPECT_TRUE(fx->result().regions.too_many_regions);
+  EXPECT_EQ(fx->result().regions.regions.size(), kMaxRegions);
+}
+
+TEST(Regions, BadAndOversizedImagesAreErrors) {
+  auto fx = make(64, 64);
+  EXPECT_EQ(fx->find_regions(ImageView{}).error(), VisionError::BadImage);
+  Canvas big(100, 20);
+  EXPECT_EQ(fx->find_regions(big.view()).error(), VisionError::ImageTooLarge);
+  // Stages after a failed stage 1 fail cleanly too.
+  EXPECT_FALSE(fx->interpret(MarkerPriors{}).ok());
+  EXPECT_FALSE(fx->fit_borders(big.view()).ok());
+  EXPECT_FALSE(fx->find_corners(big.view()).ok());
+}
+
+TEST(Regions, CreateRejectsBadConfiguration) {
+  ExtractorConfig c;
+  c.max_width = 0;
+  EXPECT_FALSE(FeatureExtractor::create(c, default_color_model()).ok());
+  ColorModel bad = default_color_model();
+  bad.blue.cov_aa = -1.0;
+  EXPECT_FALSE(FeatureExtractor::create(ExtractorConfig{}, bad).ok());
+}
+
+}  // namespace
+}  // namespace vision
+}  // namespace tcpest
