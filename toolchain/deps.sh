@@ -26,3 +26,6 @@ TCPEST_BUILD_PACKAGES=(cmake make g++ libeigen3-dev libjpeg62-turbo-dev libturbo
 # What the tests and checks need on top.
 TCPEST_TEST_PACKAGES=(libgtest-dev libgmock-dev libbenchmark-dev clang clang-tidy cppcheck
                       can-utils user-mode-linux kmod iproute2 python3 g++-aarch64-linux-gnu)
+# Optional peer libraries, only for the comparison benchmarks (vision_bench
+# compares stage 1 with OpenCV); nothing else needs them.
+TCPEST_PEER_PACKAGES=(libopencv-dev)

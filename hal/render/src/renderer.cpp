@@ -44,15 +44,16 @@ constexpr double kPlaneEps = 1.0e-7;     // mm: overlap of neighbouring chords (
 constexpr double kLightNearMm = 15.0;
 double falloff(double dist2) noexcept { return 1.0 / std::max(dist2, kLightNearMm * kLightNearMm); }
 
-// Instrument parts (label = kLabelInstrument + 8 * instrument + part).
-enum Part : std::uint8_t { kPartShaft = 0, kPartStripe0 = 1, kPartGrasper = 6 };
+// Instrument parts (label = kLabelInstrument + 8 * instrument + part), the
+// public PixelLabel codes.
+enum Part : std::uint8_t { kPartShaft = kPartShaftLabel, kPartStripe0 = kPartMarker1Label, kPartGrasper = kPartGrasperLabel };
 enum Label : std::uint8_t {
-  kLabelTissue = 0,
-  kLabelDecoy = 1,
-  kLabelOccluder = 2,
-  kLabelReflection = 3,
-  kLabelInstrument = 8,
-  kLabelNoRay = 255,
+  kLabelTissue = kPixelTissue,
+  kLabelDecoy = kPixelDecoy,
+  kLabelOccluder = kPixelOccluder,
+  kLabelReflection = kPixelReflection,
+  kLabelInstrument = kPixelInstrument,
+  kLabelNoRay = kPixelNoRay,
 };
 
 struct Rgb {
@@ -594,8 +595,9 @@ void Renderer::Impl::build_instrument(const PoseVector& r, std::uint8_t index) n
   // Shaft: channel exit to the base, in pieces.
   const double lambda = r[solver::kLambda];
   if (lambda > 1e-6) {
-    int pieces = static_cast<int>(std::ceil(lambda / kShaftPieceMm));
-    pieces = std::min(std::max(pieces, 1), kMaxShaftPieces);
+    // Clamped in floating point first: an absurd lambda must not overflow the cast.
+    const double wanted = std::min(static_cast<double>(kMaxShaftPieces), std::max(1.0, std::ceil(lambda / kShaftPieceMm)));
+    const int pieces = static_cast<int>(wanted);
     for (int i = 0; i < pieces; ++i) {
       const Vec3 a = f.channel_origin + (lambda * i / pieces) * axis;
       const Vec3 b = f.channel_origin + (lambda * (i + 1) / pieces) * axis;
@@ -1225,6 +1227,7 @@ Renderer::~Renderer() = default;
 
 const solver::CameraModel& Renderer::camera() const noexcept { return impl_->camera; }
 const solver::InstrumentModel& Renderer::instrument() const noexcept { return impl_->model; }
+const std::uint8_t* Renderer::labels() const noexcept { return impl_->labels.get(); }
 
 PoseVector Renderer::mirrored_nominal_pose(double lambda_mm, double phi_rad, double theta_rad) const noexcept {
   const auto& g = impl_->model.geometry();

@@ -186,6 +186,33 @@ TEST_F(RendererTest, OccluderHidesTheCornersUnderIt) {
   EXPECT_GT(hidden_by_occluder, 0);
 }
 
+TEST_F(RendererTest, LabelsTellWhatEachPixelShows) {
+  test::Frame f(720, 576);
+  SceneSpec scene;
+  scene.r = nominal(20.0, 0.0, 40.0);
+  scene.clean = true;
+  GroundTruth truth;
+  ASSERT_TRUE(renderer_->render(scene, f.view, truth, f.coverage.data()).ok());
+  const std::uint8_t* labels = renderer_->labels();
+  int per_marker[5] = {0, 0, 0, 0, 0};
+  for (std::size_t i = 0; i < 720U * 576U; ++i) {
+    const int l = labels[i];
+    const bool instrument = l >= kPixelInstrument && l < kPixelInstrument + 8;
+    // A pixel centre on the instrument is (almost) fully covered, and vice versa.
+    if (instrument) {
+      EXPECT_GT(f.coverage[i], 0.0F);
+    } else {
+      EXPECT_LT(f.coverage[i], 1.0F);
+    }
+    if (l >= kPixelInstrument + kPartMarker1Label && l < kPixelInstrument + kPartMarker1Label + 5) {
+      ++per_marker[l - kPixelInstrument - kPartMarker1Label];
+    }
+  }
+  for (int m = 0; m < 5; ++m) {
+    EXPECT_GT(per_marker[m], 50) << "marker " << m + 1;
+  }
+}
+
 TEST_F(RendererTest, InstrumentBehindTheCameraGivesAValidImageWithoutIt) {
   test::Frame f(720, 576);
   SceneSpec scene;
@@ -254,6 +281,22 @@ TEST_F(RendererTest, BadInputIsRefused) {
   EXPECT_EQ(Renderer::create(*camera_, test::default_instrument(), bad).error(), RenderError::BadSettings);
   EXPECT_EQ(Renderer::create(solver::CameraModel{}, test::default_instrument(), RenderSettings{}).error(),
             RenderError::BadImage);
+}
+
+TEST_F(RendererTest, AbsurdButFiniteConfigurationsRenderWithoutHarm) {
+  test::Frame f(720, 576);
+  const double values[] = {0.0, -1e6, 1e-300, 1e12, 250.0};
+  int i = 0;
+  for (double a : values) {
+    for (double b : values) {
+      SceneSpec scene;
+      scene.r << a, -b, a * 0.01, b, b, a, a * 0.1;
+      scene.seed = static_cast<std::uint64_t>(++i);
+      scene.hard_cases = (i % 2 == 0) ? kAllHardCases : 0U;
+      GroundTruth truth;
+      ASSERT_TRUE(renderer_->render(scene, f.view, truth, f.coverage.data()).ok()) << scene.r.transpose();
+    }
+  }
 }
 
 TEST(RendererFold, PixelsBeyondTheFoldAreBlackAndNothingBreaks) {

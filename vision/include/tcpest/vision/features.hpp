@@ -176,7 +176,7 @@ struct ExtractorConfig {
   int profile_samples = 160;                // chroma profile samples along each border
   // The profiles are read along curves parallel to the border, from this far
   // inside to profile_max_inset times the tube's half width (see find_corners).
-  double profile_min_inset_px = 1.5;
+  double profile_min_inset_px = 3.0;
   double profile_max_inset = 1.1;
   // Stage 4 refits each border locally, on the edge points within this many
   // tube widths of the corner.
@@ -184,9 +184,9 @@ struct ExtractorConfig {
   // At an end boundary the local fit keeps the edge points on the marker's
   // side, and at most this far beyond.
   double end_margin_px = 2.0;
-  // Corners of lower confidence are not reported (docs/vision.md: below ~0.35
+  // Corners of lower confidence are not reported (docs/vision.md: below ~0.45
   // most are misplaced).
-  double min_corner_confidence = 0.35;
+  double min_corner_confidence = 0.45;
   double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
 };
 

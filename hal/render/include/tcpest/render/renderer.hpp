@@ -100,6 +100,20 @@ struct GroundTruth {
   std::uint64_t seed = 0U;
 };
 
+// What the centre of each pixel shows in the last render (Renderer::labels):
+// for colour-model training and for checking detectors against the truth.
+enum PixelLabel : std::uint8_t {
+  kPixelTissue = 0,
+  kPixelDecoy = 1,        // the decoy blob on the tissue
+  kPixelOccluder = 2,     // tissue flap or blood drop in front
+  kPixelReflection = 3,   // tissue showing the instrument's mirror image
+  kPixelInstrument = 8,   // + 8 * instrument (0, 1) + part: 0 shaft, 1..5 marker 1..5, 6 grasper
+  kPixelNoRay = 255,      // beyond the calibration's fold: black
+};
+constexpr std::uint8_t kPartShaftLabel = 0U;
+constexpr std::uint8_t kPartMarker1Label = 1U;
+constexpr std::uint8_t kPartGrasperLabel = 6U;
+
 class Renderer {
  public:
   // Builds the per-pixel ray tables (iterative undistortion) and scratch.
@@ -124,6 +138,10 @@ class Renderer {
   // unoccluded instrument), the quantity the geometric tests measure.
   Status<RenderError> render(const SceneSpec& scene, MutableImageView out, GroundTruth& truth,
                              float* coverage = nullptr) noexcept;
+
+  // Per pixel (row-major, width * height), the PixelLabel of the last
+  // render()'s pixel centres; valid until the next render().
+  const std::uint8_t* labels() const noexcept;
 
   // The ground truth alone (no pixels): corners, visibility, and the view
   // status from the geometry (centreline samples within 20 px of the image).
