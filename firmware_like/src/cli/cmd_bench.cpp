@@ -204,7 +204,7 @@ int cmd_bench(int argc, char** argv) {
   unsigned long long dataset = 40U;
   unsigned long long period_us = 40000U;
   double seconds = 20.0;
-  if ((args.value("frames") != nullptr && !parse_unsigned(args.value("frames"), frames)) ||
+  if ((args.value("frames") != nullptr && (!parse_unsigned(args.value("frames"), frames) || frames == 0U)) ||
       (args.value("dataset") != nullptr && (!parse_unsigned(args.value("dataset"), dataset) || dataset == 0U || dataset > 10000U)) ||
       (args.value("period-us") != nullptr && (!parse_unsigned(args.value("period-us"), period_us) || period_us < 1000U)) ||
       (args.value("jitter-seconds") != nullptr && (!parse_number(args.value("jitter-seconds"), seconds) || seconds < 0.0))) {
