@@ -20,6 +20,7 @@
 #include "cli/args.hpp"
 #include "cli/commands.hpp"
 #include "cli/loop_rig.hpp"
+#include "cli/setup.hpp"
 #include "tcpest/can_iface/messages.hpp"
 #include "tcpest/render/image_io.hpp"
 #include "tcpest/vision/overlay.hpp"
@@ -221,8 +222,6 @@ class DemoObserver final : public loop::CycleObserver {
   std::int64_t t0_ns_ = -1;
 };
 
-bool make_dir(const char* path) noexcept { return ::mkdir(path, 0755) == 0 || errno == EEXIST; }
-
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) {
     return 0.0;
@@ -405,7 +404,7 @@ int cmd_demo(int argc, char** argv) {
   static_cast<void>(std::snprintf(csv_path, sizeof csv_path, "%s/cycles.csv", out_dir));
   static_cast<void>(std::snprintf(tcp_svg, sizeof tcp_svg, "%s/tcp.svg", out_dir));
   static_cast<void>(std::snprintf(latency_svg, sizeof latency_svg, "%s/latency.svg", out_dir));
-  if (!make_dir(out_dir) || !make_dir(overlay_dir)) {
+  if (!make_directory(out_dir) || !make_directory(overlay_dir)) {
     std::fprintf(stderr, "tcpest demo: cannot create %s: %s\n", out_dir, std::strerror(errno));
     return kExitConfig;
   }

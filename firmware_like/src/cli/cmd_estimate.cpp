@@ -77,6 +77,10 @@ int cmd_estimate(int argc, char** argv) {
   const char* overlay_dir = args.value("overlay");
   std::unique_ptr<render::JpegEncoder> encoder;
   if (overlay_dir != nullptr) {
+    if (!make_directory(overlay_dir)) {
+      std::fprintf(stderr, "tcpest estimate: cannot create the overlay directory %s\n", overlay_dir);
+      return kExitFailure;
+    }
     auto created = render::JpegEncoder::create(pipeline.extractor().config().max_width,
                                                pipeline.extractor().config().max_height);
     if (!created.ok()) {

@@ -80,14 +80,6 @@ bool parse_hard_list(const char* text, std::uint32_t& mask) noexcept {
   return true;
 }
 
-bool make_directory(const char* path) noexcept {
-  if (::mkdir(path, 0755) == 0 || errno == EEXIST) {
-    struct stat st {};
-    return ::stat(path, &st) == 0 && S_ISDIR(st.st_mode);
-  }
-  return false;
-}
-
 // Thumbnails of the first images tiled into one picture.
 class ContactSheet {
  public:

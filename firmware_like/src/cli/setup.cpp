@@ -1,5 +1,8 @@
 #include "cli/setup.hpp"
 
+#include <sys/stat.h>
+
+#include <cerrno>
 #include <cstdio>
 
 #include "tcpest/common/yaml_lite.hpp"
@@ -45,6 +48,14 @@ bool load_model_setup(const char* command, const char* calib_path, const char* c
   out.camera = camera.value();
   out.instrument = instrument.value();
   return true;
+}
+
+bool make_directory(const char* path) noexcept {
+  if (::mkdir(path, 0755) == 0 || errno == EEXIST) {
+    struct stat st {};
+    return ::stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+  }
+  return false;
 }
 
 }  // namespace cli

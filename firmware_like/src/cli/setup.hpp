@@ -19,5 +19,9 @@ struct ModelSetup {
 bool load_model_setup(const char* command, const char* calib_path, const char* config_path,
                       ModelSetup& out) noexcept;
 
+// Creates a directory (one level) unless it exists; true when `path` is a
+// directory afterwards.
+bool make_directory(const char* path) noexcept;
+
 }  // namespace cli
 }  // namespace tcpest
