@@ -9,10 +9,14 @@ if [ "${#sources[@]}" -eq 0 ]; then
   echo "lint: no sources"; exit 0
 fi
 echo "clang-tidy: ${#sources[@]} files"
-printf '%s\n' "${sources[@]}" | xargs -P "$(nproc)" -n 4 clang-tidy -p "$build" --quiet --warnings-as-errors='*' 2>&1 \
-  | grep -v -E '^[0-9]+ warnings? generated|^Suppressed [0-9]+ warnings|^Use -header-filter' || true
-# xargs above hides clang-tidy's status behind grep: run the check again for the verdict.
-if ! printf '%s\n' "${sources[@]}" | xargs -P "$(nproc)" -n 4 clang-tidy -p "$build" --quiet --warnings-as-errors='*' >/dev/null 2>&1; then
+log="$(mktemp)"
+trap 'rm -f "$log"' EXIT
+tidy_status=0
+# xargs exits non-zero when any clang-tidy run reported a finding.
+printf '%s\n' "${sources[@]}" | xargs -P "$(nproc)" -n 4 clang-tidy -p "$build" --quiet --warnings-as-errors='*' \
+  >"$log" 2>&1 || tidy_status=1
+grep -v -E '^[0-9]+ warnings? generated|^Suppressed [0-9]+ warnings|^Use -header-filter' "$log" || true
+if [ "$tidy_status" -ne 0 ]; then
   echo "clang-tidy: findings above"; exit 1
 fi
 echo "cppcheck: ${#sources[@]} files"
