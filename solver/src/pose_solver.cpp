@@ -89,7 +89,13 @@ template <int kParams>
 PoseResidual<kParams>::PoseResidual(const CameraModel& camera, const InstrumentModel& model,
                                     const CornerObservation& observed,
                                     std::array<bool, kNumCorners>& used, int* select_count) noexcept
-    : camera_(camera), model_(model), observed_(observed), used_(used), select_count_(select_count) {}
+    : camera_(camera), model_(model), observed_(observed), used_(used), select_count_(select_count) {
+  const InstrumentGeometry& g = model_.geometry();
+  penalties_ = PenaltyTable{{g.nominal_x_ch_mm, g.nominal_y_ch_mm, g.nominal_psi_rad, g.nominal_mu_rad},
+                            {g.penalty.position_k, g.penalty.position_k, g.penalty.angle_k, g.penalty.angle_k},
+                            {g.penalty.position_scale_mm, g.penalty.position_scale_mm, g.penalty.angle_scale_rad,
+                             g.penalty.angle_scale_rad}};
+}
 
 template <int kParams>
 PoseVector PoseResidual<kParams>::pose(const Params& x) const noexcept {
@@ -142,12 +148,9 @@ bool PoseResidual<kParams>::operator()(const Params& x, Residuals& residuals, Ja
     }
   }
   if constexpr (kParams == kNumParams) {
-    const InstrumentGeometry& g = model_.geometry();
-    const double nominal[kNumPenalties] = {g.nominal_x_ch_mm, g.nominal_y_ch_mm, g.nominal_psi_rad, g.nominal_mu_rad};
-    const double stiffness[kNumPenalties] = {g.penalty.position_k, g.penalty.position_k, g.penalty.angle_k,
-                                             g.penalty.angle_k};
-    const double scale[kNumPenalties] = {g.penalty.position_scale_mm, g.penalty.position_scale_mm,
-                                         g.penalty.angle_scale_rad, g.penalty.angle_scale_rad};
+    const double* nominal = penalties_.nominal;
+    const double* stiffness = penalties_.stiffness;
+    const double* scale = penalties_.scale;
     for (int i = 0; i < kNumPenalties; ++i) {
       const double u = x[i] - nominal[i];
       const int row = 2 * kNumCorners + i;
@@ -164,12 +167,9 @@ template <int kParams>
 void PoseResidual<kParams>::add_curvature(const Params& x,
                                           Eigen::Matrix<double, kParams, kParams>& normal) const noexcept {
   if constexpr (kParams == kNumParams) {
-    const InstrumentGeometry& g = model_.geometry();
-    const double nominal[kNumPenalties] = {g.nominal_x_ch_mm, g.nominal_y_ch_mm, g.nominal_psi_rad, g.nominal_mu_rad};
-    const double stiffness[kNumPenalties] = {g.penalty.position_k, g.penalty.position_k, g.penalty.angle_k,
-                                             g.penalty.angle_k};
-    const double scale[kNumPenalties] = {g.penalty.position_scale_mm, g.penalty.position_scale_mm,
-                                         g.penalty.angle_scale_rad, g.penalty.angle_scale_rad};
+    const double* nominal = penalties_.nominal;
+    const double* stiffness = penalties_.stiffness;
+    const double* scale = penalties_.scale;
     for (int i = 0; i < kNumPenalties; ++i) {
       normal(i, i) += 0.5 * stiffness[i] * std::fabs(x[i] - nominal[i]) / (scale[i] * scale[i] * scale[i]);
     }

@@ -93,6 +93,13 @@ class PoseResidual {
   int* select_count_;
   CornerSet corners_{};
   CornerJacobians corner_jacobians_{};
+  // The play penalty of x_ch, y_ch, psi, mu, read from the geometry once.
+  struct PenaltyTable {
+    double nominal[kNumPenalties];    // r*_m (mm, mm, rad, rad)
+    double stiffness[kNumPenalties];  // k
+    double scale[kNumPenalties];      // a (mm, mm, rad, rad)
+  };
+  PenaltyTable penalties_{};
 };
 
 extern template class PoseResidual<kNumParams>;
