@@ -178,14 +178,39 @@ Result<InstrumentModel, GeometryError> InstrumentModel::create(const InstrumentG
   return Result<InstrumentModel, GeometryError>::success(m);
 }
 
-PoseFrames InstrumentModel::frames(const PoseVector& r) const noexcept {
+namespace {
+
+// The elementary rotations of r, each angle's cosine and sine computed once:
+// the frames and (in corners()) their derivatives share them.
+struct PoseTrig {
+  double cos_psi, sin_psi, cos_mu, sin_mu, cos_phi, sin_phi;
+  Mat3 ry, rx, rz;
+};
+
+PoseFrames build_frames(const PoseVector& r, double bend_length_mm, PoseTrig& trig) noexcept {
+  trig.cos_psi = std::cos(r[kPsi]);
+  trig.sin_psi = std::sin(r[kPsi]);
+  trig.cos_mu = std::cos(r[kMu]);
+  trig.sin_mu = std::sin(r[kMu]);
+  trig.cos_phi = std::cos(r[kPhi]);
+  trig.sin_phi = std::sin(r[kPhi]);
+  trig.ry = rotation_y_cs(trig.cos_psi, trig.sin_psi);
+  trig.rx = rotation_x_cs(trig.cos_mu, trig.sin_mu);
+  trig.rz = rotation_z_cs(trig.cos_phi, trig.sin_phi);
   PoseFrames f;
   f.channel_origin = Vec3(r[kXch], r[kYch], 0.0);
-  f.channel_rotation = rotation_y(r[kPsi]) * rotation_x(r[kMu]);
+  f.channel_rotation = trig.ry * trig.rx;
   f.base_origin = f.channel_origin + r[kLambda] * f.channel_rotation.col(2);
-  f.base_rotation = f.channel_rotation * rotation_z(r[kPhi]);
-  f.curvature = r[kTheta] / g_.bend_length_mm;
+  f.base_rotation = f.channel_rotation * trig.rz;
+  f.curvature = r[kTheta] / bend_length_mm;
   return f;
+}
+
+}  // namespace
+
+PoseFrames InstrumentModel::frames(const PoseVector& r) const noexcept {
+  PoseTrig trig{};
+  return build_frames(r, g_.bend_length_mm, trig);
 }
 
 CentrelineFrame InstrumentModel::centreline(const PoseFrames& f, double s_mm) const noexcept {
@@ -207,30 +232,13 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
                               CornerJacobians* jacobians) const noexcept {
   out.present.fill(false);
   out.in_image.fill(false);
-  // The frames of frames(r), each angle's cosine and sine computed once and
-  // shared with the derivatives (the solver calls this every iteration).
-  const double cos_psi = std::cos(r[kPsi]);
-  const double sin_psi = std::sin(r[kPsi]);
-  const double cos_mu = std::cos(r[kMu]);
-  const double sin_mu = std::sin(r[kMu]);
-  const double cos_phi = std::cos(r[kPhi]);
-  const double sin_phi = std::sin(r[kPhi]);
-  const Mat3 ry = rotation_y_cs(cos_psi, sin_psi);
-  const Mat3 rx = rotation_x_cs(cos_mu, sin_mu);
-  const Mat3 rz = rotation_z_cs(cos_phi, sin_phi);
-  PoseFrames f;
-  f.channel_origin = Vec3(r[kXch], r[kYch], 0.0);
-  f.channel_rotation = ry * rx;
-  f.base_origin = f.channel_origin + r[kLambda] * f.channel_rotation.col(2);
-  f.base_rotation = f.channel_rotation * rz;
-  f.curvature = r[kTheta] / g_.bend_length_mm;
+  // The solver calls this every iteration: the trig of r is shared with the
+  // derivatives below.
+  PoseTrig trig{};
+  const PoseFrames f = build_frames(r, g_.bend_length_mm, trig);
   {
-    const double length = g_.bend_length_mm;
-    const double sin_kl = std::sin(f.curvature * length);
-    const double cos_kl = std::cos(f.curvature * length);
-    const Vec3 end_position = f.base_origin + f.base_rotation * arc_position(f.curvature, length, length, sin_kl, cos_kl);
-    const Vec3 end_tangent = f.base_rotation * Vec3(sin_kl, 0.0, cos_kl);
-    out.tcp = end_position + g_.tcp_offset_mm * end_tangent;
+    const CentrelineFrame end = centreline(f, g_.bend_length_mm);
+    out.tcp = end.position + g_.tcp_offset_mm * end.tangent;
   }
   const double radius = g_.radius_mm;
 
@@ -241,8 +249,8 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
   Vec3 d_ob[kNumParams];
   const double dk_dtheta = 1.0 / g_.bend_length_mm;
   if (jacobians != nullptr) {
-    d_rch_dpsi = rotation_y_derivative_cs(cos_psi, sin_psi) * rx;
-    d_rch_dmu = ry * rotation_x_derivative_cs(cos_mu, sin_mu);
+    d_rch_dpsi = rotation_y_derivative_cs(trig.cos_psi, trig.sin_psi) * trig.rx;
+    d_rch_dmu = trig.ry * rotation_x_derivative_cs(trig.cos_mu, trig.sin_mu);
     for (int q = 0; q < kNumParams; ++q) {
       d_rb[q].setZero();
       d_ob[q].setZero();
@@ -252,9 +260,9 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     d_ob[kPsi] = r[kLambda] * d_rch_dpsi.col(2);
     d_ob[kMu] = r[kLambda] * d_rch_dmu.col(2);
     d_ob[kLambda] = f.channel_rotation.col(2);
-    d_rb[kPsi] = d_rch_dpsi * rz;
-    d_rb[kMu] = d_rch_dmu * rz;
-    d_rb[kPhi] = f.channel_rotation * rotation_z_derivative_cs(cos_phi, sin_phi);
+    d_rb[kPsi] = d_rch_dpsi * trig.rz;
+    d_rb[kMu] = d_rch_dmu * trig.rz;
+    d_rb[kPhi] = f.channel_rotation * rotation_z_derivative_cs(trig.cos_phi, trig.sin_phi);
   }
 
   for (int j = 0; j < kNumBoundaries; ++j) {
