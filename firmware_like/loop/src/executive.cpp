@@ -130,8 +130,15 @@ Result<std::unique_ptr<Executive>, LoopError> Executive::create(const LoopConfig
   const std::size_t bytes = stride * static_cast<std::size_t>(height);
   loop->frame_buffer_.reset(new (std::nothrow) std::uint8_t[bytes]);
   loop->stats_.reset(new (std::nothrow) LoopStats());
-  loop->solver_.reset(new (std::nothrow) solver::PoseSolver(*parts.camera, *parts.instrument));
-  if (!loop->frame_buffer_ || !loop->stats_ || !loop->solver_) {
+  solver::EstimateOptions estimate_options;
+  estimate_options.min_corners_valid = config.loop.min_corners_valid;
+  estimate_options.max_rms_valid_px = config.loop.max_rms_valid_px;
+  estimate_options.outlier_rounds = config.loop.outlier_rounds;
+  if (!solver::options_valid(estimate_options)) {
+    return R::failure(LoopError::kBadConfig);
+  }
+  loop->estimator_.reset(new (std::nothrow) solver::PoseEstimator(*parts.camera, *parts.instrument, estimate_options));
+  if (!loop->frame_buffer_ || !loop->stats_ || !loop->estimator_) {
     return R::failure(LoopError::kOutOfMemory);
   }
   std::memset(loop->frame_buffer_.get(), 0, bytes);  // pre-fault the pages before the first cycle
@@ -495,19 +502,18 @@ void Executive::run_pipeline() noexcept {
 }
 
 void Executive::step_solve() noexcept {
-  solver::PoseVector r = prior_r_;
   const solver::SolveMode mode = config_.loop.solve_mode == SolveModeSetting::kFixedModel
                                      ? solver::SolveMode::FixedModel
                                      : solver::SolveMode::Adaptive;
-  const solver::SolveSummary summary = solver_->solve(corners_, mode, r);
-  record_.solve_status = summary.status;
-  record_.publication.corners_used = static_cast<std::uint8_t>(summary.corners_used);
-  record_.publication.rms_px = summary.rms_px;
-  const bool usable = solver::is_converged(summary.status) ||
-                      (summary.status == solver::SolveStatus::MaxIterations && std::isfinite(summary.final_cost));
-  if (usable && r.allFinite()) {
+  const solver::Estimate estimate = estimator_->estimate(corners_, mode, prior_r_);
+  record_.solve_status = estimate.summary.status;
+  record_.quality = estimate.quality;
+  record_.corners_rejected = estimate.corners_rejected;
+  record_.publication.corners_used = static_cast<std::uint8_t>(estimate.summary.corners_used);
+  record_.publication.rms_px = estimate.summary.rms_px;
+  if (estimate.quality != solver::EstimateQuality::None) {
     record_.solved = true;
-    last_r_ = r;
+    last_r_ = estimate.r;
   }
 }
 
@@ -537,9 +543,7 @@ void Executive::make_publication() noexcept {
   p.frame_timestamp_ns = record_.have_frame ? record_.frame_timestamp_ns : record_.trigger_ns;
   p.frame_counter = frame_counter_;
   if (record_.solved) {
-    const bool good = p.corners_used >= config_.loop.min_corners_valid && p.rms_px <= config_.loop.max_rms_valid_px &&
-                      solver::is_converged(record_.solve_status);
-    p.status = good ? EstimateStatus::kValid : EstimateStatus::kDegraded;
+    p.status = record_.quality == solver::EstimateQuality::Valid ? EstimateStatus::kValid : EstimateStatus::kDegraded;
   } else if (!camera_lost_ && have_estimate_ && track_alive_) {
     p.status = EstimateStatus::kHeld;
   } else {

@@ -85,11 +85,6 @@ std::size_t parse_ppm(const std::vector<std::uint8_t>& data, int& width, int& he
   return i + 1U;
 }
 
-// Outlier rejection after the solve (see process()).
-constexpr int kOutlierRounds = 2;
-constexpr double kOutlierRmsPx = 1.0;
-constexpr double kOutlierMinPx = 2.5;
-
 double elapsed_us(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) noexcept {
   return std::chrono::duration<double, std::micro>(b - a).count();
 }
@@ -169,15 +164,6 @@ bool load_color_model(const char* command, const char* path, vision::ColorModel&
   return true;
 }
 
-const char* to_string(EstimateStatus s) noexcept {
-  switch (s) {
-    case EstimateStatus::Valid: return "valid";
-    case EstimateStatus::Degraded: return "degraded";
-    case EstimateStatus::None: return "none";
-  }
-  return "none";
-}
-
 bool EstimatePipeline::init(const char* command, const ModelSetup& setup, const vision::ColorModel& colors,
                             bool fixed_model) noexcept {
   setup_ = setup;
@@ -195,8 +181,8 @@ bool EstimatePipeline::init(const char* command, const ModelSetup& setup, const 
     return false;
   }
   extractor_ = std::move(created.value());
-  solver_.reset(new (std::nothrow) solver::PoseSolver(setup_.camera, setup_.instrument));
-  if (solver_ == nullptr) {
+  estimator_.reset(new (std::nothrow) solver::PoseEstimator(setup_.camera, setup_.instrument));
+  if (estimator_ == nullptr) {
     std::fprintf(stderr, "tcpest %s: out of memory\n", command);
     return false;
   }
@@ -249,65 +235,23 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   const vision::Extraction& e = fx.result();
   solver::CornerObservation observed;
   vision::corners_to_arrays(e, observed.pixel, observed.visible);
-  solver::PoseVector r = start;
   const auto t5 = std::chrono::steady_clock::now();
   const solver::SolveMode mode = fixed_model_ ? solver::SolveMode::FixedModel : solver::SolveMode::Adaptive;
-  out.summary = solver_->solve(observed, mode, r);
-  // Misplaced corners (a boundary read off along a flat tangency, a shaft
-  // hiding the base stripe) would pull the pose: drop the corners far from
-  // the model at the estimate and solve again, at most twice.
-  for (int round = 0; round < kOutlierRounds && out.summary.rms_px > kOutlierRmsPx; ++round) {
-    solver::CornerSet predicted;
-    setup_.instrument.corners(setup_.camera, r, predicted);
-    std::array<double, solver::kNumCorners> residual{};
-    std::array<double, solver::kNumCorners> sorted{};
-    std::size_t n = 0U;
-    for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
-      if (observed.visible[k] && predicted.present[k]) {
-        residual[k] = (observed.pixel[k] - predicted.pixel[k]).norm();
-        sorted[n++] = residual[k];
-      }
-    }
-    if (n < 7U) {
-      break;
-    }
-    std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n));
-    const double limit = std::max(kOutlierMinPx, 3.0 * sorted[n / 2U]);
-    int removed = 0;
-    for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
-      if (observed.visible[k] && (!predicted.present[k] || residual[k] > limit)) {
-        observed.visible[k] = false;
-        ++removed;
-      }
-    }
-    if (removed == 0 || observed.count_visible() < 6) {
-      break;
-    }
-    solver::PoseVector retry = r;
-    const solver::SolveSummary again = solver_->solve(observed, mode, retry);
-    if (again.rms_px < out.summary.rms_px) {
-      out.summary = again;
-      r = retry;
-    }
-  }
+  const solver::Estimate estimate = estimator_->estimate(observed, mode, start);
   const auto t6 = std::chrono::steady_clock::now();
+  out.summary = estimate.summary;
   out.times.solve_us = elapsed_us(t5, t6);
   out.total_us = elapsed_us(t0, t6);
-  const solver::SolveStatus s = out.summary.status;
-  const bool converged = s == solver::SolveStatus::ConvergedGradient || s == solver::SolveStatus::ConvergedStep ||
-                         s == solver::SolveStatus::ConvergedCostChange;
-  const bool solved = converged || s == solver::SolveStatus::MaxIterations;
-  if (solved) {
-    out.r = r;
-    out.tcp = setup_.instrument.tcp(r);
-    // Valid: converged on enough corners with a small residual.
-    const bool good = converged && out.summary.corners_used >= 6 && out.summary.rms_px <= 2.0;
-    out.status = good ? EstimateStatus::Valid : EstimateStatus::Degraded;
-    if (good) {
-      previous_r_ = r;
-      have_previous_ = true;
-      temporal_.add(e.interpretation);
-    }
+  out.status = estimate.quality;
+  out.corners_rejected = estimate.corners_rejected;
+  if (estimate.quality != solver::EstimateQuality::None) {
+    out.r = estimate.r;
+    out.tcp = setup_.instrument.tcp(estimate.r);
+  }
+  if (estimate.quality == solver::EstimateQuality::Valid) {
+    previous_r_ = estimate.r;
+    have_previous_ = true;
+    temporal_.add(e.interpretation);
   }
   return out;
 }

@@ -11,7 +11,7 @@
 
 #include "cli/setup.hpp"
 #include "tcpest/hal/camera/jpeg_decoder.hpp"
-#include "tcpest/solver/pose_solver.hpp"
+#include "tcpest/solver/pose_estimator.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -35,8 +35,8 @@ class ImageReader {
 // --colors FILE or the built-in model. False after printing an error.
 bool load_color_model(const char* command, const char* path, vision::ColorModel& out) noexcept;
 
-enum class EstimateStatus : std::uint8_t { Valid, Degraded, None };
-const char* to_string(EstimateStatus s) noexcept;
+// valid / degraded / none: the solver's judgement, shared with the loop.
+using EstimateStatus = solver::EstimateQuality;
 
 struct StageTimes {
   double stage_us[4] = {0.0, 0.0, 0.0, 0.0};
@@ -48,6 +48,7 @@ struct EstimateResult {
   solver::PoseVector r = solver::PoseVector::Zero();
   solver::Vec3 tcp = solver::Vec3::Zero();
   solver::SolveSummary summary{};
+  int corners_rejected = 0;  // dropped as disagreeing with the model at the estimate
   bool extraction_ok = false;
   const char* extraction_error = "";
   StageTimes times{};
@@ -69,7 +70,7 @@ class EstimatePipeline {
  private:
   ModelSetup setup_{};
   std::unique_ptr<vision::FeatureExtractor> extractor_;
-  std::unique_ptr<solver::PoseSolver> solver_;
+  std::unique_ptr<solver::PoseEstimator> estimator_;
   vision::TemporalPriors temporal_{};
   bool fixed_model_ = false;
   bool have_previous_ = false;

@@ -30,7 +30,7 @@
 #include "tcpest/loop/schedule.hpp"
 #include "tcpest/solver/camera.hpp"
 #include "tcpest/solver/instrument.hpp"
-#include "tcpest/solver/pose_solver.hpp"
+#include "tcpest/solver/pose_estimator.hpp"
 
 namespace tcpest {
 namespace loop {
@@ -63,7 +63,9 @@ struct CycleRecord {
   int failed_stage = -1;            // index_of(Step) of the stage that failed, -1 if none
   std::uint8_t stage_error = 0U;
   solver::SolveStatus solve_status = solver::SolveStatus::InvalidInput;
-  bool solved = false;
+  solver::EstimateQuality quality = solver::EstimateQuality::None;
+  int corners_rejected = 0;         // dropped as disagreeing with the model at the estimate
+  bool solved = false;              // quality != None
   Publication publication{};        // what this cycle's estimate is (sent now or at the next tick)
   bool camera_lost = false;
   bool bus_lost = false;
@@ -168,7 +170,7 @@ class Executive {
   std::unique_ptr<std::uint8_t[]> frame_buffer_;
   MutableImageView frame_view_{};
   std::unique_ptr<LoopStats> stats_;
-  std::unique_ptr<solver::PoseSolver> solver_;
+  std::unique_ptr<solver::PoseEstimator> estimator_;
   CycleObserver* observer_ = nullptr;
   CycleRecord record_{};
   hal::FrameInfo info_{};
