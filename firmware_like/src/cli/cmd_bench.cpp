@@ -15,6 +15,7 @@
 #include "cli/args.hpp"
 #include "cli/commands.hpp"
 #include "cli/loop_rig.hpp"
+#include "cli/setup.hpp"
 #include "tcpest/loop/rt_setup.hpp"
 
 namespace tcpest {
@@ -24,7 +25,7 @@ namespace {
 
 constexpr OptionSpec kOptions[] = {
     {"config", "CFG.yaml", "configuration (instrument and the rt: section apply)"},
-    {"calib", "CAM.yaml", "camera calibration; default: the PAL camera of model.md"},
+    kCalibOption,
     {"frames", "N", "cycles of the throughput run (default 2000)"},
     {"dataset", "N", "rendered frames in the fixed dataset, replayed in a loop (default 40)"},
     {"hd", nullptr, "also time 1920x1080 frames (same scene, scaled camera) and print the HD/PAL ratio"},

@@ -33,7 +33,7 @@ namespace {
 constexpr OptionSpec kOptions[] = {
     {"out", "DIR", "output directory (default ./tcpest-demo)"},
     {"config", "CFG.yaml", "configuration (instrument and loop:/can:/rt: sections); default: built-in"},
-    {"calib", "CAM.yaml", "camera calibration; default: the PAL camera of model.md"},
+    kCalibOption,
     {"frames", "N", "frames of the sequence (default 250: 10 s at 25 Hz)"},
     {"seed", "S", "seed of the motion sequence and the rendering (default 7)"},
     {"bus", "BUS", "vcan0 | IFACE | sim (default: vcan0 if it exists, else the simulated bus)"},

@@ -16,8 +16,8 @@ namespace cli {
 namespace {
 
 const OptionSpec kSpecs[] = {
-    {"calib", "CAM.yaml", "camera calibration (ROS camera_info); default: built-in PAL camera"},
-    {"config", "CFG.yaml", "instrument configuration; default: built-in geometry"},
+    kCalibOption,
+    kInstrumentConfigOption,
     {"colors", "MODEL.json", "colour model (tcpest train-colors); default: the built-in model"},
     {"prior", "LAMBDA,PHI,THETA", "encoder joints (mm, rad, rad) for every image: stage-2 priors and solver start"},
     {"fixed-model", nullptr, "estimate lambda, phi, theta only (channel pose held at its nominal value)"},

@@ -23,8 +23,8 @@ namespace cli {
 namespace {
 
 const OptionSpec kSpecs[] = {
-    {"calib", "CAM.yaml", "camera calibration (ROS camera_info); default: built-in PAL camera"},
-    {"config", "CFG.yaml", "instrument configuration; default: built-in geometry"},
+    kCalibOption,
+    kInstrumentConfigOption,
     {"colors", "MODEL.json", "colour model; default: the built-in model"},
     {"fixed-model", nullptr, "solve with the channel pose held at its nominal value"},
     {"no-prior", nullptr, "ignore the sidecars' encoder priors (generic / temporal priors only)"},

@@ -13,8 +13,8 @@ namespace cli {
 namespace {
 
 const OptionSpec kSpecs[] = {
-    {"calib", "CAM.yaml", "camera calibration (ROS camera_info); default: built-in PAL camera"},
-    {"config", "CFG.yaml", "instrument configuration; default: built-in geometry"},
+    kCalibOption,
+    kInstrumentConfigOption,
     {"r", "X,Y,PSI,MU,LAMBDA,PHI,THETA", "configuration: x_ch, y_ch (mm), psi, mu (rad), lambda (mm), phi, theta (rad)"},
 };
 constexpr std::size_t kSpecCount = sizeof kSpecs / sizeof kSpecs[0];

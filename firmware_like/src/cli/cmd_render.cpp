@@ -32,8 +32,8 @@ using render::SceneSpec;
 using solver::PoseVector;
 
 constexpr OptionSpec kOptions[] = {
-    {"calib", "CAM.yaml", "camera calibration (ROS camera_info YAML); default: the PAL camera of model.md"},
-    {"config", "CFG.yaml", "instrument configuration; default: built-in geometry"},
+    kCalibOption,
+    kInstrumentConfigOption,
     {"set", "NAME", "lab | hard | seq | single"},
     {"n", "N", "number of images (lab/hard: first N of the 294 grid poses; seq: frames; default 294 / 100)"},
     {"start", "I", "first index (lab/hard: grid index; seq: frame), default 0"},

@@ -11,6 +11,7 @@
 #include "cli/args.hpp"
 #include "cli/commands.hpp"
 #include "cli/loop_rig.hpp"
+#include "cli/setup.hpp"
 #include "tcpest/loop/rt_setup.hpp"
 
 namespace tcpest {
@@ -20,7 +21,7 @@ namespace {
 
 constexpr OptionSpec kOptions[] = {
     {"config", "CFG.yaml", "configuration: instrument and the loop:/can:/rt: sections (default: built-in defaults)"},
-    {"calib", "CAM.yaml", "camera calibration (ROS camera_info YAML); default: the PAL camera of model.md"},
+    kCalibOption,
     {"source", "SRC", "sim | DIR | LIST.txt | FILE.y4m | /dev/videoN (overrides loop.source; default sim)"},
     {"bus", "BUS", "IFACE (SocketCAN) | log:FILE (simulated bus, candump log) | sim (overrides can.bus)"},
     {"frames", "N", "stop after N cycles (overrides loop.frames; 0 = until the source ends)"},

@@ -16,8 +16,8 @@ namespace cli {
 namespace {
 
 const OptionSpec kSpecs[] = {
-    {"calib", "CAM.yaml", "camera calibration (ROS camera_info); default: built-in PAL camera"},
-    {"config", "CFG.yaml", "instrument configuration; default: built-in geometry"},
+    kCalibOption,
+    kInstrumentConfigOption,
     {"corners", "FILE", "JSON {\"corners\": [12 x ([u, v] or null)], \"prior\": [lambda, phi, theta]}; "
                         "- reads one object per line from standard input"},
     {"prior", "LAMBDA,PHI,THETA", "start joints (mm, rad, rad); default: mid-range, phi = theta = 0"},

@@ -18,8 +18,8 @@ namespace {
 const OptionSpec kSpecs[] = {
     {"noise", "PX", "one pixel noise level (sd, px); default: 0, 0.5 and 1"},
     {"seed", "N", "random seed (default 1)"},
-    {"calib", "CAM.yaml", "camera calibration (ROS camera_info); default: built-in PAL camera"},
-    {"config", "CFG.yaml", "instrument configuration; default: built-in geometry"},
+    kCalibOption,
+    kInstrumentConfigOption,
 };
 constexpr std::size_t kSpecCount = sizeof kSpecs / sizeof kSpecs[0];
 

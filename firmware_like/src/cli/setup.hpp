@@ -3,11 +3,17 @@
 // defaults), reporting any problem on stderr with file, line and field.
 #pragma once
 
+#include "cli/args.hpp"
 #include "tcpest/solver/camera.hpp"
 #include "tcpest/solver/instrument.hpp"
 
 namespace tcpest {
 namespace cli {
+
+// The options every model-using command takes, with one help text.
+constexpr OptionSpec kCalibOption{"calib", "CAM.yaml",
+                                  "camera calibration (ROS camera_info YAML); default: the PAL camera of model.md"};
+constexpr OptionSpec kInstrumentConfigOption{"config", "CFG.yaml", "instrument configuration; default: built-in geometry"};
 
 struct ModelSetup {
   solver::CameraModel camera;
