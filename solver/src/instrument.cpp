@@ -222,6 +222,51 @@ CentrelineFrame InstrumentModel::centreline(const PoseFrames& f, double s_mm) co
   return c;
 }
 
+CircleLimbs InstrumentModel::limbs(const CameraModel& camera, const PoseFrames& f, double s_mm) const noexcept {
+  CircleLimbs out;
+  const CentrelineFrame cf = centreline(f, s_mm);
+  Vec2 c_px;
+  Eigen::Matrix<double, 2, 3> c_jac;
+  if (!camera.project(cf.position, c_px, c_jac)) {
+    return out;
+  }
+  const double radius = g_.radius_mm;
+  const double a_coef = cf.normal.dot(cf.position);
+  const double b_coef = cf.binormal.dot(cf.position);
+  const double rho = std::hypot(a_coef, b_coef);
+  if (!(rho > radius)) {
+    return out;
+  }
+  const double base = std::atan2(b_coef, a_coef);
+  const double delta = std::acos(-radius / rho);
+  const Vec2 image_axis = c_jac * cf.tangent;
+  std::array<bool, 2> valid{};
+  std::array<int, 2> sides{};
+  std::array<Vec2, 2> pixels{};
+  std::array<Vec3, 2> points{};
+  for (std::size_t i = 0U; i < 2U; ++i) {
+    const double a = base + (i == 0U ? -delta : delta);
+    points[i] = cf.position + radius * (std::cos(a) * cf.normal + std::sin(a) * cf.binormal);
+    valid[i] = camera.project(points[i], pixels[i]);
+    if (valid[i]) {
+      const Vec2 v = pixels[i] - c_px;
+      sides[i] = (image_axis.x() * v.y() - image_axis.y() * v.x() < 0.0) ? kSideLeft : kSideRight;
+    }
+  }
+  if (valid[0] && valid[1] && sides[0] == sides[1]) {
+    return out;  // degenerate view along the axis: the labels would collide
+  }
+  for (std::size_t i = 0U; i < 2U; ++i) {
+    if (valid[i]) {
+      const auto side = static_cast<std::size_t>(sides[i]);
+      out.present[side] = true;
+      out.pixel[side] = pixels[i];
+      out.point[side] = points[i];
+    }
+  }
+  return out;
+}
+
 Vec3 InstrumentModel::tcp(const PoseVector& r) const noexcept {
   const PoseFrames f = frames(r);
   const CentrelineFrame end = centreline(f, g_.bend_length_mm);

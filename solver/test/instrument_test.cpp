@@ -94,6 +94,33 @@ TEST(Instrument, CornersAreOnTheLimb) {
   }
 }
 
+// The limb points at an arbitrary arc length are the corners at s = s_j.
+TEST(Instrument, LimbsAtABoundaryAreItsCorners) {
+  const CameraModel camera = vectors_camera();
+  const InstrumentModel model = InstrumentModel::create(InstrumentGeometry{}).value();
+  std::mt19937 rng(17);
+  int compared = 0;
+  for (int i = 0; i < 200; ++i) {
+    const PoseVector r = random_pose(rng);
+    CornerSet corners;
+    model.corners(camera, r, corners);
+    const PoseFrames f = model.frames(r);
+    for (int j = 0; j < kNumBoundaries; ++j) {
+      const CircleLimbs limbs = model.limbs(camera, f, model.geometry().boundaries_mm[static_cast<std::size_t>(j)]);
+      for (std::size_t side = 0U; side < 2U; ++side) {
+        const std::size_t k = 2U * static_cast<std::size_t>(j) + side;
+        ASSERT_EQ(limbs.present[side], corners.present[k]) << "pose " << i << " k " << k;
+        if (limbs.present[side]) {
+          EXPECT_LT((limbs.pixel[side] - corners.pixel[k]).norm(), 1e-9);
+          EXPECT_LT((limbs.point[side] - corners.point[k]).norm(), 1e-9);
+          ++compared;
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 1500);
+}
+
 TEST(Instrument, NothingBehindTheCamera) {
   const CameraModel cam = vectors_camera();
   const auto model = InstrumentModel::create(InstrumentGeometry{});

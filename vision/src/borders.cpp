@@ -5,51 +5,16 @@
 #include <Eigen/Dense>
 
 
+#include "sampling.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
 namespace vision {
 namespace {
 
-struct Rgb {
-  double r = 0.0, g = 0.0, b = 0.0;
-};
-
-// Bilinear RGB at a sub-pixel position; false outside the image.
-bool sample(const ImageView& image, double x, double y, Rgb& out) noexcept {
-  if (!(x >= 0.0) || !(y >= 0.0) || x > static_cast<double>(image.width - 1) ||
-      y > static_cast<double>(image.height - 1)) {
-    return false;
-  }
-  int x0 = static_cast<int>(x);
-  int y0 = static_cast<int>(y);
-  if (x0 >= image.width - 1) {
-    x0 = image.width - 2;
-  }
-  if (y0 >= image.height - 1) {
-    y0 = image.height - 2;
-  }
-  if (x0 < 0 || y0 < 0) {
-    return false;  // a one-pixel-wide image
-  }
-  const double fx = x - static_cast<double>(x0);
-  const double fy = y - static_cast<double>(y0);
-  const std::uint8_t* a = image.row(y0) + static_cast<std::ptrdiff_t>(3) * x0;
-  const std::uint8_t* b = image.row(y0 + 1) + static_cast<std::ptrdiff_t>(3) * x0;
-  const double w00 = (1.0 - fx) * (1.0 - fy);
-  const double w10 = fx * (1.0 - fy);
-  const double w01 = (1.0 - fx) * fy;
-  const double w11 = fx * fy;
-  out.r = w00 * a[0] + w10 * a[3] + w01 * b[0] + w11 * b[3];
-  out.g = w00 * a[1] + w10 * a[4] + w01 * b[1] + w11 * b[4];
-  out.b = w00 * a[2] + w10 * a[5] + w01 * b[2] + w11 * b[5];
-  return true;
-}
-
-std::uint8_t to_byte(double v) noexcept {
-  const double c = v < 0.0 ? 0.0 : (v > 255.0 ? 255.0 : v);
-  return static_cast<std::uint8_t>(std::lround(c));
-}
+using detail::Rgb;
+using detail::sample;
+using detail::to_byte;
 
 double dist2(const Rgb& a, const Rgb& b) noexcept {
   return (a.r - b.r) * (a.r - b.r) + (a.g - b.g) * (a.g - b.g) + (a.b - b.b) * (a.b - b.b);
@@ -549,6 +514,7 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
     c = Corner{};
   }
   e.corner_count = 0;
+  e.refined = false;
   const Interpretation& in = e.interpretation;
   if (in.found_count < 2 || (!e.borders[0].valid && !e.borders[1].valid)) {
     return Status<VisionError>::failure(VisionError::NoInstrument);

@@ -3,12 +3,15 @@
 // heap allocation after start-up.
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <vector>
 
 #include "tcpest/render/renderer.hpp"
 #include "tcpest/solver/pose_solver.hpp"
 #include "tcpest/test/alloc_counter.hpp"
 #include "tcpest/vision/features.hpp"
+#include "tcpest/vision/guided_estimate.hpp"
 #include "tcpest/vision/overlay.hpp"
 
 namespace tcpest {
@@ -81,6 +84,8 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   ASSERT_TRUE(created.ok());
   auto fx = std::move(created.value());
   solver::PoseSolver pose_solver(f.camera, f.model);
+  solver::PoseEstimator estimator(f.camera, f.model);
+  int guided_rounds = 0;
   TemporalPriors temporal;
   const MarkerPriors generic = generic_priors(f.camera, f.model);
   int extracted = 0;
@@ -102,10 +107,77 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
       corners_to_arrays(fx->result(), observed.pixel, observed.visible);
       solver::PoseVector r = f.model.geometry().nominal_pose(25.0, 0.0, 0.0);
       static_cast<void>(pose_solver.solve(observed, solver::SolveMode::Adaptive, r));  // outcome not under test
+      // The model-guided rounds (image fit, refinement, re-solves) too.
+      const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, true,
+                                                  solver::SolveMode::Adaptive, r, GuidedOptions{});
+      guided_rounds += guided.rounds_kept;
     }
     EXPECT_EQ(scope.count(), 0U);
   }
   EXPECT_GT(extracted, 0);
+  EXPECT_GT(guided_rounds, 0);  // the refinement ran, so its path was counted
+}
+
+// The model-guided corners on rendered frames: from stage 4's first pose,
+// the corners are re-measured within a fraction of a pixel of the truth,
+// the base boundary's included, and the estimate is valid.
+TEST(Pipeline, GuidedCornersLieOnTheTrueCorners) {
+  Fixture f;
+  auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
+  ASSERT_TRUE(created.ok());
+  auto fx = std::move(created.value());
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const double poses[3][3] = {{25.0, 30.0, 40.0}, {20.0, 0.0, 0.0}, {35.0, 60.0, 80.0}};
+  int compared = 0;
+  int within = 0;
+  for (const auto& p : poses) {
+    const ImageView image = f.render_pose(p[0], p[1], p[2]);
+    const solver::PoseVector& truth = f.truth.instruments[0].r;
+    const solver::PoseVector prior = f.model.geometry().nominal_pose(p[0] + 1.0, solver::deg_to_rad(p[1]) + 0.05,
+                                                                     solver::deg_to_rad(p[2]) - 0.05);
+    ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
+    const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, true,
+                                                solver::SolveMode::Adaptive, prior, GuidedOptions{});
+    EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid) << "pose " << p[0] << " " << p[1] << " " << p[2];
+    EXPECT_GE(guided.rounds_kept, 1);
+    EXPECT_TRUE(fx->result().refined);
+    solver::CornerSet expected;
+    f.model.corners(f.camera, truth, expected);
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
+      const Corner& c = fx->result().corners[k];
+      if (c.found && expected.in_image[k]) {
+        ++compared;
+        const double err = std::hypot(c.pixel.x - expected.pixel[k].x(), c.pixel.y - expected.pixel[k].y());
+        within += err <= 1.0 ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_GE(compared, 24);
+  EXPECT_GE(within, compared * 9 / 10);
+}
+
+TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
+  Fixture f;
+  auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
+  ASSERT_TRUE(created.ok());
+  auto fx = std::move(created.value());
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const ImageView image = f.render_pose(25.0, 30.0, 40.0);
+  const solver::PoseVector prior = f.truth.instruments[0].r;
+  ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
+  const std::array<Corner, kNumCorners> stage4 = fx->result().corners;
+  GuidedOptions off;
+  off.rounds = 0;
+  const GuidedResult guided =
+      guided_estimate(*fx, estimator, f.camera, f.model, image, true, solver::SolveMode::Adaptive, prior, off);
+  EXPECT_EQ(guided.rounds_kept, 0);
+  for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
+    EXPECT_EQ(fx->result().corners[k].found, stage4[k].found);
+  }
+  // A failed extraction gives no estimate, whatever corners an older frame left.
+  const GuidedResult none =
+      guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, GuidedOptions{});
+  EXPECT_EQ(none.estimate.quality, solver::EstimateQuality::None);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <dirent.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -31,6 +32,7 @@ const OptionSpec kSpecs[] = {
     {"max", "N", "score at most N images"},
     {"tolerance", "PX", "distance under which a corner counts as found (default 1.5)"},
     {"verbose", nullptr, "one line per image"},
+    {"corners-csv", "FILE", "one row per image and corner index: truth, detection, model at the estimate"},
 };
 constexpr std::size_t kSpecCount = sizeof kSpecs / sizeof kSpecs[0];
 
@@ -105,6 +107,15 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitFailure;
   }
   const bool verbose = args.flag("verbose");
+  FILE* csv = nullptr;
+  if (args.value("corners-csv") != nullptr) {
+    csv = std::fopen(args.value("corners-csv"), "w");
+    if (csv == nullptr) {
+      std::fprintf(stderr, "tcpest evaluate: cannot write %s: %s\n", args.value("corners-csv"), std::strerror(errno));
+      return kExitFailure;
+    }
+    std::fprintf(csv, "image,k,visible,truth_u,truth_v,found,u,v,confidence,error_px,status,model_u,model_v\n");
+  }
   std::vector<std::uint8_t> pixels;
   long visible = 0, found_ok = 0, found_total = 0, wrong = 0;
   int frames = 0, frames_with_visible = 0, successes = 0, unreadable = 0, valid_estimates = 0;
@@ -196,12 +207,35 @@ int cmd_evaluate(int argc, char** argv) {
         tcp_sq[c] += diff[c] * diff[c];
       }
     }
+    if (csv != nullptr) {
+      solver::CornerSet model;
+      if (result.status != EstimateStatus::None) {
+        setup.instrument.corners(setup.camera, result.r, model);
+      }
+      for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+        const bool found = result.extraction_ok && e.corners[k].found;
+        const bool has_truth = truth.instrument.corner_present[k];
+        const double tu = has_truth ? truth.instrument.corners[k].x() : std::nan("");
+        const double tv = has_truth ? truth.instrument.corners[k].y() : std::nan("");
+        const double u = found ? e.corners[k].pixel.x : std::nan("");
+        const double v = found ? e.corners[k].pixel.y : std::nan("");
+        std::fprintf(csv, "%s,%zu,%d,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%.3f,%s,%.3f,%.3f\n", truth.image, k,
+                     truth.instrument.corner_visible[k] ? 1 : 0, tu, tv, found ? 1 : 0, u, v,
+                     found ? e.corners[k].confidence : 0.0, std::hypot(u - tu, v - tv), to_string(result.status),
+                     model.present[k] ? model.pixel[k].x() : std::nan(""),
+                     model.present[k] ? model.pixel[k].y() : std::nan(""));
+      }
+    }
     if (verbose) {
       std::printf("%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
                   truth.image, to_string(result.status), frame_visible, frame_ok, e.corner_count,
                   result.extraction_ok ? "extraction ok" : "extraction: ", result.extraction_ok ? "" : result.extraction_error,
                   tcp_err, stages_total.back());
     }
+  }
+  if (csv != nullptr && std::fclose(csv) != 0) {
+    std::fprintf(stderr, "tcpest evaluate: writing %s failed\n", args.value("corners-csv"));
+    return kExitFailure;
   }
   const double n_tcp = tcp_errors.empty() ? 1.0 : static_cast<double>(tcp_errors.size());
   std::printf("dataset %s: %d images scored (%d unreadable), %ld visible corners\n", dir.c_str(), frames, unreadable,

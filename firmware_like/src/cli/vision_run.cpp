@@ -232,18 +232,19 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   out.times.stage_us[3] = elapsed_us(t3, t4);
   out.extraction_ok = status.ok();
   out.extraction_error = status.ok() ? "" : vision::to_string(status.error());
-  const vision::Extraction& e = fx.result();
-  solver::CornerObservation observed;
-  vision::corners_to_arrays(e, observed.pixel, observed.visible);
   const auto t5 = std::chrono::steady_clock::now();
   const solver::SolveMode mode = fixed_model_ ? solver::SolveMode::FixedModel : solver::SolveMode::Adaptive;
-  const solver::Estimate estimate = estimator_->estimate(observed, mode, start);
+  const vision::GuidedResult guided = vision::guided_estimate(fx, *estimator_, setup_.camera, setup_.instrument, image,
+                                                              status.ok(), mode, start, guided_);
+  const solver::Estimate& estimate = guided.estimate;
+  const vision::Extraction& e = fx.result();
   const auto t6 = std::chrono::steady_clock::now();
   out.summary = estimate.summary;
   out.times.solve_us = elapsed_us(t5, t6);
   out.total_us = elapsed_us(t0, t6);
   out.status = estimate.quality;
   out.corners_rejected = estimate.corners_rejected;
+  out.guided_rounds = guided.rounds_kept;
   if (estimate.quality != solver::EstimateQuality::None) {
     out.r = estimate.r;
     out.tcp = setup_.instrument.tcp(estimate.r);

@@ -13,6 +13,7 @@
 #include "tcpest/hal/camera/jpeg_decoder.hpp"
 #include "tcpest/solver/pose_estimator.hpp"
 #include "tcpest/vision/features.hpp"
+#include "tcpest/vision/guided_estimate.hpp"
 
 namespace tcpest {
 namespace cli {
@@ -49,6 +50,7 @@ struct EstimateResult {
   solver::Vec3 tcp = solver::Vec3::Zero();
   solver::SolveSummary summary{};
   int corners_rejected = 0;  // dropped as disagreeing with the model at the estimate
+  int guided_rounds = 0;     // model-guided rounds kept (0: stage 4's corners)
   bool extraction_ok = false;
   const char* extraction_error = "";
   StageTimes times{};
@@ -72,6 +74,7 @@ class EstimatePipeline {
   std::unique_ptr<vision::FeatureExtractor> extractor_;
   std::unique_ptr<solver::PoseEstimator> estimator_;
   vision::TemporalPriors temporal_{};
+  vision::GuidedOptions guided_{};
   bool fixed_model_ = false;
   bool have_previous_ = false;
   solver::PoseVector previous_r_ = solver::PoseVector::Zero();

@@ -69,6 +69,14 @@ struct CentrelineFrame {
   Vec3 binormal;  // R_b b
 };
 
+// The circle of the tube at one arc length as seen from the camera: its two
+// limb points (model.md's apparent corners for s = s_j) labelled by side.
+struct CircleLimbs {
+  std::array<bool, 2> present{};   // [side]
+  std::array<Vec2, 2> pixel{};     // [side]
+  std::array<Vec3, 2> point{};     // [side], camera frame (mm)
+};
+
 // Channel and base frames for a configuration r.
 struct PoseFrames {
   Vec3 channel_origin;    // O_ch
@@ -107,6 +115,11 @@ class InstrumentModel {
   // Centreline frame at arc length s (mm, 0 = base, L = tip end).
   CentrelineFrame centreline(const PoseFrames& f, double s_mm) const noexcept;
   Vec3 tcp(const PoseVector& r) const noexcept;
+  // The limb points of the tube's circle (radius R) at arc length s, with
+  // model.md's rules (none if the centre or the point is not projectable,
+  // none if the camera is inside the circle's cone, neither if both fall
+  // on one side). At s = s_j they are corners() of boundary j (tested).
+  CircleLimbs limbs(const CameraModel& camera, const PoseFrames& f, double s_mm) const noexcept;
   // The apparent corners of model.md (and the TCP). With `jacobians`, also
   // their derivatives with respect to r (the limb points slide on the tube).
   void corners(const CameraModel& camera, const PoseVector& r, CornerSet& out,

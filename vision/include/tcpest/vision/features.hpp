@@ -147,6 +147,12 @@ struct Extraction {
   std::array<Border, 2> borders{};  // [side]: 0 = left, 1 = right (model.md's side rule)
   std::array<Corner, kNumCorners> corners{};
   int corner_count = 0;
+  // Model-guided corners (refine_corners): stage 4's corners are kept here,
+  // and each boundary's measured shift along the tube from the pose's.
+  bool refined = false;
+  std::array<Corner, kNumCorners> stage4_corners{};
+  std::array<bool, kNumBoundaries> boundary_measured{};
+  std::array<double, kNumBoundaries> boundary_shift_mm{};
 };
 
 struct ExtractorConfig {
@@ -188,6 +194,25 @@ struct ExtractorConfig {
   // most are misplaced).
   double min_corner_confidence = 0.45;
   double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
+  // Model-guided corners (refine_corners, docs/vision.md).
+  int refine_arc_samples = 16;              // points of each boundary's visible arc
+  double refine_arc_span = 0.8;             // share of the half arc used (its ends graze the silhouette)
+  double refine_search_mm = 1.2;            // along-tube search window of the colour change, +/-
+  double refine_min_arc_share = 0.35;       // arc points that must see the colour change
+  double refine_max_spread_mm = 0.25;       // MAD of their shifts
+  double refine_edge_search_px = 4.0;       // silhouette search window along its normal, +/-
+  int refine_min_edge_points = 3;           // silhouette points per corner (of 8)
+  double refine_predicted_confidence = 0.5; // a corner whose boundary arc was not measured
+};
+
+// What fit_pose_to_image did.
+struct ImageFitSummary {
+  int iterations = 0;
+  int arc_readings = 0;         // colour-change readings on the boundary arcs (last iteration)
+  int silhouette_readings = 0;  // silhouette readings (last iteration)
+  int boundaries = 0;           // boundaries with arc readings
+  double rms_px = 0.0;          // robust RMS of the readings' residuals at the result
+  bool converged = false;
 };
 
 class FeatureExtractor {
@@ -206,6 +231,24 @@ class FeatureExtractor {
   Status<VisionError> fit_borders(const ImageView& image) noexcept;
   // Stage 4.
   Status<VisionError> find_corners(const ImageView& image) noexcept;
+  // After a first pose r (ours, not the paper's): each boundary's circle is
+  // moved along the tube to where its visible arc meets the colour change in
+  // the image, and its limb points are put on the silhouette measured next
+  // to them. Replaces result().corners (stage 4's are kept in
+  // stage4_corners); fails with NoInstrument when no boundary is measured.
+  Status<VisionError> refine_corners(const ImageView& image, const solver::CameraModel& camera,
+                                     const solver::InstrumentModel& model, const solver::PoseVector& r) noexcept;
+  // Fits the pose r to the image itself (ours): the visible arc of every
+  // boundary onto its colour change and the model's silhouette onto the
+  // colour-gradient maxima, by robust Gauss-Newton from `r` (a first pose),
+  // re-measuring at every iteration. `r` is updated only on success.
+  Status<VisionError> fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
+                                        const solver::InstrumentModel& model, solver::PoseVector& r,
+                                        ImageFitSummary& summary) noexcept;
+  // Back to earlier corners after refine_corners (a refinement the caller
+  // did not keep): stage 4's, or those of an earlier refinement.
+  void restore_stage4_corners() noexcept;
+  void restore_corners(const std::array<Corner, kNumCorners>& corners) noexcept;
   // All four stages.
   Status<VisionError> extract(const ImageView& image, const MarkerPriors& priors) noexcept;
 

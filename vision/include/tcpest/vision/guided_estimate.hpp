@@ -1,0 +1,43 @@
+// One frame's estimate after stages 1-4, with the model-guided corners of
+// docs/vision.md (ours, not the paper's): the pose solved from stage 4's
+// corners; then, up to `rounds` times, the pose fitted to the image from it
+// (FeatureExtractor::fit_pose_to_image), the corners re-measured around the
+// fitted pose (refine_corners) and the pose solved again from them. Every
+// solve is solver::PoseEstimator's (eq. 8, outlier rounds, validity test),
+// so the control loop and the estimate/evaluate commands share all of it.
+// Allocation-free; bounded by `rounds` (each: one fit of at most 6
+// iterations, one refinement, one estimate).
+#pragma once
+
+#include "tcpest/solver/pose_estimator.hpp"
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace vision {
+
+struct GuidedOptions {
+  int rounds = 2;                 // 0: stage 4's corners only (the paper's pipeline)
+  // The image fit is trusted only with this much support: its robust RMS
+  // residual, the boundaries whose arc it read, its silhouette readings.
+  double max_fit_rms_px = 0.6;
+  int min_fit_boundaries = 3;
+  int min_fit_silhouette_readings = 12;
+};
+constexpr int kMaxGuidedRounds = 4;
+
+struct GuidedResult {
+  solver::Estimate estimate{};
+  int rounds_kept = 0;            // rounds whose corners and pose were kept
+  ImageFitSummary fit{};          // of the last fit tried
+};
+
+// `extraction_ok`: stages 1-4 succeeded (else no corners are used and the
+// estimate is None). On return the extractor's corners are those of the
+// kept estimate (stage 4's if no round was kept).
+GuidedResult guided_estimate(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
+                             const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                             const ImageView& image, bool extraction_ok, solver::SolveMode mode,
+                             const solver::PoseVector& start, const GuidedOptions& options) noexcept;
+
+}  // namespace vision
+}  // namespace tcpest

@@ -1,0 +1,637 @@
+// Model-guided corners: the apparent corners re-measured around a first pose.
+//
+// Stage 4 reads each corner from the image alone, where the boundary's
+// ellipse touches the silhouette, often with a flat contact: the position
+// along the border is ill-conditioned there, and at the two end boundaries
+// (shaft, grasper) the chroma change is weak. Given a first pose, the model
+// predicts the shape of every boundary's image (an ellipse arc) and of the
+// silhouette next to it; two quantities remain to be read from the image,
+// each where it is well conditioned:
+// - along the tube: the shift of the boundary's circle that puts its visible
+//   arc on the colour change. Every arc point gives one reading, across a
+//   strong colour edge (the median of up to refine_arc_samples readings);
+// - across: the silhouette's offset, read on the colour-gradient maximum
+//   along its normal at 8 points beside the corner (a line fitted to the
+//   offsets against the arc length, taken at the corner).
+// The corner is the limb point of the shifted circle, moved by that offset.
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "sampling.hpp"
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace vision {
+namespace {
+
+using detail::Rgb;
+using detail::sample;
+using detail::to_byte;
+
+constexpr double kDsMm = 1e-3;        // finite difference along the tube
+constexpr int kMaxArcSamples = 32;
+constexpr int kMaxProfile = 96;       // along-tube profile points (1 px apart)
+constexpr int kEdgeOffsets = 8;
+constexpr double kEdgeOffsetsMm[kEdgeOffsets] = {-2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0};
+constexpr int kMaxEdgeProfile = 64;   // across profile points (0.5 px apart)
+
+double median_of(double* v, int n) noexcept {
+  std::sort(v, v + n);
+  return (n % 2 == 1) ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// How the colour changes across boundary j, base -> tip.
+struct BoundaryColours {
+  bool usable = false;
+  bool margin = false;    // blue against neutral (shaft, grasper) instead of yellow - blue
+  double want = 0.0;      // sign of the profile's change from base to tip
+};
+
+BoundaryColours colours_of(const ExtractorConfig& config, int j) noexcept {
+  BoundaryColours c;
+  if (j > 0 && j < kNumBoundaries - 1) {
+    c.usable = config.marker_classes[static_cast<std::size_t>(j - 1)] !=
+               config.marker_classes[static_cast<std::size_t>(j)];
+    c.want = config.marker_classes[static_cast<std::size_t>(j - 1)] == PixelClass::Blue ? 1.0 : -1.0;
+    return c;
+  }
+  const std::size_t m = (j == 0) ? 0U : static_cast<std::size_t>(kNumMarkers - 1);
+  c.usable = config.marker_classes[m] == PixelClass::Blue;  // only a blue end has a margin profile
+  c.margin = true;
+  c.want = (j == 0) ? 1.0 : -1.0;
+  return c;
+}
+
+class Refiner {
+ public:
+  Refiner(const ImageView& image, const ColorModel& colors, const ExtractorConfig& config,
+          const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& frames)
+      noexcept : image_(image), colors_(colors), config_(config), camera_(camera), model_(model), frames_(frames) {}
+
+  // Median shift (mm along the tube) that puts the visible arc of the
+  // circle at s on the colour change; false when too few arc points see it.
+  bool arc_shift(double s_mm, const BoundaryColours& colours, double window_mm, double& shift_mm) noexcept {
+    const solver::CentrelineFrame cf = model_.centreline(frames_, s_mm);
+    const solver::CentrelineFrame cf2 = model_.centreline(frames_, s_mm + kDsMm);
+    const double radius = model_.geometry().radius_mm;
+    const double a_coef = cf.normal.dot(cf.position);
+    const double b_coef = cf.binormal.dot(cf.position);
+    const double rho = std::hypot(a_coef, b_coef);
+    if (!(rho > radius)) {
+      return false;
+    }
+    const double base = std::atan2(b_coef, a_coef);
+    const double half = solver::kPi - std::acos(-radius / rho);  // half the visible arc (facing the camera)
+    const int n = std::min(std::max(config_.refine_arc_samples, 3), kMaxArcSamples);
+    std::array<double, kMaxArcSamples> shifts{};
+    int count = 0;
+    for (int i = 0; i < n; ++i) {
+      const double u = -config_.refine_arc_span + 2.0 * config_.refine_arc_span * i / static_cast<double>(n - 1);
+      const double a = base + solver::kPi + u * half;
+      const double ca = std::cos(a);
+      const double sa = std::sin(a);
+      const solver::Vec3 x = cf.position + radius * (ca * cf.normal + sa * cf.binormal);
+      const solver::Vec3 x2 = cf2.position + radius * (ca * cf2.normal + sa * cf2.binormal);
+      solver::Vec2 p;
+      solver::Vec2 p2;
+      if (!camera_.project(x, p) || !camera_.project(x2, p2)) {
+        continue;
+      }
+      const solver::Vec2 d = (p2 - p) / kDsMm;  // px per mm along the tube
+      const double px_per_mm = d.norm();
+      if (!(px_per_mm > 0.5)) {
+        continue;  // the tube seen end-on here
+      }
+      double tau_px = 0.0;
+      if (crossing(p, d / px_per_mm, window_mm * px_per_mm, colours, tau_px)) {
+        shifts[static_cast<std::size_t>(count++)] = tau_px / px_per_mm;
+      }
+    }
+    if (count < 3 || count < config_.refine_min_arc_share * n) {
+      return false;
+    }
+    const double mid = median_of(shifts.data(), count);
+    std::array<double, kMaxArcSamples> dev{};
+    for (int i = 0; i < count; ++i) {
+      dev[static_cast<std::size_t>(i)] = std::fabs(shifts[static_cast<std::size_t>(i)] - mid);
+    }
+    if (median_of(dev.data(), count) > config_.refine_max_spread_mm) {
+      return false;
+    }
+    shift_mm = mid;
+    return true;
+  }
+
+  // Offset (px, outwards) of the silhouette from the model's beside the
+  // corner of `side` of the circle at s; false with too few readings.
+  bool silhouette_offset(double s_mm, std::size_t side, int j, double& offset_px) noexcept {
+    const double length = model_.geometry().bend_length_mm;
+    std::array<double, kEdgeOffsets> os{};
+    std::array<double, kEdgeOffsets> es{};
+    int count = 0;
+    for (double o : kEdgeOffsetsMm) {
+      const double s = s_mm + o;
+      // The silhouette of the striped tube only: the shaft and the grasper
+      // have other radii.
+      if ((j == 0 && o < 0.0) || (j == kNumBoundaries - 1 && o > 0.0) || s < 0.0 || s > length) {
+        continue;
+      }
+      const solver::CircleLimbs at = model_.limbs(camera_, frames_, s);
+      const solver::CircleLimbs next = model_.limbs(camera_, frames_, s + kDsMm);
+      solver::Vec2 centre;
+      if (!at.present[side] || !next.present[side] ||
+          !camera_.project(model_.centreline(frames_, s).position, centre)) {
+        continue;
+      }
+      solver::Vec2 tangent = next.pixel[side] - at.pixel[side];
+      if (!(tangent.norm() > 0.0)) {
+        continue;
+      }
+      tangent.normalize();
+      solver::Vec2 normal(-tangent.y(), tangent.x());
+      if (normal.dot(at.pixel[side] - centre) < 0.0) {
+        normal = -normal;
+      }
+      double e = 0.0;
+      if (edge(at.pixel[side], normal, e)) {
+        os[static_cast<std::size_t>(count)] = o;
+        es[static_cast<std::size_t>(count)] = e;
+        ++count;
+      }
+    }
+    if (count < config_.refine_min_edge_points) {
+      return false;
+    }
+    // Line e = e0 + e1 o by least squares, once more without the points far
+    // from the first line (a vessel's edge taken for the silhouette).
+    double e0 = 0.0;
+    double e1 = 0.0;
+    std::array<bool, kEdgeOffsets> keep{};
+    keep.fill(true);
+    for (int pass = 0; pass < 2; ++pass) {
+      double s0 = 0.0, s1 = 0.0, s2 = 0.0, t0 = 0.0, t1 = 0.0;
+      for (int i = 0; i < count; ++i) {
+        const auto k = static_cast<std::size_t>(i);
+        if (keep[k]) {
+          s0 += 1.0;
+          s1 += os[k];
+          s2 += os[k] * os[k];
+          t0 += es[k];
+          t1 += os[k] * es[k];
+        }
+      }
+      const double det = s0 * s2 - s1 * s1;
+      if (s0 < static_cast<double>(config_.refine_min_edge_points) || !(std::fabs(det) > 1e-9)) {
+        return false;
+      }
+      e0 = (t0 * s2 - t1 * s1) / det;
+      e1 = (s0 * t1 - s1 * t0) / det;
+      if (pass == 0) {
+        for (int i = 0; i < count; ++i) {
+          const auto k = static_cast<std::size_t>(i);
+          keep[k] = std::fabs(es[k] - (e0 + e1 * os[k])) <= 1.0;
+        }
+      }
+    }
+    offset_px = e0;
+    return std::fabs(offset_px) <= config_.refine_edge_search_px;
+  }
+
+  // (public below: used by the pose fit)
+  double score(double x, double y, bool margin, bool& ok) const noexcept {
+    Rgb px;
+    ok = sample(image_, x, y, px);
+    if (!ok) {
+      return 0.0;
+    }
+    const std::uint8_t r8 = to_byte(px.r), g8 = to_byte(px.g), b8 = to_byte(px.b);
+    return margin ? colors_.blue_margin(r8, g8, b8) : colors_.yellow_minus_blue(r8, g8, b8);
+  }
+
+  // The colour change along `dir` through p nearest to p (px, signed),
+  // between readings that are clearly on each side.
+  bool crossing(const solver::Vec2& p, const solver::Vec2& dir, double window_px, const BoundaryColours& colours,
+                double& tau_px) const noexcept {
+    const int half = std::min(std::max(static_cast<int>(std::ceil(window_px)), 3), (kMaxProfile - 1) / 2);
+    const int n = 2 * half + 1;
+    std::array<double, kMaxProfile> v{};
+    for (int i = 0; i < n; ++i) {
+      const double t = static_cast<double>(i - half);
+      bool ok = false;
+      v[static_cast<std::size_t>(i)] = colours.want * score(p.x() + t * dir.x(), p.y() + t * dir.y(), colours.margin, ok);
+      if (!ok) {
+        return false;
+      }
+    }
+    constexpr double kClear = 0.15;  // |profile| of a reading clearly on one side
+    double best = 1e30;
+    bool found = false;
+    for (int i = 2; i + 1 < n; ++i) {
+      const double a = v[static_cast<std::size_t>(i - 1)];
+      const double b = v[static_cast<std::size_t>(i)];
+      if (!(a < 0.0 && b >= 0.0)) {
+        continue;
+      }
+      const double before = 0.5 * (v[static_cast<std::size_t>(i - 2)] + a);
+      const double after = 0.5 * (b + v[static_cast<std::size_t>(i + 1)]);
+      if (!(before < -kClear && after > kClear)) {
+        continue;
+      }
+      const double t = static_cast<double>(i - 1 - half) + a / (a - b);
+      if (std::fabs(t) < std::fabs(best)) {
+        best = t;
+        found = true;
+      }
+    }
+    tau_px = best;
+    return found;
+  }
+
+  // The colour-gradient maximum along `normal` through p (px from p,
+  // outwards positive), moved by the shading correction of stage 3.
+  bool edge(const solver::Vec2& p, const solver::Vec2& normal, double& offset_px) const noexcept {
+    constexpr double kStep = 0.5;
+    const int half = std::min(static_cast<int>(std::ceil(config_.refine_edge_search_px / kStep)) + 1,
+                              (kMaxEdgeProfile - 1) / 2);
+    const int n = 2 * half + 1;
+    std::array<Rgb, kMaxEdgeProfile> c{};
+    for (int i = 0; i < n; ++i) {
+      const double t = kStep * static_cast<double>(i - half);
+      if (!sample(image_, p.x() + t * normal.x(), p.y() + t * normal.y(), c[static_cast<std::size_t>(i)])) {
+        return false;
+      }
+    }
+    std::array<double, kMaxEdgeProfile> g{};
+    int best = -1;
+    for (int i = 1; i + 1 < n; ++i) {
+      const Rgb& a = c[static_cast<std::size_t>(i - 1)];
+      const Rgb& b = c[static_cast<std::size_t>(i + 1)];
+      g[static_cast<std::size_t>(i)] = (a.r - b.r) * (a.r - b.r) + (a.g - b.g) * (a.g - b.g) + (a.b - b.b) * (a.b - b.b);
+      if (best < 0 || g[static_cast<std::size_t>(i)] > g[static_cast<std::size_t>(best)]) {
+        best = i;
+      }
+    }
+    if (best < 2 || best > n - 3) {
+      return false;  // at the window's end: no maximum inside it
+    }
+    const double gm = g[static_cast<std::size_t>(best - 1)];
+    const double g0 = g[static_cast<std::size_t>(best)];
+    const double gp = g[static_cast<std::size_t>(best + 1)];
+    const double denom = gm - 2.0 * g0 + gp;
+    const double frac = denom < 0.0 ? 0.5 * (gm - gp) / denom : 0.0;
+    offset_px = kStep * (static_cast<double>(best - half) + frac) + config_.edge_offset_px;
+    return true;
+  }
+
+ private:
+  const ImageView& image_;
+  const ColorModel& colors_;
+  const ExtractorConfig& config_;
+  const solver::CameraModel& camera_;
+  const solver::InstrumentModel& model_;
+  const solver::PoseFrames& frames_;
+};
+
+
+// The pose fit's readings: a point of the model (a boundary arc's point or
+// a silhouette point), the image direction it is read along, and the offset
+// (px) of the image's edge from it along that direction.
+struct Reading {
+  bool arc = false;
+  int boundary = 0;
+  double angle_rad = 0.0;   // arc: the point's angle on the circle
+  double s_mm = 0.0;        // silhouette: arc length
+  std::size_t side = 0U;    // silhouette: side
+  solver::Vec2 direction = solver::Vec2::Zero();
+  double offset_px = 0.0;
+};
+
+constexpr int kFitArcSamples = 12;        // per boundary
+constexpr int kFitSilhouetteSamples = 10; // per side
+constexpr int kMaxReadings = kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples;
+constexpr int kFitIterations = 6;
+
+// Where a reading's model point is at the frames f.
+bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& f,
+             const Reading& reading, solver::Vec2& pixel) noexcept {
+  if (reading.arc) {
+    const solver::CentrelineFrame cf =
+        model.centreline(f, model.geometry().boundaries_mm[static_cast<std::size_t>(reading.boundary)]);
+    const solver::Vec3 x = cf.position + model.geometry().radius_mm * (std::cos(reading.angle_rad) * cf.normal +
+                                                                        std::sin(reading.angle_rad) * cf.binormal);
+    return camera.project(x, pixel);
+  }
+  const solver::CircleLimbs limbs = model.limbs(camera, f, reading.s_mm);
+  pixel = limbs.pixel[reading.side];
+  return limbs.present[reading.side];
+}
+
+}  // namespace
+
+Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
+                                                        const solver::InstrumentModel& model, solver::PoseVector& r,
+                                                        ImageFitSummary& summary) noexcept {
+  summary = ImageFitSummary{};
+  if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
+    return Status<VisionError>::failure(VisionError::BadImage);
+  }
+  const auto& g = model.geometry();
+  const double radius = g.radius_mm;
+  // A weak prior around the start keeps directions the image does not
+  // observe (e.g. a tube seen end-on) where they were.
+  const solver::PoseVector start = r;
+  const double prior_sd[solver::kNumParams] = {3.0, 3.0, 0.1, 0.1, 5.0, 0.5, 0.5};
+  const double step_h[solver::kNumParams] = {1e-3, 1e-3, 1e-5, 1e-5, 1e-3, 1e-5, 1e-5};
+  solver::PoseVector x = r;
+  std::array<Reading, kMaxReadings> readings{};
+  std::array<solver::Vec2, kMaxReadings> predicted{};
+  std::array<double, kMaxReadings> work{};
+  double rms = 0.0;
+  for (int it = 0; it < kFitIterations; ++it) {
+    const solver::PoseFrames f = model.frames(x);
+    Refiner refiner(image, colors_, config_, camera, model, f);
+    int n = 0;
+    int arc_readings = 0;
+    int boundaries = 0;
+    const double window_mm = it == 0 ? config_.refine_search_mm : 0.6;
+    // Boundary arcs: read across the arc (its image normal, towards the tip).
+    for (int j = 0; j < kNumBoundaries; ++j) {
+      const BoundaryColours colours = colours_of(config_, j);
+      if (!colours.usable || j == 0) {  // the base arc: behind the shaft in most views (docs/vision.md)
+        continue;
+      }
+      const double s_j = g.boundaries_mm[static_cast<std::size_t>(j)];
+      const solver::CentrelineFrame cf = model.centreline(f, s_j);
+      const solver::CentrelineFrame cf2 = model.centreline(f, s_j + kDsMm);
+      const double a_coef = cf.normal.dot(cf.position);
+      const double b_coef = cf.binormal.dot(cf.position);
+      const double rho = std::hypot(a_coef, b_coef);
+      if (!(rho > radius)) {
+        continue;
+      }
+      const double base = std::atan2(b_coef, a_coef);
+      const double half = solver::kPi - std::acos(-radius / rho);
+      int on_this = 0;
+      for (int i = 0; i < kFitArcSamples; ++i) {
+        const double u = -config_.refine_arc_span + 2.0 * config_.refine_arc_span * i / (kFitArcSamples - 1.0);
+        const double a = base + solver::kPi + u * half;
+        const auto point_at = [&](const solver::CentrelineFrame& c, double angle) noexcept {
+          return solver::Vec3(c.position + radius * (std::cos(angle) * c.normal + std::sin(angle) * c.binormal));
+        };
+        solver::Vec2 p, p_s, p_a;
+        if (!camera.project(point_at(cf, a), p) || !camera.project(point_at(cf2, a), p_s) ||
+            !camera.project(point_at(cf, a + 1e-4), p_a)) {
+          continue;
+        }
+        const solver::Vec2 along = (p_s - p) / kDsMm;  // px per mm along the tube
+        const double px_per_mm = along.norm();
+        const solver::Vec2 tangent = p_a - p;
+        if (!(px_per_mm > 0.5) || !(tangent.norm() > 0.0)) {
+          continue;
+        }
+        solver::Vec2 normal(-tangent.y(), tangent.x());
+        normal.normalize();
+        if (normal.dot(along) < 0.0) {
+          normal = -normal;
+        }
+        if (normal.dot(along) < 0.5 * px_per_mm) {
+          continue;  // the arc runs along the tube here: a reading across it slides
+        }
+        double tau = 0.0;
+        if (refiner.crossing(p, normal, window_mm * px_per_mm, colours, tau)) {
+          Reading& rd = readings[static_cast<std::size_t>(n)];
+          rd = Reading{};
+          rd.arc = true;
+          rd.boundary = j;
+          rd.angle_rad = a;
+          rd.direction = normal;
+          rd.offset_px = tau;
+          predicted[static_cast<std::size_t>(n)] = p;
+          ++n;
+          ++on_this;
+        }
+      }
+      arc_readings += on_this;
+      boundaries += on_this >= 3 ? 1 : 0;
+    }
+    // Silhouette: both sides along the striped section.
+    int silhouette_readings = 0;
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      for (int i = 0; i < kFitSilhouetteSamples; ++i) {
+        const double s = g.bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
+        const solver::CircleLimbs at = model.limbs(camera, f, s);
+        const solver::CircleLimbs next = model.limbs(camera, f, s + kDsMm);
+        solver::Vec2 centre;
+        if (!at.present[side] || !next.present[side] || !camera.project(model.centreline(f, s).position, centre)) {
+          continue;
+        }
+        solver::Vec2 tangent = next.pixel[side] - at.pixel[side];
+        if (!(tangent.norm() > 0.0)) {
+          continue;
+        }
+        tangent.normalize();
+        solver::Vec2 normal(-tangent.y(), tangent.x());
+        if (normal.dot(at.pixel[side] - centre) < 0.0) {
+          normal = -normal;
+        }
+        double e = 0.0;
+        if (refiner.edge(at.pixel[side], normal, e)) {
+          Reading& rd = readings[static_cast<std::size_t>(n)];
+          rd = Reading{};
+          rd.s_mm = s;
+          rd.side = side;
+          rd.direction = normal;
+          rd.offset_px = e;
+          predicted[static_cast<std::size_t>(n)] = at.pixel[side];
+          ++n;
+          ++silhouette_readings;
+        }
+      }
+    }
+    summary.iterations = it + 1;
+    summary.arc_readings = arc_readings;
+    summary.silhouette_readings = silhouette_readings;
+    summary.boundaries = boundaries;
+    if (boundaries < 2 || silhouette_readings < 6) {
+      return Status<VisionError>::failure(VisionError::NoInstrument);
+    }
+    // Robust scale (MAD) and Tukey weights.
+    for (int i = 0; i < n; ++i) {
+      work[static_cast<std::size_t>(i)] = std::fabs(readings[static_cast<std::size_t>(i)].offset_px);
+    }
+    const double scale = std::max(0.3, 1.4826 * median_of(work.data(), n));
+    const double c = 3.0 * scale;
+    Eigen::Matrix<double, solver::kNumParams, solver::kNumParams> normal_matrix =
+        Eigen::Matrix<double, solver::kNumParams, solver::kNumParams>::Zero();
+    Eigen::Matrix<double, solver::kNumParams, 1> rhs = Eigen::Matrix<double, solver::kNumParams, 1>::Zero();
+    std::array<solver::PoseFrames, solver::kNumParams> shifted{};
+    for (int k = 0; k < solver::kNumParams; ++k) {
+      solver::PoseVector xk = x;
+      xk[k] += step_h[k];
+      shifted[static_cast<std::size_t>(k)] = model.frames(xk);
+    }
+    double sum_w = 0.0;
+    double sum_wr2 = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const Reading& rd = readings[static_cast<std::size_t>(i)];
+      const double v = rd.offset_px;
+      const double u = v / c;
+      const double w = std::fabs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+      if (!(w > 0.0)) {
+        continue;
+      }
+      Eigen::Matrix<double, solver::kNumParams, 1> row;
+      bool ok = true;
+      for (int k = 0; k < solver::kNumParams && ok; ++k) {
+        solver::Vec2 pk;
+        ok = predict(camera, model, shifted[static_cast<std::size_t>(k)], rd, pk);
+        row[k] = rd.direction.dot(pk - predicted[static_cast<std::size_t>(i)]) / step_h[k];
+      }
+      if (!ok || !row.allFinite()) {
+        continue;
+      }
+      normal_matrix += w * row * row.transpose();
+      rhs += w * v * row;
+      sum_w += w;
+      sum_wr2 += w * v * v;
+    }
+    rms = sum_w > 0.0 ? std::sqrt(sum_wr2 / sum_w) : 1e9;
+    for (int k = 0; k < solver::kNumParams; ++k) {
+      const double inv_var = 1.0 / (prior_sd[k] * prior_sd[k]);
+      normal_matrix(k, k) += inv_var;
+      rhs[k] -= inv_var * (x[k] - start[k]);
+    }
+    const Eigen::LDLT<Eigen::Matrix<double, solver::kNumParams, solver::kNumParams>> ldlt(normal_matrix);
+    if (ldlt.info() != Eigen::Success) {
+      return Status<VisionError>::failure(VisionError::NoInstrument);
+    }
+    const Eigen::Matrix<double, solver::kNumParams, 1> delta = ldlt.solve(rhs);
+    if (!delta.allFinite()) {
+      return Status<VisionError>::failure(VisionError::NoInstrument);
+    }
+    x += delta;
+    const bool small = std::fabs(delta[solver::kXch]) + std::fabs(delta[solver::kYch]) + std::fabs(delta[solver::kLambda]) < 1e-3 &&
+                       std::fabs(delta[solver::kPsi]) + std::fabs(delta[solver::kMu]) + std::fabs(delta[solver::kPhi]) +
+                               std::fabs(delta[solver::kTheta]) < 1e-4;
+    if (small) {
+      summary.converged = true;
+      break;
+    }
+  }
+  summary.rms_px = rms;
+  if (!x.allFinite()) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  r = x;
+  return ok_status<VisionError>();
+}
+
+Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, const solver::CameraModel& camera,
+                                                     const solver::InstrumentModel& model,
+                                                     const solver::PoseVector& r) noexcept {
+  Extraction& e = result_;
+  if (!e.refined) {
+    e.stage4_corners = e.corners;
+  }
+  e.refined = true;
+  for (auto& c : e.corners) {
+    c = Corner{};
+  }
+  e.corner_count = 0;
+  e.boundary_measured.fill(false);
+  e.boundary_shift_mm.fill(0.0);
+  if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
+    return Status<VisionError>::failure(VisionError::BadImage);
+  }
+  const solver::PoseFrames frames = model.frames(r);
+  Refiner refiner(image, colors_, config_, camera, model, frames);
+  const auto& g = model.geometry();
+  for (int j = 0; j < kNumBoundaries; ++j) {
+    const BoundaryColours colours = colours_of(config_, j);
+    const double s_j = g.boundaries_mm[static_cast<std::size_t>(j)];
+    // Two passes: the wide search, then a narrow one around its result
+    // (the arc's shape follows the shift). The base boundary's arc is not
+    // read (in most views it lies behind the shaft, nearer to the camera and
+    // only 0.06 mm thinner, so its colour change is the shaft's outline),
+    // nor is any arc that shows no clear colour change: such a boundary's
+    // corners are the limb points of the pose given (fitted to the image by
+    // fit_pose_to_image), reported with refine_predicted_confidence.
+    double shift = 0.0;
+    double step = 0.0;
+    bool measured = colours.usable && j != 0 && refiner.arc_shift(s_j, colours, config_.refine_search_mm, step);
+    if (measured) {
+      shift = step;
+      measured = refiner.arc_shift(s_j + shift, colours, 0.4, step);
+      shift += measured ? step : 0.0;
+      measured = measured && std::fabs(shift) <= config_.refine_search_mm;
+    }
+    if (!measured) {
+      shift = 0.0;
+    }
+    e.boundary_measured[static_cast<std::size_t>(j)] = measured;
+    e.boundary_shift_mm[static_cast<std::size_t>(j)] = shift;
+    const solver::CircleLimbs limbs = model.limbs(camera, frames, s_j + shift);
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      if (!limbs.present[side]) {
+        continue;
+      }
+      solver::Vec2 centre;
+      if (!camera.project(model.centreline(frames, s_j + shift).position, centre)) {
+        continue;
+      }
+      double offset = 0.0;
+      if (measured && !refiner.silhouette_offset(s_j + shift, side, j, offset)) {
+        continue;
+      }
+      // The limb point moves with the silhouette along its normal; the
+      // normal at the corner is that of the offsets' line (side of the centre).
+      const solver::CircleLimbs next = model.limbs(camera, frames, s_j + shift + kDsMm);
+      if (!next.present[side]) {
+        continue;
+      }
+      solver::Vec2 tangent = next.pixel[side] - limbs.pixel[side];
+      if (!(tangent.norm() > 0.0)) {
+        continue;
+      }
+      tangent.normalize();
+      solver::Vec2 normal(-tangent.y(), tangent.x());
+      if (normal.dot(limbs.pixel[side] - centre) < 0.0) {
+        normal = -normal;
+      }
+      const solver::Vec2 corner = limbs.pixel[side] + offset * normal;
+      if (corner.x() < 0.0 || corner.y() < 0.0 || corner.x() > image.width - 1 || corner.y() > image.height - 1) {
+        continue;
+      }
+      Corner& c = e.corners[2U * static_cast<std::size_t>(j) + side];
+      c.found = true;
+      c.pixel = Point{corner.x(), corner.y()};
+      c.confidence = measured ? 0.9 : config_.refine_predicted_confidence;
+      ++e.corner_count;
+    }
+  }
+  if (e.corner_count == 0) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  return ok_status<VisionError>();
+}
+
+void FeatureExtractor::restore_stage4_corners() noexcept {
+  if (result_.refined) {
+    restore_corners(result_.stage4_corners);
+    result_.refined = false;
+  }
+}
+
+void FeatureExtractor::restore_corners(const std::array<Corner, kNumCorners>& corners) noexcept {
+  Extraction& e = result_;
+  e.corners = corners;
+  e.corner_count = 0;
+  for (const Corner& c : e.corners) {
+    e.corner_count += c.found ? 1 : 0;
+  }
+}
+
+}  // namespace vision
+}  // namespace tcpest
