@@ -311,7 +311,7 @@ struct Reading {
 constexpr int kFitArcSamples = 12;        // per boundary
 constexpr int kFitSilhouetteSamples = 10; // per side
 constexpr int kMaxReadings = kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples;
-constexpr int kFitIterations = 6;
+constexpr int kMaxFitIterations = 20;
 
 // Where a reading's model point is at the frames f.
 bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& f,
@@ -348,8 +348,10 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   std::array<Reading, kMaxReadings> readings{};
   std::array<solver::Vec2, kMaxReadings> predicted{};
   std::array<double, kMaxReadings> work{};
+  std::array<Eigen::Matrix<double, solver::kNumParams, 1>, kMaxReadings> rows{};  // d(reading)/dr, px per unit
   double rms = 0.0;
-  for (int it = 0; it < kFitIterations; ++it) {
+  const int iterations = std::min(std::max(config_.refine_fit_iterations, 1), kMaxFitIterations);
+  for (int it = 0; it < iterations; ++it) {
     const solver::PoseFrames f = model.frames(x);
     Refiner refiner(image, colors_, config_, camera, model, f);
     int n = 0;
@@ -474,6 +476,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     }
     double sum_w = 0.0;
     double sum_wr2 = 0.0;
+    int used = 0;
     for (int i = 0; i < n; ++i) {
       const Reading& rd = readings[static_cast<std::size_t>(i)];
       const double v = rd.offset_px;
@@ -492,6 +495,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       if (!ok || !row.allFinite()) {
         continue;
       }
+      rows[static_cast<std::size_t>(used++)] = row;
       normal_matrix += w * row * row.transpose();
       rhs += w * v * row;
       sum_w += w;
@@ -512,9 +516,13 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     x += delta;
-    const bool small = std::fabs(delta[solver::kXch]) + std::fabs(delta[solver::kYch]) + std::fabs(delta[solver::kLambda]) < 1e-3 &&
-                       std::fabs(delta[solver::kPsi]) + std::fabs(delta[solver::kMu]) + std::fabs(delta[solver::kPhi]) +
-                               std::fabs(delta[solver::kTheta]) < 1e-4;
+    // Converged when the step moves no model point read by more than
+    // refine_fit_tolerance_px along its reading direction.
+    double largest_move = 0.0;
+    for (int i = 0; i < used; ++i) {
+      largest_move = std::max(largest_move, std::fabs(rows[static_cast<std::size_t>(i)].dot(delta)));
+    }
+    const bool small = largest_move < config_.refine_fit_tolerance_px;
     if (small) {
       summary.converged = true;
       break;

@@ -486,6 +486,8 @@ void Executive::run_pipeline() noexcept {
   if (stage.ok()) {
     step_solve();
     lap(Step::kSolve);
+    step_refine(image);
+    lap(Step::kRefine);
   }
   pipeline.end_frame(record_.solved);
   if (record_.solved) {
@@ -505,15 +507,32 @@ void Executive::step_solve() noexcept {
   const solver::SolveMode mode = config_.loop.solve_mode == SolveModeSetting::kFixedModel
                                      ? solver::SolveMode::FixedModel
                                      : solver::SolveMode::Adaptive;
-  const solver::Estimate estimate = estimator_->estimate(corners_, mode, prior_r_);
-  record_.solve_status = estimate.summary.status;
-  record_.quality = estimate.quality;
-  record_.corners_rejected = estimate.corners_rejected;
-  record_.publication.corners_used = static_cast<std::uint8_t>(estimate.summary.corners_used);
-  record_.publication.rms_px = estimate.summary.rms_px;
-  if (estimate.quality != solver::EstimateQuality::None) {
+  estimate_ = estimator_->estimate(corners_, mode, prior_r_);
+  take_estimate();
+}
+
+void Executive::step_refine(const ImageView& image) noexcept {
+  if (estimate_.quality == solver::EstimateQuality::None) {
+    return;
+  }
+  const solver::SolveMode mode = config_.loop.solve_mode == SolveModeSetting::kFixedModel
+                                     ? solver::SolveMode::FixedModel
+                                     : solver::SolveMode::Adaptive;
+  if (parts_.pipeline->refine(image, *estimator_, mode, estimate_)) {
+    record_.refined = true;
+    take_estimate();
+  }
+}
+
+void Executive::take_estimate() noexcept {
+  record_.solve_status = estimate_.summary.status;
+  record_.quality = estimate_.quality;
+  record_.corners_rejected = estimate_.corners_rejected;
+  record_.publication.corners_used = static_cast<std::uint8_t>(estimate_.summary.corners_used);
+  record_.publication.rms_px = estimate_.summary.rms_px;
+  if (estimate_.quality != solver::EstimateQuality::None) {
     record_.solved = true;
-    last_r_ = estimate.r;
+    last_r_ = estimate_.r;
   }
 }
 

@@ -69,6 +69,17 @@ Status<StageError> VisionPipeline::corners(const ImageView& image, solver::Corne
   return from_vision(s);
 }
 
+bool VisionPipeline::refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
+                            solver::Estimate& estimate) noexcept {
+  const vision::GuidedResult guided =
+      vision::guided_rounds(*extractor_, estimator, camera_, model_, image, mode, estimate, guided_);
+  if (guided.rounds_kept == 0) {
+    return false;
+  }
+  estimate = guided.estimate;
+  return true;
+}
+
 void VisionPipeline::end_frame(bool success) noexcept {
   if (success && interpreted_) {
     temporal_.add(extractor_->result().interpretation);

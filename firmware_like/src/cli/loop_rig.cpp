@@ -230,6 +230,7 @@ int LoopRig::build() noexcept {
     return kExitFailure;
   }
   vision = vision_pipeline.value().get();
+  vision->guided_options().rounds = config.loop.guided_rounds;
   pipeline = std::move(vision_pipeline.value());
   if (source->width() != models.camera.width() || source->height() != models.camera.height()) {
     std::fprintf(stderr, "tcpest %s: the source's frames are %dx%d, the camera calibration is %dx%d\n",

@@ -203,6 +203,8 @@ struct ExtractorConfig {
   double refine_edge_search_px = 4.0;       // silhouette search window along its normal, +/-
   int refine_min_edge_points = 3;           // silhouette points per corner (of 8)
   double refine_predicted_confidence = 0.5; // a corner whose boundary arc was not measured
+  int refine_fit_iterations = 10;            // image fit: Gauss-Newton iterations (each re-measures), <= 20
+  double refine_fit_tolerance_px = 0.05;    // ... converged when no point read moves more than this
 };
 
 // What fit_pose_to_image did.

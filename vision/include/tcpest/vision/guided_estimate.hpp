@@ -5,7 +5,7 @@
 // fitted pose (refine_corners) and the pose solved again from them. Every
 // solve is solver::PoseEstimator's (eq. 8, outlier rounds, validity test),
 // so the control loop and the estimate/evaluate commands share all of it.
-// Allocation-free; bounded by `rounds` (each: one fit of at most 6
+// Allocation-free; bounded by `rounds` (each: one fit of at most refine_fit_iterations
 // iterations, one refinement, one estimate).
 #pragma once
 
@@ -16,7 +16,7 @@ namespace tcpest {
 namespace vision {
 
 struct GuidedOptions {
-  int rounds = 2;                 // 0: stage 4's corners only (the paper's pipeline)
+  int rounds = 1;                 // 0: stage 4's corners only (the paper's pipeline)
   // The image fit is trusted only with this much support: its robust RMS
   // residual, the boundaries whose arc it read, its silhouette readings.
   double max_fit_rms_px = 0.6;
@@ -31,9 +31,16 @@ struct GuidedResult {
   ImageFitSummary fit{};          // of the last fit tried
 };
 
-// `extraction_ok`: stages 1-4 succeeded (else no corners are used and the
-// estimate is None). On return the extractor's corners are those of the
-// kept estimate (stage 4's if no round was kept).
+// The rounds alone, from a first estimate solved from stage 4's corners
+// (the loop times them as their own step). On return the extractor's
+// corners are those of the kept estimate (stage 4's if no round was kept).
+GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
+                           const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                           const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
+                           const GuidedOptions& options) noexcept;
+
+// The first solve and the rounds. `extraction_ok`: stages 1-4 succeeded
+// (else no corners are used and the estimate is None).
 GuidedResult guided_estimate(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                              const solver::CameraModel& camera, const solver::InstrumentModel& model,
                              const ImageView& image, bool extraction_ok, solver::SolveMode mode,

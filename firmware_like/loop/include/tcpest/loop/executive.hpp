@@ -66,6 +66,7 @@ struct CycleRecord {
   solver::EstimateQuality quality = solver::EstimateQuality::None;
   int corners_rejected = 0;         // dropped as disagreeing with the model at the estimate
   bool solved = false;              // quality != None
+  bool refined = false;             // the model-guided rounds gave the estimate
   Publication publication{};        // what this cycle's estimate is (sent now or at the next tick)
   bool camera_lost = false;
   bool bus_lost = false;
@@ -155,6 +156,8 @@ class Executive {
   bool step_acquire() noexcept;
   void run_pipeline() noexcept;
   void step_solve() noexcept;
+  void step_refine(const ImageView& image) noexcept;
+  void take_estimate() noexcept;
   void step_housekeeping() noexcept;
   void choose_prior(std::int64_t now_ns) noexcept;
   void make_publication() noexcept;
@@ -171,6 +174,7 @@ class Executive {
   MutableImageView frame_view_{};
   std::unique_ptr<LoopStats> stats_;
   std::unique_ptr<solver::PoseEstimator> estimator_;
+  solver::Estimate estimate_{};
   CycleObserver* observer_ = nullptr;
   CycleRecord record_{};
   hal::FrameInfo info_{};

@@ -9,7 +9,7 @@
 #include "tcpest/common/image.hpp"
 #include "tcpest/common/result.hpp"
 #include "tcpest/hal/camera/frame_source.hpp"
-#include "tcpest/solver/pose_solver.hpp"
+#include "tcpest/solver/pose_estimator.hpp"
 
 namespace tcpest {
 namespace loop {
@@ -45,6 +45,17 @@ class FeaturePipeline {
   virtual Status<StageError> interpret(PriorSource source, const solver::PoseVector& prior_r) noexcept = 0;
   virtual Status<StageError> borders(const ImageView& image) noexcept = 0;
   virtual Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept = 0;
+  // After the first solve from corners(): the model-guided rounds (vision's
+  // guided_rounds), which may replace `estimate`; false when none was kept.
+  // A stand-in pipeline keeps the first estimate.
+  virtual bool refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
+                      solver::Estimate& estimate) noexcept {
+    static_cast<void>(image);
+    static_cast<void>(estimator);
+    static_cast<void>(mode);
+    static_cast<void>(estimate);
+    return false;
+  }
   // End of a frame: `success` feeds the temporal prior.
   virtual void end_frame(bool success) noexcept = 0;
   // The track is dropped: forget the temporal prior.

@@ -21,11 +21,12 @@ enum class Step : std::uint8_t {
   kInterpret,     // vision stage 2: which region is which marker (with the chosen prior)
   kBorders,       // vision stage 3: Bezier borders
   kCorners,       // vision stage 4: the apparent corners
-  kSolve,         // pose solver (Levenberg-Marquardt)
+  kSolve,         // pose solver (Levenberg-Marquardt) on stage 4's corners
+  kRefine,        // model-guided corners: image fit, corners re-measured, pose solved again
   kPublish,       // TCP, JOINTS, MECHANICAL, QUALITY on the bus
   kHousekeeping,  // heartbeat, EMCY, recovery attempts, statistics
 };
-constexpr int kNumSteps = 8;
+constexpr int kNumSteps = 9;
 
 struct StepSpec {
   Step step;
@@ -41,6 +42,7 @@ constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
     {Step::kBorders, "borders", 500},
     {Step::kCorners, "corners", 700},
     {Step::kSolve, "solve", 800},
+    {Step::kRefine, "refine", 1500},
     {Step::kPublish, "publish", 100},
     {Step::kHousekeeping, "housekeeping", 100},
 }};

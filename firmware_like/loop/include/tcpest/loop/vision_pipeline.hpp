@@ -2,13 +2,15 @@
 // 1-4), with the loop's choice of prior turned into the stage-2 priors:
 // encoder -> model priors at the encoders' configuration, temporal -> the
 // last successful frames (model priors at the last estimate until two exist),
-// generic -> the documented generic prior (computed once at start-up).
+// generic -> the documented generic prior (computed once at start-up); and
+// the model-guided rounds after the first solve (docs/vision.md).
 #pragma once
 
 #include <memory>
 
 #include "tcpest/loop/ports.hpp"
 #include "tcpest/vision/features.hpp"
+#include "tcpest/vision/guided_estimate.hpp"
 
 namespace tcpest {
 namespace loop {
@@ -25,6 +27,9 @@ class VisionPipeline final : public FeaturePipeline {
   Status<StageError> interpret(PriorSource source, const solver::PoseVector& prior_r) noexcept override;
   Status<StageError> borders(const ImageView& image) noexcept override;
   Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept override;
+  bool refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
+              solver::Estimate& estimate) noexcept override;
+  vision::GuidedOptions& guided_options() noexcept { return guided_; }
   void end_frame(bool success) noexcept override;
   void drop_track() noexcept override { temporal_.reset(); }
   bool has_temporal_prior() const noexcept override { return temporal_.frames() >= vision::TemporalPriors::kMinFrames; }
@@ -41,6 +46,7 @@ class VisionPipeline final : public FeaturePipeline {
   vision::MarkerPriors generic_{};
   vision::MarkerPriors priors_{};
   vision::TemporalPriors temporal_{};
+  vision::GuidedOptions guided_{};
   bool interpreted_ = false;
 };
 
