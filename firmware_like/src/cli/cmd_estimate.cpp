@@ -21,6 +21,7 @@ const OptionSpec kSpecs[] = {
     {"colors", "MODEL.json", "colour model (tcpest train-colors); default: the built-in model"},
     {"prior", "LAMBDA,PHI,THETA", "encoder joints (mm, rad, rad) for every image: stage-2 priors and solver start"},
     {"fixed-model", nullptr, "estimate lambda, phi, theta only (channel pose held at its nominal value)"},
+    kGuidedRoundsOption,
     {"overlay", "DIR", "write DIR/<image name>.overlay.jpg: borders, corners, model at the estimate, TCP"},
     {"json", nullptr, "one JSON object per image and line"},
 };
@@ -42,7 +43,7 @@ int cmd_estimate(int argc, char** argv) {
   }
   if (args.help_requested()) {
     print_usage("tcpest estimate --calib CAM.yaml [--config CFG] [--colors MODEL] [--prior LAMBDA,PHI,THETA] "
-                "[--fixed-model] [--overlay DIR] [--json] IMAGE...",
+                "[--fixed-model] [--guided-rounds N] [--overlay DIR] [--json] IMAGE...",
                 "Extracts the labelled apparent corners of each image (JPEG or PPM) and solves the pose.",
                 kSpecs, kSpecCount);
     return kExitOk;
@@ -68,6 +69,14 @@ int cmd_estimate(int argc, char** argv) {
   static EstimatePipeline pipeline;  // large: static storage
   if (!pipeline.init("estimate", setup, colors, args.flag("fixed-model"))) {
     return kExitConfig;
+  }
+  if (args.value("guided-rounds") != nullptr) {
+    unsigned long long rounds = 0ULL;
+    if (!parse_unsigned(args.value("guided-rounds"), rounds) || rounds > static_cast<unsigned long long>(vision::kMaxGuidedRounds)) {
+      std::fprintf(stderr, "tcpest estimate: --guided-rounds needs an integer 0..%d\n", vision::kMaxGuidedRounds);
+      return kExitUsage;
+    }
+    pipeline.guided_options().rounds = static_cast<int>(rounds);
   }
   ImageReader reader;
   if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {

@@ -28,6 +28,7 @@ const OptionSpec kSpecs[] = {
     kInstrumentConfigOption,
     {"colors", "MODEL.json", "colour model; default: the built-in model"},
     {"fixed-model", nullptr, "solve with the channel pose held at its nominal value"},
+    kGuidedRoundsOption,
     {"no-prior", nullptr, "ignore the sidecars' encoder priors (generic / temporal priors only)"},
     {"max", "N", "score at most N images"},
     {"tolerance", "PX", "distance under which a corner counts as found (default 1.5)"},
@@ -54,7 +55,7 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitUsage;
   }
   if (args.help_requested() || args.positional_count() != 1U) {
-    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--no-prior] "
+    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--no-prior] "
                 "[--max N] [--verbose] DATASET_DIR",
                 "Runs extraction and the solver on every image of a dataset and scores them against the sidecars.",
                 kSpecs, kSpecCount);
@@ -100,6 +101,14 @@ int cmd_evaluate(int argc, char** argv) {
   static EstimatePipeline pipeline;
   if (!pipeline.init("evaluate", setup, colors, args.flag("fixed-model"))) {
     return kExitConfig;
+  }
+  if (args.value("guided-rounds") != nullptr) {
+    unsigned long long rounds = 0ULL;
+    if (!parse_unsigned(args.value("guided-rounds"), rounds) || rounds > static_cast<unsigned long long>(vision::kMaxGuidedRounds)) {
+      std::fprintf(stderr, "tcpest evaluate: --guided-rounds needs an integer 0..%d\n", vision::kMaxGuidedRounds);
+      return kExitUsage;
+    }
+    pipeline.guided_options().rounds = static_cast<int>(rounds);
   }
   ImageReader reader;
   if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {

@@ -15,6 +15,10 @@ constexpr OptionSpec kCalibOption{"calib", "CAM.yaml",
                                   "camera calibration (ROS camera_info YAML); default: the PAL camera of model.md"};
 constexpr OptionSpec kInstrumentConfigOption{"config", "CFG.yaml", "instrument configuration; default: built-in geometry"};
 
+constexpr OptionSpec kGuidedRoundsOption{"guided-rounds", "N",
+                                         "model-guided corner rounds after the first solve, 0..4 (default 1; 0: stage 4's "
+                                         "corners, the paper's pipeline)"};
+
 struct ModelSetup {
   solver::CameraModel camera;
   solver::InstrumentModel instrument;

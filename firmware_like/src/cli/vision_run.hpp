@@ -66,6 +66,8 @@ class EstimatePipeline {
   void reset_sequence() noexcept;
   const vision::FeatureExtractor& extractor() const noexcept { return *extractor_; }
   const ModelSetup& setup() const noexcept { return setup_; }
+  // The model-guided rounds after the first solve (0: stage 4's corners only).
+  vision::GuidedOptions& guided_options() noexcept { return guided_; }
   // Overlay of the last frame (extraction, model at the estimate, TCP) into `pixels`.
   void draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept;
 
