@@ -190,6 +190,17 @@ std::int32_t FeatureExtractor::find_root(std::int32_t run) noexcept {
 }
 
 Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexcept {
+  // A new frame: nothing of the last one survives (a later stage that is
+  // not reached must not leave an older frame's results).
+  result_.interpretation = Interpretation{};
+  for (Border& b : result_.borders) {
+    b.valid = false;
+  }
+  for (Corner& c : result_.corners) {
+    c = Corner{};
+  }
+  result_.corner_count = 0;
+  result_.refined = false;
   RegionSet& out = result_.regions;
   out.regions.clear();
   out.too_many_regions = false;
