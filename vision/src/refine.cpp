@@ -235,7 +235,7 @@ class Refiner {
         continue;
       }
       const double before = 0.5 * (v[static_cast<std::size_t>(i - 2)] + a);
-      const double after = 0.5 * (b + v[static_cast<std::size_t>(i + 1)]);
+      const double after = 0.5 * (b + v[static_cast<std::size_t>(i) + 1U]);
       if (!(before < -kClear && after > kClear)) {
         continue;
       }
@@ -267,7 +267,7 @@ class Refiner {
     int best = -1;
     for (int i = 1; i + 1 < n; ++i) {
       const Rgb& a = c[static_cast<std::size_t>(i - 1)];
-      const Rgb& b = c[static_cast<std::size_t>(i + 1)];
+      const Rgb& b = c[static_cast<std::size_t>(i) + 1U];
       g[static_cast<std::size_t>(i)] = (a.r - b.r) * (a.r - b.r) + (a.g - b.g) * (a.g - b.g) + (a.b - b.b) * (a.b - b.b);
       if (best < 0 || g[static_cast<std::size_t>(i)] > g[static_cast<std::size_t>(best)]) {
         best = i;
@@ -278,7 +278,7 @@ class Refiner {
     }
     const double gm = g[static_cast<std::size_t>(best - 1)];
     const double g0 = g[static_cast<std::size_t>(best)];
-    const double gp = g[static_cast<std::size_t>(best + 1)];
+    const double gp = g[static_cast<std::size_t>(best) + 1U];
     const double denom = gm - 2.0 * g0 + gp;
     const double frac = denom < 0.0 ? 0.5 * (gm - gp) / denom : 0.0;
     offset_px = kStep * (static_cast<double>(best - half) + frac) + config_.edge_offset_px;
