@@ -155,7 +155,7 @@ class Refiner {
         normal = -normal;
       }
       double e = 0.0;
-      if (edge(at.pixel[side], normal, e)) {
+      if (edge(at.pixel[side], normal, config_.refine_edge_search_px, e)) {
         os[static_cast<std::size_t>(count)] = o;
         es[static_cast<std::size_t>(count)] = e;
         ++count;
@@ -251,9 +251,9 @@ class Refiner {
 
   // The colour-gradient maximum along `normal` through p (px from p,
   // outwards positive), moved by the shading correction of stage 3.
-  bool edge(const solver::Vec2& p, const solver::Vec2& normal, double& offset_px) const noexcept {
+  bool edge(const solver::Vec2& p, const solver::Vec2& normal, double window_px, double& offset_px) const noexcept {
     constexpr double kStep = 0.5;
-    const int half = std::min(static_cast<int>(std::ceil(config_.refine_edge_search_px / kStep)) + 1,
+    const int half = std::min(static_cast<int>(std::ceil(window_px / kStep)) + 1,
                               (kMaxEdgeProfile - 1) / 2);
     const int n = 2 * half + 1;
     std::array<Rgb, kMaxEdgeProfile> c{};
@@ -312,6 +312,7 @@ constexpr int kFitArcSamples = 12;        // per boundary
 constexpr int kFitSilhouetteSamples = 10; // per side
 constexpr int kMaxReadings = kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples;
 constexpr int kMaxFitIterations = 20;
+constexpr int kCoarseIterations = 3;  // wide-window iterations from a coarse start
 
 // Where a reading's model point is at the frames f.
 bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& f,
@@ -330,9 +331,96 @@ bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& m
 
 }  // namespace
 
+Status<VisionError> FeatureExtractor::pose_from_regions(const solver::CameraModel& camera,
+                                                        const solver::InstrumentModel& model,
+                                                        solver::PoseVector& r) const noexcept {
+  const Interpretation& in = result_.interpretation;
+  if (in.found_count < 3 || !r.allFinite()) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  constexpr int kParams = 5;
+  constexpr int kParamIndex[kParams] = {solver::kXch, solver::kYch, solver::kLambda, solver::kPhi, solver::kTheta};
+  constexpr double kStep[kParams] = {1e-3, 1e-3, 1e-3, 1e-5, 1e-5};
+  constexpr int kRows = 2 * kNumMarkers;
+  using Residuals = Eigen::Matrix<double, kRows, 1>;
+  const auto& g = model.geometry();
+  // Centroid minus the projected marker middle, per labelled marker (zero rows otherwise).
+  const auto residuals = [&](const solver::PoseVector& at, Residuals& out) noexcept {
+    out.setZero();
+    const solver::PoseFrames f = model.frames(at);
+    for (std::size_t m = 0U; m < static_cast<std::size_t>(kNumMarkers); ++m) {
+      if (!in.markers[m].found) {
+        continue;
+      }
+      const double s_mid = 0.5 * (g.boundaries_mm[m] + g.boundaries_mm[m + 1U]);
+      solver::Vec2 p;
+      if (!camera.project(model.centreline(f, s_mid).position, p)) {
+        return false;
+      }
+      out[static_cast<Eigen::Index>(2U * m)] = in.markers[m].region.centroid.x - p.x();
+      out[static_cast<Eigen::Index>(2U * m + 1U)] = in.markers[m].region.centroid.y - p.y();
+    }
+    return true;
+  };
+  solver::PoseVector x = r;
+  Residuals e;
+  if (!residuals(x, e)) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  double cost = e.squaredNorm();
+  double damping = 1e-3;
+  for (int it = 0; it < 15; ++it) {
+    Eigen::Matrix<double, kRows, kParams> jac;
+    for (int k = 0; k < kParams; ++k) {
+      solver::PoseVector xk = x;
+      xk[kParamIndex[k]] += kStep[k];
+      Residuals ek;
+      if (!residuals(xk, ek)) {
+        return Status<VisionError>::failure(VisionError::NoInstrument);
+      }
+      jac.col(k) = -(ek - e) / kStep[k];  // d(projection)/d(parameter)
+    }
+    Eigen::Matrix<double, kParams, kParams> normal = jac.transpose() * jac;
+    normal.diagonal() *= 1.0 + damping;
+    const Eigen::Matrix<double, kParams, 1> delta = normal.ldlt().solve(jac.transpose() * e);
+    if (!delta.allFinite()) {
+      return Status<VisionError>::failure(VisionError::NoInstrument);
+    }
+    solver::PoseVector trial = x;
+    for (int k = 0; k < kParams; ++k) {
+      trial[kParamIndex[k]] += delta[k];
+    }
+    Residuals et;
+    const double trial_cost = residuals(trial, et) ? et.squaredNorm() : 1e300;
+    if (trial_cost < cost) {
+      const bool small = cost - trial_cost < 1e-6 * cost;
+      x = trial;
+      e = et;
+      cost = trial_cost;
+      damping = std::max(damping * 0.3, 1e-6);
+      if (small) {
+        break;
+      }
+    } else {
+      damping *= 10.0;
+      if (damping > 1e6) {
+        break;
+      }
+    }
+  }
+  // The visible faces' centroids lie a few pixels off the centreline's
+  // projection; much more is a wrong pose.
+  const double rms = std::sqrt(cost / (2.0 * in.found_count));
+  if (!(rms < 12.0) || !x.allFinite()) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  r = x;
+  return ok_status<VisionError>();
+}
+
 Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
                                                         const solver::InstrumentModel& model, solver::PoseVector& r,
-                                                        ImageFitSummary& summary) noexcept {
+                                                        ImageFitSummary& summary, bool coarse_start) noexcept {
   summary = ImageFitSummary{};
   if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
     return Status<VisionError>::failure(VisionError::BadImage);
@@ -350,14 +438,21 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   std::array<double, kMaxReadings> work{};
   std::array<Eigen::Matrix<double, solver::kNumParams, 1>, kMaxReadings> rows{};  // d(reading)/dr, px per unit
   double rms = 0.0;
-  const int iterations = std::min(std::max(config_.refine_fit_iterations, 1), kMaxFitIterations);
+  const int iterations =
+      std::min(std::max(config_.refine_fit_iterations, 1) + (coarse_start ? kCoarseIterations : 0), kMaxFitIterations);
   for (int it = 0; it < iterations; ++it) {
     const solver::PoseFrames f = model.frames(x);
     Refiner refiner(image, colors_, config_, camera, model, f);
     int n = 0;
     int arc_readings = 0;
     int boundaries = 0;
-    const double window_mm = it == 0 ? config_.refine_search_mm : 0.6;
+    // From a coarse start (a pose from the regions) the first iterations
+    // search wider windows and may see fewer boundaries.
+    const bool coarse_it = coarse_start && it < kCoarseIterations;
+    const int fine_it = coarse_start ? it - kCoarseIterations : it;
+    const double window_mm =
+        coarse_it ? config_.refine_coarse_search_mm : (fine_it == 0 ? config_.refine_search_mm : 0.6);
+    const double edge_window_px = coarse_it ? config_.refine_coarse_edge_search_px : config_.refine_edge_search_px;
     // Boundary arcs: read across the arc (its image normal, towards the tip).
     for (int j = 0; j < kNumBoundaries; ++j) {
       const BoundaryColours colours = colours_of(config_, j);
@@ -439,7 +534,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
           normal = -normal;
         }
         double e = 0.0;
-        if (refiner.edge(at.pixel[side], normal, e)) {
+        if (refiner.edge(at.pixel[side], normal, edge_window_px, e)) {
           Reading& rd = readings[static_cast<std::size_t>(n)];
           rd = Reading{};
           rd.s_mm = s;
@@ -456,7 +551,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     summary.arc_readings = arc_readings;
     summary.silhouette_readings = silhouette_readings;
     summary.boundaries = boundaries;
-    if (boundaries < 2 || silhouette_readings < 6) {
+    if ((!coarse_it && boundaries < 2) || silhouette_readings < (coarse_it ? 10 : 6)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     // Robust scale (MAD) and Tukey weights.
@@ -523,7 +618,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       largest_move = std::max(largest_move, std::fabs(rows[static_cast<std::size_t>(i)].dot(delta)));
     }
     const bool small = largest_move < config_.refine_fit_tolerance_px;
-    if (small) {
+    if (small && !coarse_it) {
       summary.converged = true;
       break;
     }

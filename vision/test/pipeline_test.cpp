@@ -86,6 +86,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   solver::PoseSolver pose_solver(f.camera, f.model);
   solver::PoseEstimator estimator(f.camera, f.model);
   int guided_rounds = 0;
+  int region_seeded = 0;
   TemporalPriors temporal;
   const MarkerPriors generic = generic_priors(f.camera, f.model);
   int extracted = 0;
@@ -108,14 +109,17 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
       solver::PoseVector r = f.model.geometry().nominal_pose(25.0, 0.0, 0.0);
       static_cast<void>(pose_solver.solve(observed, solver::SolveMode::Adaptive, r));  // outcome not under test
       // The model-guided rounds (image fit, refinement, re-solves) too.
-      const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, true,
+      // Every fifth frame as if stage 4 had failed: the region-pose path.
+      const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, i % 5 != 0,
                                                   solver::SolveMode::Adaptive, r, GuidedOptions{});
+      region_seeded += guided.from_regions ? 1 : 0;
       guided_rounds += guided.rounds_kept;
     }
     EXPECT_EQ(scope.count(), 0U);
   }
   EXPECT_GT(extracted, 0);
   EXPECT_GT(guided_rounds, 0);  // the refinement ran, so its path was counted
+  EXPECT_GT(region_seeded, 0);  // idem for the region pose
 }
 
 // The model-guided corners on rendered frames: from stage 4's first pose,
@@ -156,6 +160,36 @@ TEST(Pipeline, GuidedCornersLieOnTheTrueCorners) {
   EXPECT_GE(within, compared * 9 / 10);
 }
 
+// Without stage 4's corners (here: declared failed), the rough pose from the
+// labelled regions seeds the image fit, and the estimate still comes.
+TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
+  Fixture f;
+  auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
+  ASSERT_TRUE(created.ok());
+  auto fx = std::move(created.value());
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const ImageView image = f.render_pose(25.0, 30.0, 40.0);
+  const solver::PoseVector truth = f.truth.instruments[0].r;
+  const solver::PoseVector prior = f.model.geometry().nominal_pose(23.0, solver::deg_to_rad(30.0) + 0.15,
+                                                                   solver::deg_to_rad(40.0) - 0.15);
+  ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
+  solver::PoseVector rough = prior;
+  ASSERT_TRUE(fx->pose_from_regions(f.camera, f.model, rough).ok());
+  EXPECT_LT(std::fabs(rough[solver::kTheta] - truth[solver::kTheta]), std::fabs(prior[solver::kTheta] - truth[solver::kTheta]));
+  const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, false,
+                                              solver::SolveMode::Adaptive, prior, GuidedOptions{});
+  EXPECT_TRUE(guided.from_regions);
+  ASSERT_NE(guided.estimate.quality, solver::EstimateQuality::None);
+  EXPECT_LT((f.model.tcp(guided.estimate.r) - f.model.tcp(truth)).norm(), 2.0);
+  // Off: no estimate.
+  GuidedOptions off;
+  off.from_regions = false;
+  ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
+  EXPECT_EQ(guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, off)
+                .estimate.quality,
+            solver::EstimateQuality::None);
+}
+
 TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
   Fixture f;
   auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
@@ -175,8 +209,10 @@ TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
     EXPECT_EQ(fx->result().corners[k].found, stage4[k].found);
   }
   // A failed extraction gives no estimate, whatever corners an older frame left.
+  GuidedOptions no_regions;
+  no_regions.from_regions = false;
   const GuidedResult none =
-      guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, GuidedOptions{});
+      guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, no_regions);
   EXPECT_EQ(none.estimate.quality, solver::EstimateQuality::None);
 }
 

@@ -205,6 +205,8 @@ struct ExtractorConfig {
   double refine_predicted_confidence = 0.5; // a corner whose boundary arc was not measured
   int refine_fit_iterations = 10;            // image fit: Gauss-Newton iterations (each re-measures), <= 20
   double refine_fit_tolerance_px = 0.05;    // ... converged when no point read moves more than this
+  double refine_coarse_search_mm = 2.5;     // a coarse start's first iterations: along-tube window, +/-
+  double refine_coarse_edge_search_px = 10.0;  // ... and silhouette window, +/-
 };
 
 // What fit_pose_to_image did.
@@ -244,9 +246,18 @@ class FeatureExtractor {
   // boundary onto its colour change and the model's silhouette onto the
   // colour-gradient maxima, by robust Gauss-Newton from `r` (a first pose),
   // re-measuring at every iteration. `r` is updated only on success.
+  // `coarse_start`: r is rough (pose_from_regions): three iterations with
+  // wider windows come first (fewer boundaries accepted there).
   Status<VisionError> fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
                                         const solver::InstrumentModel& model, solver::PoseVector& r,
-                                        ImageFitSummary& summary) noexcept;
+                                        ImageFitSummary& summary, bool coarse_start = false) noexcept;
+  // A rough pose from stage 2 alone (ours): x_ch, y_ch, lambda, phi, theta
+  // moved from `r` so that the model's marker middles project onto the
+  // labelled regions' centroids (damped Gauss-Newton, at most 15
+  // iterations); needs 3 labelled markers and an RMS under 12 px. For frames
+  // where stage 4's corners give the solver too little.
+  Status<VisionError> pose_from_regions(const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                                        solver::PoseVector& r) const noexcept;
   // Back to earlier corners after refine_corners (a refinement the caller
   // did not keep): stage 4's, or those of an earlier refinement.
   void restore_stage4_corners() noexcept;

@@ -22,6 +22,10 @@ struct GuidedOptions {
   double max_fit_rms_px = 0.6;
   int min_fit_boundaries = 3;
   int min_fit_silhouette_readings = 12;
+  // When stage 4's corners give no pose: a rough one from the labelled
+  // regions (pose_from_regions), fitted to the image from a coarse start;
+  // kept only if the fit passes the test above and the re-solve succeeds.
+  bool from_regions = true;
 };
 constexpr int kMaxGuidedRounds = 4;
 
@@ -29,6 +33,7 @@ struct GuidedResult {
   solver::Estimate estimate{};
   int rounds_kept = 0;            // rounds whose corners and pose were kept
   ImageFitSummary fit{};          // of the last fit tried
+  bool from_regions = false;      // the rounds started from pose_from_regions
 };
 
 // The rounds alone, from a first estimate solved from stage 4's corners
