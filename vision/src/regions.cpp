@@ -242,8 +242,12 @@ void FeatureExtractor::classify_row(const std::uint8_t* px, int count, int step,
   for (int x = 0; x < wide; ++x) {
     std::uint32_t v = 0U;
     std::memcpy(&v, px, sizeof v);
-    // index(): red in bits 12-17, green 6-11, blue 0-5 of the cell.
-    const std::uint32_t cell = ((v & 0xFCU) << 10U) | ((v & 0xFC00U) >> 4U) | ((v & 0xFC0000U) >> 18U);
+    // index(): red, green, blue from the high bits of the cell down.
+    constexpr std::uint32_t kBits = ClassifierLut::kBitsPerChannel;
+    constexpr std::uint32_t kShift = ClassifierLut::kShift;
+    constexpr std::uint32_t kMask = (1U << kBits) - 1U;
+    const std::uint32_t cell = (((v >> kShift) & kMask) << (2U * kBits)) | (((v >> (8U + kShift)) & kMask) << kBits) |
+                               ((v >> (16U + kShift)) & kMask);
     std::uint8_t c = table[cell];
     if (c == ClassifierLut::kAmbiguous) {
       c = lut_.fine(cell, px[0], px[1], px[2]);
