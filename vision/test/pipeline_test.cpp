@@ -114,10 +114,9 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
 // Stage 1 on the 2x2 grid (the auto rule at 1920x1080) against every pixel,
 // on rendered HD frames: the same markers are labelled, with nearly the same
 // statistics, and the corners move by less than 1 px in the median (0.6 px
-// measured). Single corners can move
-// by more: a corner's position along a border is ill-conditioned (README,
-// Limits), and the class image anchors stage 3's edge search. The accuracy
-// on whole datasets is in docs/vision.md.
+// measured). Single corners can move by more: a corner's position along a
+// border is ill-conditioned (README, Limits), and the class image anchors
+// stage 3's edge search. The accuracy on whole datasets is in docs/vision.md.
 TEST(Pipeline, StepTwoGridKeepsMarkerStatisticsAndCornersAtHd) {
   solver::CameraIntrinsics k = solver::default_pal_camera();
   const double sx = 1920.0 / static_cast<double>(k.width);
