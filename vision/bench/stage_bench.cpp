@@ -91,7 +91,8 @@ void BM_Stage1_Ours_720x576(benchmark::State& state) {
                      ? 1U
                      : 0U;
   }
-  state.counters["ambiguous_pixels_pct"] = 100.0 * static_cast<double>(ambiguous) / static_cast<double>(f.pixels.size() / 3U);
+  const std::size_t pixel_count = f.pixels.size() / 3U;
+  state.counters["ambiguous_pixels_pct"] = 100.0 * static_cast<double>(ambiguous) / static_cast<double>(pixel_count);
 }
 BENCHMARK(BM_Stage1_Ours_720x576)->Unit(benchmark::kMicrosecond);
 

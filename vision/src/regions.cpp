@@ -331,7 +331,7 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
       const int pairs = width_ / 2;
       for (int gx = 0; gx < pairs; ++gx) {
         const auto pair = static_cast<std::uint16_t>(grid[gx] * 0x0101U);
-        std::memcpy(cls_row + 2 * gx, &pair, sizeof pair);
+        std::memcpy(cls_row + 2 * static_cast<std::size_t>(gx), &pair, sizeof pair);
       }
       if ((width_ & 1) != 0) {
         cls_row[width_ - 1] = grid[grid_width - 1];
