@@ -64,8 +64,11 @@ const Frame& hd_frame() {
   return f;
 }
 
-std::unique_ptr<vision::FeatureExtractor> make_extractor() {
-  auto created = vision::FeatureExtractor::create(vision::ExtractorConfig{}, vision::default_color_model());
+// classify_step: 0 = the auto rule (2 for 1920x1080), 1 = every pixel.
+std::unique_ptr<vision::FeatureExtractor> make_extractor(int classify_step = 0) {
+  vision::ExtractorConfig config;
+  config.classify_step = classify_step;
+  auto created = vision::FeatureExtractor::create(config, vision::default_color_model());
   std::unique_ptr<vision::FeatureExtractor> extractor = std::move(created.value());
   return extractor;
 }
@@ -79,11 +82,35 @@ void BM_Stage1_Ours_720x576(benchmark::State& state) {
   state.counters["runs"] = fx->result().regions.run_count;
   state.counters["regions"] = static_cast<double>(fx->result().regions.regions.size());
   state.counters["ambiguous_cells"] = fx->lut().ambiguous_cells();
+  // Share of the frame's pixels whose cell is ambiguous (the second-level read).
+  std::size_t ambiguous = 0U;
+  const std::uint8_t* table = fx->lut().table();
+  for (std::size_t i = 0U; i + 2U < f.pixels.size(); i += 3U) {
+    ambiguous += table[vision::ClassifierLut::index(f.pixels[i], f.pixels[i + 1U], f.pixels[i + 2U])] ==
+                         vision::ClassifierLut::kAmbiguous
+                     ? 1U
+                     : 0U;
+  }
+  const std::size_t pixel_count = f.pixels.size() / 3U;
+  state.counters["ambiguous_pixels_pct"] = 100.0 * static_cast<double>(ambiguous) / static_cast<double>(pixel_count);
 }
 BENCHMARK(BM_Stage1_Ours_720x576)->Unit(benchmark::kMicrosecond);
 
-void run_all_stages(benchmark::State& state, const Frame& f) {
-  auto fx = make_extractor();
+// Stage 1 at 1920x1080: every pixel (step 1) and the auto rule's 2x2 grid.
+void BM_Stage1_Ours_1920x1080(benchmark::State& state) {
+  const Frame& f = hd_frame();
+  auto fx = make_extractor(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(fx->find_regions(f.view()).ok());
+  }
+  state.counters["step"] = fx->classify_step();
+  state.counters["runs"] = fx->result().regions.run_count;
+  state.counters["regions"] = static_cast<double>(fx->result().regions.regions.size());
+}
+BENCHMARK(BM_Stage1_Ours_1920x1080)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
+
+void run_all_stages(benchmark::State& state, const Frame& f, int classify_step = 0) {
+  auto fx = make_extractor(classify_step);
   const vision::MarkerPriors priors = vision::model_priors(f.camera, f.model, f.r);
   int failure = -1;
   for (auto _ : state) {
@@ -99,8 +126,8 @@ void run_all_stages(benchmark::State& state, const Frame& f) {
 void BM_Stages1to4_720x576(benchmark::State& state) { run_all_stages(state, pal_frame()); }
 BENCHMARK(BM_Stages1to4_720x576)->Unit(benchmark::kMicrosecond);
 
-void BM_Stages1to4_1920x1080(benchmark::State& state) { run_all_stages(state, hd_frame()); }
-BENCHMARK(BM_Stages1to4_1920x1080)->Unit(benchmark::kMicrosecond);
+void BM_Stages1to4_1920x1080(benchmark::State& state) { run_all_stages(state, hd_frame(), static_cast<int>(state.range(0))); }
+BENCHMARK(BM_Stages1to4_1920x1080)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 
 #ifdef TCPEST_BENCH_OPENCV
 // The same stage-1 work with OpenCV: RGB -> L*a*b* (float, exact), the

@@ -2,6 +2,7 @@
 // components (8-connected) over runs of equal class, with union-find on the
 // runs and moments accumulated per run in closed form.
 #include <cmath>
+#include <cstring>
 #include <new>
 
 #include "tcpest/vision/features.hpp"
@@ -9,6 +10,12 @@
 namespace tcpest {
 namespace vision {
 namespace {
+
+#if defined(__BYTE_ORDER__) && defined(__ORDER_LITTLE_ENDIAN__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+constexpr bool kLittleEndian = true;
+#else
+constexpr bool kLittleEndian = false;
+#endif
 
 // Run indices are int32 (they are also union-find parents); never negative.
 std::size_t idx(std::int32_t i) noexcept { return static_cast<std::size_t>(i); }
@@ -154,7 +161,8 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   if (config.max_width <= 0 || config.max_height <= 0 || config.max_width > 8192 || config.max_height > 8192 ||
       config.skeleton_samples < 8 || config.skeleton_samples > static_cast<int>(kMaxSkeletonSamples) ||
       config.irls_iterations < 1 || config.irls_iterations > 50 || config.profile_samples < 16 ||
-      config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0)) {
+      config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0) ||
+      config.classify_step < 0 || config.classify_step > 2) {
     return R::failure(VisionError::BadParameter);
   }
   std::unique_ptr<FeatureExtractor> e(new (std::nothrow) FeatureExtractor());
@@ -173,7 +181,10 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   e->runs_.reset(new (std::nothrow) Run[static_cast<std::size_t>(e->max_runs_)]);
   e->region_of_root_.reset(new (std::nothrow) std::int32_t[static_cast<std::size_t>(e->max_runs_)]);
   e->candidates_.reset(new (std::nothrow) Region[kMaxCandidates]);
-  if (e->classes_ == nullptr || e->runs_ == nullptr || e->region_of_root_ == nullptr || e->candidates_ == nullptr) {
+  const auto grid_row_bytes = static_cast<std::size_t>(config.max_width);
+  e->grid_row_.reset(new (std::nothrow) std::uint8_t[grid_row_bytes]);
+  if (e->classes_ == nullptr || e->runs_ == nullptr || e->region_of_root_ == nullptr || e->candidates_ == nullptr ||
+      e->grid_row_ == nullptr) {
     return R::failure(VisionError::BadParameter);
   }
   return R::success(std::move(e));
@@ -187,6 +198,97 @@ std::int32_t FeatureExtractor::find_root(std::int32_t run) noexcept {
     i = runs_[idx(i)].parent;
   }
   return i;
+}
+
+int classify_step_for(int configured_step, int width, int height) noexcept {
+  if (configured_step == 1 || configured_step == 2) {
+    return configured_step;
+  }
+  const std::int64_t pixels = static_cast<std::int64_t>(width) * static_cast<std::int64_t>(height);
+  return pixels >= kAutoStepMinPixels ? 2 : 1;
+}
+
+namespace {
+
+// First index in [x, count) whose class differs from `cls`, or count. Spans
+// of one class (background most of all) are skipped eight at a time.
+int span_end(const std::uint8_t* classes, int x, int count, std::uint8_t cls) noexcept {
+  const std::uint64_t pattern = std::uint64_t{cls} * 0x0101010101010101ULL;
+  while (x + 8 <= count) {
+    std::uint64_t word = 0U;
+    std::memcpy(&word, classes + x, sizeof word);
+    if (word != pattern) {
+      break;
+    }
+    x += 8;
+  }
+  while (x < count && classes[x] == cls) {
+    ++x;
+  }
+  return x;
+}
+
+}  // namespace
+
+void FeatureExtractor::classify_row(const std::uint8_t* px, int count, int step, std::uint8_t* out) const noexcept {
+  // One table read per pixel; the second level only in ambiguous cells (a
+  // few per cent of the colours, rare in a frame).
+  const std::uint8_t* table = lut_.table();
+  const std::size_t stride = 3U * static_cast<std::size_t>(step);
+  // All pixels but the last are read as one 4-byte word (the pixel and the
+  // next byte of the row): fewer instructions per pixel than three byte
+  // loads (measured, docs/vision.md). Byte loads on a big-endian target.
+  const int wide = kLittleEndian ? count - 1 : 0;
+  for (int x = 0; x < wide; ++x) {
+    std::uint32_t v = 0U;
+    std::memcpy(&v, px, sizeof v);
+    // index(): red, green, blue from the high bits of the cell down.
+    constexpr std::uint32_t kBits = ClassifierLut::kBitsPerChannel;
+    constexpr std::uint32_t kShift = ClassifierLut::kShift;
+    constexpr std::uint32_t kMask = (1U << kBits) - 1U;
+    const std::uint32_t cell = (((v >> kShift) & kMask) << (2U * kBits)) | (((v >> (8U + kShift)) & kMask) << kBits) |
+                               ((v >> (16U + kShift)) & kMask);
+    std::uint8_t c = table[cell];
+    if (c == ClassifierLut::kAmbiguous) {
+      c = lut_.fine(cell, px[0], px[1], px[2]);
+    }
+    out[x] = c;
+    px += stride;
+  }
+  for (int x = wide > 0 ? wide : 0; x < count; ++x) {
+    const std::uint32_t cell = ClassifierLut::index(px[0], px[1], px[2]);
+    std::uint8_t c = table[cell];
+    if (c == ClassifierLut::kAmbiguous) {
+      c = lut_.fine(cell, px[0], px[1], px[2]);
+    }
+    out[x] = c;
+    px += stride;
+  }
+}
+
+bool FeatureExtractor::cut_runs(const std::uint8_t* classes, int count, int grid_y, std::int32_t& run_count) noexcept {
+  int x = 0;
+  // Every iteration consumes at least one class: at most `count` iterations.
+  while (x < count) {
+    x = span_end(classes, x, count, 0U);
+    if (x >= count) {
+      break;
+    }
+    const std::uint8_t cls = classes[x];
+    const int start = x;
+    x = span_end(classes, x + 1, count, cls);
+    if (run_count >= max_runs_) {
+      return false;
+    }
+    Run& r = runs_[idx(run_count)];
+    r.parent = run_count;
+    r.y = static_cast<std::int16_t>(grid_y);
+    r.x0 = static_cast<std::int16_t>(start);
+    r.x1 = static_cast<std::int16_t>(x);
+    r.cls = cls;
+    ++run_count;
+  }
+  return true;
 }
 
 Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexcept {
@@ -214,45 +316,44 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
   width_ = image.width;
   height_ = image.height;
   image_ = image;
-  const std::uint8_t* table = lut_.table();
+  const int step = classify_step_for(config_.classify_step, width_, height_);
+  step_ = step;
+  // The grid: pixels (step * gx, step * gy), which stand for the step x step
+  // block starting there.
+  const int grid_width = (width_ + step - 1) / step;
+  const int grid_height = (height_ + step - 1) / step;
+  const auto row_bytes = static_cast<std::size_t>(width_);
   std::int32_t run_count = 0;
   std::int32_t prev_begin = 0;
   std::int32_t prev_end = 0;
-  for (int y = 0; y < height_; ++y) {
-    const std::uint8_t* px = image.row(y);
-    std::uint8_t* cls_row = classes_.get() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width_);
+  for (int gy = 0; gy < grid_height; ++gy) {
+    const int y = gy * step;
+    std::uint8_t* cls_row = classes_.get() + static_cast<std::size_t>(y) * row_bytes;
     const std::int32_t row_begin = run_count;
-    // Classify and cut the row into runs of one class in the same pass.
-    std::uint8_t previous = 0U;
-    int run_start = 0;
-    for (int x = 0; x <= width_; ++x) {
-      std::uint8_t c = 0U;
-      if (x < width_) {
-        c = table[ClassifierLut::index(px[0], px[1], px[2])];
-        if (c == ClassifierLut::kAmbiguous) {
-          c = lut_.fine(ClassifierLut::index(px[0], px[1], px[2]), px[0], px[1], px[2]);
-        }
-        cls_row[x] = c;
-        px += 3;
+    const std::uint8_t* grid_classes = cls_row;
+    if (step == 1) {
+      classify_row(image.row(y), width_, 1, cls_row);
+    } else {
+      // Grid classes first, then the full-size class image (stage 3 reads
+      // it): each class fills its block of the row and the rows below.
+      std::uint8_t* grid = grid_row_.get();
+      classify_row(image.row(y), grid_width, 2, grid);
+      grid_classes = grid;
+      const int pairs = width_ / 2;
+      for (int gx = 0; gx < pairs; ++gx) {
+        const auto pair = static_cast<std::uint16_t>(grid[gx] * 0x0101U);
+        std::memcpy(cls_row + 2 * static_cast<std::size_t>(gx), &pair, sizeof pair);
       }
-      if (c == previous) {
-        continue;
+      if ((width_ & 1) != 0) {
+        cls_row[width_ - 1] = grid[grid_width - 1];
       }
-      if (previous != 0U) {
-        if (run_count >= max_runs_) {
-          out.too_many_regions = true;
-          return Status<VisionError>::failure(VisionError::TooManyRuns);
-        }
-        Run& r = runs_[idx(run_count)];
-        r.parent = run_count;
-        r.y = static_cast<std::int16_t>(y);
-        r.x0 = static_cast<std::int16_t>(run_start);
-        r.x1 = static_cast<std::int16_t>(x);
-        r.cls = previous;
-        ++run_count;
+      if (y + 1 < height_) {
+        std::memcpy(cls_row + row_bytes, cls_row, row_bytes);
       }
-      run_start = x;
-      previous = c;
+    }
+    if (!cut_runs(grid_classes, grid_width, gy, run_count)) {
+      out.too_many_regions = true;
+      return Status<VisionError>::failure(VisionError::TooManyRuns);
     }
     // 8-connectivity with the previous row: runs overlap when
     // [x0 - 1, x1] and [p.x0, p.x1) intersect.
@@ -292,13 +393,15 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
   for (std::int32_t i = 0; i < run_count; ++i) {
     region_of_root_[idx(find_root(i))] += runs_[idx(i)].x1 - runs_[idx(i)].x0;
   }
+  // Areas in pixels: a grid point stands for step x step pixels.
+  const std::int32_t cell_area = step * step;
   std::size_t candidate_count = 0U;
   bool overflow = false;
   for (std::int32_t i = 0; i < run_count; ++i) {
     const std::int32_t root = find_root(i);
     std::int32_t slot = -1;
     if (root == i) {
-      const std::int32_t area = region_of_root_[idx(i)];
+      const std::int32_t area = region_of_root_[idx(i)] * cell_area;
       if (area >= config_.min_region_area) {
         if (candidate_count < kMaxCandidates) {
           slot = static_cast<std::int32_t>(candidate_count);
@@ -345,20 +448,31 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
     }
     reg.y_max = r.y;  // rows are visited in order
   }
-  // Raw sums to centroid and central moments; drop the small ones.
+  // Raw sums to centroid and central moments (grid units), then pixels: a
+  // grid point (gx, gy) is pixel (step gx, step gy) and stands for a step x
+  // step cell, whose footprint variance step^2 / 12 the scaled 1/12 gives.
   std::size_t kept = 0U;
+  const auto scale = static_cast<double>(step);
+  const std::int32_t last_x = width_ - 1;
+  const std::int32_t last_y = height_ - 1;
   for (std::size_t i = 0U; i < candidate_count; ++i) {
     Region reg = candidates_[i];
-    if (reg.area < config_.min_region_area) {
-      continue;
-    }
     const double n = static_cast<double>(reg.area);
     const double mx = reg.centroid.x / n;
     const double my = reg.centroid.y / n;
-    reg.cov_xx = reg.cov_xx / n - mx * mx + 1.0 / 12.0;  // + pixel footprint
-    reg.cov_xy = reg.cov_xy / n - mx * my;
-    reg.cov_yy = reg.cov_yy / n - my * my + 1.0 / 12.0;
-    reg.centroid = Point{mx, my};
+    reg.cov_xx = scale * scale * (reg.cov_xx / n - mx * mx + 1.0 / 12.0);  // + the cell's footprint
+    reg.cov_xy = scale * scale * (reg.cov_xy / n - mx * my);
+    reg.cov_yy = scale * scale * (reg.cov_yy / n - my * my + 1.0 / 12.0);
+    reg.centroid = Point{scale * mx, scale * my};
+    reg.area *= cell_area;
+    if (reg.area < config_.min_region_area) {
+      continue;
+    }
+    // The bounding box of the region's cells in the class image.
+    reg.x_min *= step;
+    reg.y_min *= step;
+    reg.x_max = reg.x_max * step + step - 1 < last_x ? reg.x_max * step + step - 1 : last_x;
+    reg.y_max = reg.y_max * step + step - 1 < last_y ? reg.y_max * step + step - 1 : last_y;
     reg.update_shape();
     candidates_[kept] = reg;
     ++kept;

@@ -115,6 +115,110 @@ TEST(Regions, BadAndOversizedImagesAreErrors) {
   EXPECT_FALSE(fx->find_corners(big.view()).ok());
 }
 
+std::unique_ptr<FeatureExtractor> make_with_step(int w, int h, int step) {
+  ExtractorConfig c;
+  c.max_width = w;
+  c.max_height = h;
+  c.classify_step = step;
+  auto e = FeatureExtractor::create(c, default_color_model());
+  EXPECT_TRUE(e.ok());
+  return std::move(e.value());
+}
+
+// Pseudo-random colours (a fixed LCG): every branch of the row classifier,
+// ambiguous cells included, on an odd-sized image (the last pixel of a row
+// and the last row are special cases of the wide loads and of the grid).
+Canvas random_canvas(int w, int h) {
+  Canvas canvas(w, h);
+  std::uint32_t state = 12345U;
+  for (std::uint8_t& v : canvas.px) {
+    state = state * 1664525U + 1013904223U;
+    v = static_cast<std::uint8_t>(state >> 24U);
+  }
+  // Some marker colours too, so that there are runs to cut.
+  canvas.fill_rect(3, 2, 20, 9, kBlue);
+  canvas.fill_rect(21, 10, w, 14, kYellow);
+  return canvas;
+}
+
+TEST(Regions, ClassImageIsTheLookupTableClassOfEveryPixel) {
+  const Canvas canvas = random_canvas(37, 23);
+  auto fx = make_with_step(37, 23, 1);
+  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  EXPECT_EQ(fx->classify_step(), 1);
+  int ambiguous = 0;
+  for (int y = 0; y < canvas.h; ++y) {
+    for (int x = 0; x < canvas.w; ++x) {
+      const std::uint8_t* p = &canvas.px[static_cast<std::size_t>((y * canvas.w + x) * 3)];
+      ambiguous += fx->lut().table()[ClassifierLut::index(p[0], p[1], p[2])] == ClassifierLut::kAmbiguous ? 1 : 0;
+      ASSERT_EQ(fx->class_image()[y * canvas.w + x], static_cast<std::uint8_t>(fx->lut().classify(p[0], p[1], p[2])))
+          << "pixel " << x << ", " << y;
+    }
+  }
+  EXPECT_GT(ambiguous, 0);  // the second level was exercised
+}
+
+TEST(Regions, StepTwoClassImageRepeatsTheGridClassOverEachBlock) {
+  const Canvas canvas = random_canvas(37, 23);
+  auto fx = make_with_step(37, 23, 2);
+  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  EXPECT_EQ(fx->classify_step(), 2);
+  for (int y = 0; y < canvas.h; ++y) {
+    for (int x = 0; x < canvas.w; ++x) {
+      const int gx = x - x % 2;
+      const int gy = y - y % 2;
+      const std::uint8_t* p = &canvas.px[static_cast<std::size_t>((gy * canvas.w + gx) * 3)];
+      ASSERT_EQ(fx->class_image()[y * canvas.w + x], static_cast<std::uint8_t>(fx->lut().classify(p[0], p[1], p[2])))
+          << "pixel " << x << ", " << y;
+    }
+  }
+}
+
+TEST(Regions, StepTwoRegionsKeepAreaCentroidAxesInPixels) {
+  Canvas canvas(200, 120);
+  canvas.fill_rect(10, 20, 70, 40, kBlue);      // 60 x 20
+  canvas.fill_rect(101, 11, 121, 91, kYellow);  // 20 x 80, odd offsets
+  auto fx = make_with_step(200, 120, 2);
+  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  const RegionSet& set = fx->result().regions;
+  ASSERT_EQ(set.regions.size(), 2U);
+  for (const Region& r : set.regions) {
+    if (r.cls == PixelClass::Blue) {
+      // Even-aligned: 30 x 10 grid points of 2 x 2 pixels.
+      EXPECT_EQ(r.area, 1200);
+      EXPECT_NEAR(r.centroid.x, 39.5, 0.5);
+      EXPECT_NEAR(r.centroid.y, 29.5, 0.5);
+      EXPECT_NEAR(r.half_major, 60.0 / std::sqrt(3.0), 0.05);
+      EXPECT_NEAR(r.half_minor, 20.0 / std::sqrt(3.0), 0.05);
+      EXPECT_EQ(r.x_min, 10);
+      EXPECT_EQ(r.x_max, 69);
+      EXPECT_EQ(r.y_min, 20);
+      EXPECT_EQ(r.y_max, 39);
+    } else {
+      EXPECT_EQ(r.cls, PixelClass::Yellow);
+      EXPECT_NEAR(r.area, 1600, 200);
+      EXPECT_NEAR(r.centroid.x, 110.5, 0.5);
+      EXPECT_NEAR(r.centroid.y, 50.5, 0.5);
+      EXPECT_NEAR(r.half_major, 80.0 / std::sqrt(3.0), 1.2);
+      EXPECT_NEAR(r.half_minor, 20.0 / std::sqrt(3.0), 1.2);
+      EXPECT_NEAR(std::fabs(r.orientation_rad), solver::kPi / 2.0, 1e-6);
+    }
+  }
+}
+
+TEST(Regions, AutoStepIsTwoFromFourPalFramesOfPixelsOn) {
+  EXPECT_EQ(classify_step_for(0, 720, 576), 1);
+  EXPECT_EQ(classify_step_for(0, 1280, 720), 1);
+  EXPECT_EQ(classify_step_for(0, 1440, 1152), 2);  // exactly 4 x PAL
+  EXPECT_EQ(classify_step_for(0, 1920, 1080), 2);
+  EXPECT_EQ(classify_step_for(1, 1920, 1080), 1);
+  EXPECT_EQ(classify_step_for(2, 720, 576), 2);
+  auto fx = make(1920, 1080);
+  Canvas hd(1920, 1080);
+  ASSERT_TRUE(fx->find_regions(hd.view()).ok());
+  EXPECT_EQ(fx->classify_step(), 2);
+}
+
 TEST(Regions, CreateRejectsBadConfiguration) {
   ExtractorConfig c;
   c.max_width = 0;
@@ -122,6 +226,11 @@ TEST(Regions, CreateRejectsBadConfiguration) {
   ColorModel bad = default_color_model();
   bad.blue.cov_aa = -1.0;
   EXPECT_FALSE(FeatureExtractor::create(ExtractorConfig{}, bad).ok());
+  ExtractorConfig step;
+  step.classify_step = 3;
+  EXPECT_FALSE(FeatureExtractor::create(step, default_color_model()).ok());
+  step.classify_step = -1;
+  EXPECT_FALSE(FeatureExtractor::create(step, default_color_model()).ok());
 }
 
 }  // namespace

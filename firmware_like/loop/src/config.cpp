@@ -132,6 +132,19 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
       return S::failure(doc.error_at(doc.find("loop.solve_mode"), "loop.solve_mode", "expected adaptive or fixed"));
     }
   }
+  if (doc.has("loop.classify_step")) {
+    char text[8] = {};
+    TCPEST_TRY(doc.text("loop.classify_step", text, sizeof text));
+    if (std::strcmp(text, "auto") == 0) {
+      l.classify_step = 0;
+    } else if (std::strcmp(text, "1") == 0) {
+      l.classify_step = 1;
+    } else if (std::strcmp(text, "2") == 0) {
+      l.classify_step = 2;
+    } else {
+      return S::failure(doc.error_at(doc.find("loop.classify_step"), "loop.classify_step", "expected auto, 1 or 2"));
+    }
+  }
   TCPEST_TRY(read_int_as(doc, "loop.track_drop_after", 1, 1000, l.track_drop_after));
   TCPEST_TRY(read_int_as(doc, "loop.min_corners_valid", 4, 12, l.min_corners_valid));
   TCPEST_TRY(read_double(doc, "loop.max_rms_valid_px", 0.0, 1000.0, l.max_rms_valid_px));

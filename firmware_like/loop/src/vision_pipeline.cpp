@@ -15,7 +15,8 @@ Status<StageError> from_vision(const Status<vision::VisionError>& s) noexcept {
 }  // namespace
 
 Result<std::unique_ptr<VisionPipeline>, vision::VisionError> VisionPipeline::create(
-    const solver::CameraModel& camera, const solver::InstrumentModel& model, const vision::ColorModel& colors) noexcept {
+    const solver::CameraModel& camera, const solver::InstrumentModel& model, const vision::ColorModel& colors,
+    int classify_step) noexcept {
   using R = Result<std::unique_ptr<VisionPipeline>, vision::VisionError>;
   std::unique_ptr<VisionPipeline> p(new (std::nothrow) VisionPipeline(camera, model));
   if (!p) {
@@ -24,6 +25,7 @@ Result<std::unique_ptr<VisionPipeline>, vision::VisionError> VisionPipeline::cre
   vision::ExtractorConfig config;
   config.max_width = camera.width();
   config.max_height = camera.height();
+  config.classify_step = classify_step;
   auto extractor = vision::FeatureExtractor::create(config, colors);
   if (!extractor.ok()) {
     return R::failure(extractor.error());

@@ -33,7 +33,7 @@ TEST(LoopConfig, ReadsEverySection) {
   LoopConfig config;
   const char* text =
       "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
-      "  solve_mode: fixed\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
+      "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
       "  outlier_rounds: 0\n  guided_rounds: 0\n"
       "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
       "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n";
@@ -45,6 +45,7 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_EQ(config.loop.frames, 100U);
   EXPECT_STREQ(config.loop.source, "/dev/video0");
   EXPECT_EQ(config.loop.solve_mode, SolveModeSetting::kFixedModel);
+  EXPECT_EQ(config.loop.classify_step, 1);
   EXPECT_EQ(config.loop.track_drop_after, 3);
   EXPECT_EQ(config.loop.min_corners_valid, 8);
   EXPECT_DOUBLE_EQ(config.loop.max_rms_valid_px, 1.5);
@@ -70,6 +71,11 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
   ASSERT_FALSE(s.ok());
   s = parse("rt:\n  lock_memory: maybe\n", config);
   ASSERT_FALSE(s.ok());
+  s = parse("loop:\n  classify_step: 3\n", config);
+  ASSERT_FALSE(s.ok());
+  EXPECT_STREQ(s.error().field, "loop.classify_step");
+  ASSERT_TRUE(parse("loop:\n  classify_step: auto\n", config).ok());
+  EXPECT_EQ(config.loop.classify_step, 0);
 }
 
 }  // namespace

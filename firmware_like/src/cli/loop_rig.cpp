@@ -223,7 +223,8 @@ int LoopRig::open_bus(const char* log_path) noexcept {
 }
 
 int LoopRig::build() noexcept {
-  auto vision_pipeline = loop::VisionPipeline::create(models.camera, models.instrument, vision::default_color_model());
+  auto vision_pipeline = loop::VisionPipeline::create(models.camera, models.instrument, vision::default_color_model(),
+                                                      config.loop.classify_step);
   if (!vision_pipeline.ok()) {
     std::fprintf(stderr, "tcpest %s: feature extraction: %s\n", request.command,
                  vision::to_string(vision_pipeline.error()));

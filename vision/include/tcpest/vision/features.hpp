@@ -194,6 +194,13 @@ struct ExtractorConfig {
   // most are misplaced).
   double min_corner_confidence = 0.45;
   double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
+  // Stage 1 classifies every classify_step-th pixel in x and y (1 or 2) and
+  // builds the regions on that grid (moments scaled back to pixels); the
+  // class image stays full size (each grid class fills its step x step
+  // block) and stages 3-4 read the full-resolution RGB image. 0 = auto: 2
+  // when the grid still has at least as many points as a PAL 720x576 frame
+  // (kAutoStepMinPixels, e.g. 1920x1080), else 1 (docs/vision.md).
+  int classify_step = 0;
   // Model-guided corners (refine_corners, docs/vision.md).
   int refine_arc_samples = 16;              // points of each boundary's visible arc
   double refine_arc_span = 0.8;             // share of the half arc used (its ends graze the silhouette)
@@ -218,6 +225,12 @@ struct ImageFitSummary {
   double rms_px = 0.0;          // robust RMS of the readings' residuals at the result
   bool converged = false;
 };
+
+// The auto rule of ExtractorConfig::classify_step: step 2 from 4 x 720 x 576
+// pixels on.
+constexpr std::int64_t kAutoStepMinPixels = std::int64_t{4} * 720 * 576;
+// The step stage 1 uses for an image of this size (resolves 0 = auto).
+int classify_step_for(int configured_step, int width, int height) noexcept;
 
 class FeatureExtractor {
  public:
@@ -271,6 +284,8 @@ class FeatureExtractor {
   const ExtractorConfig& config() const noexcept { return config_; }
   // Class of each pixel of the last frame (row-major, width() per row).
   const std::uint8_t* class_image() const noexcept { return classes_.get(); }
+  // The grid step stage 1 used on the last frame (1 = every pixel).
+  int classify_step() const noexcept { return step_; }
   int width() const noexcept { return width_; }
   int height() const noexcept { return height_; }
 
@@ -283,6 +298,10 @@ class FeatureExtractor {
     std::uint8_t cls = 0;
   };
   std::int32_t find_root(std::int32_t run) noexcept;
+  // Stage 1's row work: classes of `count` pixels `step` apart into `out`,
+  // then the row's runs (grid coordinates) appended from run_count.
+  void classify_row(const std::uint8_t* px, int count, int step, std::uint8_t* out) const noexcept;
+  bool cut_runs(const std::uint8_t* classes, int count, int grid_y, std::int32_t& run_count) noexcept;
   // Mean luminance of a 5x5 patch, -1 outside the image.
   double patch_luminance(double x, double y) const noexcept;
   // Orientation cue of a chain: the shaft before marker 1 is dark, the
@@ -297,9 +316,11 @@ class FeatureExtractor {
   std::unique_ptr<Run[]> runs_;
   std::unique_ptr<std::int32_t[]> region_of_root_;
   std::unique_ptr<Region[]> candidates_;
+  std::unique_ptr<std::uint8_t[]> grid_row_;  // one row of grid classes (step > 1)
   std::int32_t max_runs_ = 0;
   int width_ = 0;
   int height_ = 0;
+  int step_ = 1;
   Extraction result_{};
   std::array<Border, 2> local_borders_{};  // stage 4's borders around one boundary
   ImageView image_{};  // the frame of find_regions(), for the orientation cue

@@ -34,6 +34,7 @@ struct LoopSettings {
   bool replay_loop = false;            // replay sources start again at their end
   char v4l2_format[16] = "yuyv";       // yuyv | mjpeg | rgb24
   SolveModeSetting solve_mode = SolveModeSetting::kAdaptive;
+  int classify_step = 0;               // vision stage 1 grid: 0 = auto (2 from 4 PAL frames of pixels on), 1, 2
   int track_drop_after = 5;            // consecutive failed frames before the track is dropped
   int min_corners_valid = 6;           // fewer corners used: status "degraded"
   double max_rms_valid_px = 2.0;       // larger RMS reprojection error: status "degraded"

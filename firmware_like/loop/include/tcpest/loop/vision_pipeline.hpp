@@ -18,9 +18,12 @@ namespace loop {
 class VisionPipeline final : public FeaturePipeline {
  public:
   // Allocates the extractor for the camera's image size (start-up only).
+  // classify_step: stage 1's grid (vision::ExtractorConfig::classify_step,
+  // `loop.classify_step`; 0 = auto).
   static Result<std::unique_ptr<VisionPipeline>, vision::VisionError> create(const solver::CameraModel& camera,
                                                                             const solver::InstrumentModel& model,
-                                                                            const vision::ColorModel& colors) noexcept;
+                                                                            const vision::ColorModel& colors,
+                                                                            int classify_step = 0) noexcept;
 
   const char* name() const noexcept override { return "vision"; }
   Status<StageError> classify(const ImageView& image) noexcept override;
