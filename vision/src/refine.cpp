@@ -315,11 +315,12 @@ constexpr int kMaxFitIterations = 20;
 constexpr int kCoarseIterations = 3;  // wide-window iterations from a coarse start
 
 // Where a reading's model point is at the frames f.
+// `boundary_frames`: the centreline frame at every boundary for f.
 bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& f,
-             const Reading& reading, solver::Vec2& pixel) noexcept {
+             const std::array<solver::CentrelineFrame, kNumBoundaries>& boundary_frames, const Reading& reading,
+             solver::Vec2& pixel) noexcept {
   if (reading.arc) {
-    const solver::CentrelineFrame cf =
-        model.centreline(f, model.geometry().boundaries_mm[static_cast<std::size_t>(reading.boundary)]);
+    const solver::CentrelineFrame& cf = boundary_frames[static_cast<std::size_t>(reading.boundary)];
     const solver::Vec3 x = cf.position + model.geometry().radius_mm * (std::cos(reading.angle_rad) * cf.normal +
                                                                         std::sin(reading.angle_rad) * cf.binormal);
     return camera.project(x, pixel);
@@ -564,10 +565,15 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
         Eigen::Matrix<double, solver::kNumParams, solver::kNumParams>::Zero();
     Eigen::Matrix<double, solver::kNumParams, 1> rhs = Eigen::Matrix<double, solver::kNumParams, 1>::Zero();
     std::array<solver::PoseFrames, solver::kNumParams> shifted{};
+    std::array<std::array<solver::CentrelineFrame, kNumBoundaries>, solver::kNumParams> shifted_boundaries{};
     for (int k = 0; k < solver::kNumParams; ++k) {
+      const auto kk = static_cast<std::size_t>(k);
       solver::PoseVector xk = x;
       xk[k] += step_h[k];
-      shifted[static_cast<std::size_t>(k)] = model.frames(xk);
+      shifted[kk] = model.frames(xk);
+      for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
+        shifted_boundaries[kk][j] = model.centreline(shifted[kk], g.boundaries_mm[j]);
+      }
     }
     double sum_w = 0.0;
     double sum_wr2 = 0.0;
@@ -584,7 +590,8 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       bool ok = true;
       for (int k = 0; k < solver::kNumParams && ok; ++k) {
         solver::Vec2 pk;
-        ok = predict(camera, model, shifted[static_cast<std::size_t>(k)], rd, pk);
+        ok = predict(camera, model, shifted[static_cast<std::size_t>(k)], shifted_boundaries[static_cast<std::size_t>(k)],
+                     rd, pk);
         row[k] = rd.direction.dot(pk - predicted[static_cast<std::size_t>(i)]) / step_h[k];
       }
       if (!ok || !row.allFinite()) {
