@@ -222,6 +222,20 @@ CentrelineFrame InstrumentModel::centreline(const PoseFrames& f, double s_mm) co
   return c;
 }
 
+bool circle_limb_angles(const CentrelineFrame& cf, double radius_mm, double& limb_centre_rad,
+                        double& limb_half_rad) noexcept {
+  // model.md: A = n . c, B = b . c, rho = hypot(A, B), a = atan2(B, A) +/- acos(-R / rho).
+  const double a_coef = cf.normal.dot(cf.position);
+  const double b_coef = cf.binormal.dot(cf.position);
+  const double rho = std::hypot(a_coef, b_coef);
+  if (!(rho > radius_mm)) {
+    return false;
+  }
+  limb_centre_rad = std::atan2(b_coef, a_coef);
+  limb_half_rad = std::acos(-radius_mm / rho);
+  return true;
+}
+
 CircleLimbs InstrumentModel::limbs(const CameraModel& camera, const PoseFrames& f, double s_mm) const noexcept {
   CircleLimbs out;
   const CentrelineFrame cf = centreline(f, s_mm);
@@ -231,14 +245,11 @@ CircleLimbs InstrumentModel::limbs(const CameraModel& camera, const PoseFrames& 
     return out;
   }
   const double radius = g_.radius_mm;
-  const double a_coef = cf.normal.dot(cf.position);
-  const double b_coef = cf.binormal.dot(cf.position);
-  const double rho = std::hypot(a_coef, b_coef);
-  if (!(rho > radius)) {
+  double base = 0.0;
+  double delta = 0.0;
+  if (!circle_limb_angles(cf, radius, base, delta)) {
     return out;
   }
-  const double base = std::atan2(b_coef, a_coef);
-  const double delta = std::acos(-radius / rho);
   const Vec2 image_axis = c_jac * cf.tangent;
   std::array<bool, 2> valid{};
   std::array<int, 2> sides{};

@@ -64,6 +64,31 @@ BoundaryColours colours_of(const ExtractorConfig& config, int j) noexcept {
   return c;
 }
 
+// The model's silhouette point of `side` at arc length s and its outward
+// image normal (away from the centreline's projection); false when the
+// model gives no limb point there.
+bool silhouette_at(const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                   const solver::PoseFrames& f, double s_mm, std::size_t side, solver::Vec2& point,
+                   solver::Vec2& normal) noexcept {
+  const solver::CircleLimbs at = model.limbs(camera, f, s_mm);
+  const solver::CircleLimbs next = model.limbs(camera, f, s_mm + kDsMm);
+  solver::Vec2 centre;
+  if (!at.present[side] || !next.present[side] || !camera.project(model.centreline(f, s_mm).position, centre)) {
+    return false;
+  }
+  solver::Vec2 tangent = next.pixel[side] - at.pixel[side];
+  if (!(tangent.norm() > 0.0)) {
+    return false;
+  }
+  tangent.normalize();
+  normal = solver::Vec2(-tangent.y(), tangent.x());
+  if (normal.dot(at.pixel[side] - centre) < 0.0) {
+    normal = -normal;
+  }
+  point = at.pixel[side];
+  return true;
+}
+
 class Refiner {
  public:
   Refiner(const ImageView& image, const ColorModel& colors, const ExtractorConfig& config,
@@ -76,14 +101,12 @@ class Refiner {
     const solver::CentrelineFrame cf = model_.centreline(frames_, s_mm);
     const solver::CentrelineFrame cf2 = model_.centreline(frames_, s_mm + kDsMm);
     const double radius = model_.geometry().radius_mm;
-    const double a_coef = cf.normal.dot(cf.position);
-    const double b_coef = cf.binormal.dot(cf.position);
-    const double rho = std::hypot(a_coef, b_coef);
-    if (!(rho > radius)) {
+    double base = 0.0;
+    double limb_half = 0.0;
+    if (!solver::circle_limb_angles(cf, radius, base, limb_half)) {
       return false;
     }
-    const double base = std::atan2(b_coef, a_coef);
-    const double half = solver::kPi - std::acos(-radius / rho);  // half the visible arc (facing the camera)
+    const double half = solver::kPi - limb_half;  // half the visible arc (facing the camera)
     const int n = std::min(std::max(config_.refine_arc_samples, 3), kMaxArcSamples);
     std::array<double, kMaxArcSamples> shifts{};
     int count = 0;
@@ -138,24 +161,13 @@ class Refiner {
       if ((j == 0 && o < 0.0) || (j == kNumBoundaries - 1 && o > 0.0) || s < 0.0 || s > length) {
         continue;
       }
-      const solver::CircleLimbs at = model_.limbs(camera_, frames_, s);
-      const solver::CircleLimbs next = model_.limbs(camera_, frames_, s + kDsMm);
-      solver::Vec2 centre;
-      if (!at.present[side] || !next.present[side] ||
-          !camera_.project(model_.centreline(frames_, s).position, centre)) {
+      solver::Vec2 point;
+      solver::Vec2 normal;
+      if (!silhouette_at(camera_, model_, frames_, s, side, point, normal)) {
         continue;
-      }
-      solver::Vec2 tangent = next.pixel[side] - at.pixel[side];
-      if (!(tangent.norm() > 0.0)) {
-        continue;
-      }
-      tangent.normalize();
-      solver::Vec2 normal(-tangent.y(), tangent.x());
-      if (normal.dot(at.pixel[side] - centre) < 0.0) {
-        normal = -normal;
       }
       double e = 0.0;
-      if (edge(at.pixel[side], normal, config_.refine_edge_search_px, e)) {
+      if (edge(point, normal, config_.refine_edge_search_px, e)) {
         os[static_cast<std::size_t>(count)] = o;
         es[static_cast<std::size_t>(count)] = e;
         ++count;
@@ -463,14 +475,12 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       const double s_j = g.boundaries_mm[static_cast<std::size_t>(j)];
       const solver::CentrelineFrame cf = model.centreline(f, s_j);
       const solver::CentrelineFrame cf2 = model.centreline(f, s_j + kDsMm);
-      const double a_coef = cf.normal.dot(cf.position);
-      const double b_coef = cf.binormal.dot(cf.position);
-      const double rho = std::hypot(a_coef, b_coef);
-      if (!(rho > radius)) {
+      double base = 0.0;
+      double limb_half = 0.0;
+      if (!solver::circle_limb_angles(cf, radius, base, limb_half)) {
         continue;
       }
-      const double base = std::atan2(b_coef, a_coef);
-      const double half = solver::kPi - std::acos(-radius / rho);
+      const double half = solver::kPi - limb_half;
       int on_this = 0;
       for (int i = 0; i < kFitArcSamples; ++i) {
         const double u = -config_.refine_arc_span + 2.0 * config_.refine_arc_span * i / (kFitArcSamples - 1.0);
@@ -519,30 +529,20 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     for (std::size_t side = 0U; side < 2U; ++side) {
       for (int i = 0; i < kFitSilhouetteSamples; ++i) {
         const double s = g.bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
-        const solver::CircleLimbs at = model.limbs(camera, f, s);
-        const solver::CircleLimbs next = model.limbs(camera, f, s + kDsMm);
-        solver::Vec2 centre;
-        if (!at.present[side] || !next.present[side] || !camera.project(model.centreline(f, s).position, centre)) {
+        solver::Vec2 point;
+        solver::Vec2 normal;
+        if (!silhouette_at(camera, model, f, s, side, point, normal)) {
           continue;
-        }
-        solver::Vec2 tangent = next.pixel[side] - at.pixel[side];
-        if (!(tangent.norm() > 0.0)) {
-          continue;
-        }
-        tangent.normalize();
-        solver::Vec2 normal(-tangent.y(), tangent.x());
-        if (normal.dot(at.pixel[side] - centre) < 0.0) {
-          normal = -normal;
         }
         double e = 0.0;
-        if (refiner.edge(at.pixel[side], normal, edge_window_px, e)) {
+        if (refiner.edge(point, normal, edge_window_px, e)) {
           Reading& rd = readings[static_cast<std::size_t>(n)];
           rd = Reading{};
           rd.s_mm = s;
           rd.side = side;
           rd.direction = normal;
           rd.offset_px = e;
-          predicted[static_cast<std::size_t>(n)] = at.pixel[side];
+          predicted[static_cast<std::size_t>(n)] = point;
           ++n;
           ++silhouette_readings;
         }
@@ -682,35 +682,19 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     }
     e.boundary_measured[static_cast<std::size_t>(j)] = measured;
     e.boundary_shift_mm[static_cast<std::size_t>(j)] = shift;
-    const solver::CircleLimbs limbs = model.limbs(camera, frames, s_j + shift);
     for (std::size_t side = 0U; side < 2U; ++side) {
-      if (!limbs.present[side]) {
-        continue;
-      }
-      solver::Vec2 centre;
-      if (!camera.project(model.centreline(frames, s_j + shift).position, centre)) {
+      // The limb point of the shifted circle, moved along the silhouette's
+      // normal by the offset measured beside it.
+      solver::Vec2 limb;
+      solver::Vec2 normal;
+      if (!silhouette_at(camera, model, frames, s_j + shift, side, limb, normal)) {
         continue;
       }
       double offset = 0.0;
       if (measured && !refiner.silhouette_offset(s_j + shift, side, j, offset)) {
         continue;
       }
-      // The limb point moves with the silhouette along its normal; the
-      // normal at the corner is that of the offsets' line (side of the centre).
-      const solver::CircleLimbs next = model.limbs(camera, frames, s_j + shift + kDsMm);
-      if (!next.present[side]) {
-        continue;
-      }
-      solver::Vec2 tangent = next.pixel[side] - limbs.pixel[side];
-      if (!(tangent.norm() > 0.0)) {
-        continue;
-      }
-      tangent.normalize();
-      solver::Vec2 normal(-tangent.y(), tangent.x());
-      if (normal.dot(limbs.pixel[side] - centre) < 0.0) {
-        normal = -normal;
-      }
-      const solver::Vec2 corner = limbs.pixel[side] + offset * normal;
+      const solver::Vec2 corner = limb + offset * normal;
       if (corner.x() < 0.0 || corner.y() < 0.0 || corner.x() > image.width - 1 || corner.y() > image.height - 1) {
         continue;
       }

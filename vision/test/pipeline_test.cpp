@@ -41,6 +41,13 @@ struct Fixture {
   }
 };
 
+// An extractor with the default configuration and colours (the test stops if it cannot be made).
+std::unique_ptr<FeatureExtractor> default_extractor() {
+  auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
+  EXPECT_TRUE(created.ok());
+  return created.ok() ? std::move(created.value()) : nullptr;
+}
+
 TEST(Pipeline, FindsTheMarkerChainAndCornersOnARenderedFrame) {
   Fixture f;
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
@@ -129,9 +136,8 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
 // the base boundary's included, and the estimate is valid.
 TEST(Pipeline, GuidedCornersLieOnTheTrueCorners) {
   Fixture f;
-  auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
-  ASSERT_TRUE(created.ok());
-  auto fx = std::move(created.value());
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
   solver::PoseEstimator estimator(f.camera, f.model);
   const double poses[3][3] = {{25.0, 30.0, 40.0}, {20.0, 0.0, 0.0}, {35.0, 60.0, 80.0}};
   int compared = 0;
@@ -166,9 +172,8 @@ TEST(Pipeline, GuidedCornersLieOnTheTrueCorners) {
 // labelled regions seeds the image fit, and the estimate still comes.
 TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
   Fixture f;
-  auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
-  ASSERT_TRUE(created.ok());
-  auto fx = std::move(created.value());
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
   solver::PoseEstimator estimator(f.camera, f.model);
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
   const solver::PoseVector truth = f.truth.instruments[0].r;
@@ -194,9 +199,8 @@ TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
 
 TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
   Fixture f;
-  auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
-  ASSERT_TRUE(created.ok());
-  auto fx = std::move(created.value());
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
   solver::PoseEstimator estimator(f.camera, f.model);
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
   const solver::PoseVector prior = f.truth.instruments[0].r;

@@ -102,13 +102,8 @@ int cmd_evaluate(int argc, char** argv) {
   if (!pipeline.init("evaluate", setup, colors, args.flag("fixed-model"))) {
     return kExitConfig;
   }
-  if (args.value("guided-rounds") != nullptr) {
-    unsigned long long rounds = 0ULL;
-    if (!parse_unsigned(args.value("guided-rounds"), rounds) || rounds > static_cast<unsigned long long>(vision::kMaxGuidedRounds)) {
-      std::fprintf(stderr, "tcpest evaluate: --guided-rounds needs an integer 0..%d\n", vision::kMaxGuidedRounds);
-      return kExitUsage;
-    }
-    pipeline.guided_options().rounds = static_cast<int>(rounds);
+  if (!apply_guided_rounds("evaluate", args.value("guided-rounds"), pipeline)) {
+    return kExitUsage;
   }
   ImageReader reader;
   if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {

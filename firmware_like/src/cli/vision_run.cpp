@@ -7,6 +7,7 @@
 #include <cstring>
 #include <new>
 
+#include "cli/args.hpp"
 #include "tcpest/vision/overlay.hpp"
 
 namespace tcpest {
@@ -255,6 +256,19 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
     temporal_.add(e.interpretation);
   }
   return out;
+}
+
+bool apply_guided_rounds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept {
+  if (value == nullptr) {
+    return true;
+  }
+  unsigned long long rounds = 0ULL;
+  if (!parse_unsigned(value, rounds) || rounds > static_cast<unsigned long long>(vision::kMaxGuidedRounds)) {
+    std::fprintf(stderr, "tcpest %s: --guided-rounds needs an integer 0..%d\n", command, vision::kMaxGuidedRounds);
+    return false;
+  }
+  pipeline.guided_options().rounds = static_cast<int>(rounds);
+  return true;
 }
 
 void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept {

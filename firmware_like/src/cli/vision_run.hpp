@@ -82,6 +82,10 @@ class EstimatePipeline {
   solver::PoseVector previous_r_ = solver::PoseVector::Zero();
 };
 
+// --guided-rounds VALUE (may be null: the default stays). False after
+// printing an error.
+bool apply_guided_rounds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept;
+
 // The JSON line of `tcpest estimate --json` (no newline).
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,
                           char* out, std::size_t capacity) noexcept;

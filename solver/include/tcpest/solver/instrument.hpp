@@ -77,6 +77,14 @@ struct CircleLimbs {
   std::array<Vec3, 2> point{};     // [side], camera frame (mm)
 };
 
+// The tube's circle at a centreline frame, as seen from the camera (at the
+// origin): the angles a of X(a) = c + R (cos a n + sin a b) of its two limb
+// points are limb_centre_rad -/+ limb_half_rad; the arc facing the camera
+// is centred on limb_centre_rad + pi and spans +/- (pi - limb_half_rad).
+// False when the camera is inside the circle's cone (no limb).
+bool circle_limb_angles(const CentrelineFrame& cf, double radius_mm, double& limb_centre_rad,
+                        double& limb_half_rad) noexcept;
+
 // Channel and base frames for a configuration r.
 struct PoseFrames {
   Vec3 channel_origin;    // O_ch
