@@ -1,12 +1,17 @@
 // tcpest train-colors: trains the blue/yellow colour model (two Gaussians in
 // the a*b* plane of CIE L*a*b*, D65, sRGB) from frames with hand-marked
 // regions, and writes it with its thresholds (docs/vision.md).
-// Marked regions come as polygons in a small JSON file:
-//   {"frames": [{"image": "0001.jpg", "blue": [[[x, y], ...], ...], "yellow": [...]}, ...]}
-// (image paths relative to the JSON file), or from rendered datasets'
-// sidecars (--sidecars DIR: the pixels where the middle markers' surface
-// faces the camera, from the true configuration r). Background samples are the pixels far from
-// every marked region (outside their joint bounding box grown by half its size).
+// Marked regions come as polygons and/or mask images in a small JSON file:
+//   {"frames": [{"image": "0001.jpg", "blue": [[[x, y], ...], ...], "yellow": [...],
+//                "mask": "0001.mask.ppm"}, ...]}
+// (paths relative to the JSON file; --masks requires "mask" in every frame),
+// or from rendered datasets' sidecars (--sidecars DIR: the pixels where the
+// middle markers' surface faces the camera, from the true configuration r).
+// A mask is an 8-bit binary PPM (blue, yellow, black = background, anything
+// else unused) or PGM (1 blue, 2 yellow, 3 background) the size of its image.
+// Background samples are the mask's background pixels if it has any, else the
+// pixels far from every marked region (outside their joint bounding box grown
+// by half its size).
 #include <dirent.h>
 
 #include <algorithm>
@@ -28,7 +33,8 @@ namespace cli {
 namespace {
 
 const OptionSpec kSpecs[] = {
-    {"polygons", "FILE.json", "frames and their marked blue/yellow polygons"},
+    {"polygons", "FILE.json", "frames and their marked blue/yellow polygons (and optional masks)"},
+    {"masks", "FILE.json", "frames and their mask images (PPM/PGM, see docs/vision.md)"},
     {"sidecars", "DIR", "a rendered dataset: marker polygons from the sidecars' true corners"},
     {"calib", "CAM.yaml", "with --sidecars: the dataset's camera (default: built-in PAL camera)"},
     {"config", "CFG.yaml", "with --sidecars: the instrument configuration (default: built-in geometry)"},
@@ -50,9 +56,78 @@ struct MarkedPixel {
 
 struct Frame {
   std::string image;
+  std::string mask;  // empty: none
   std::vector<Polygon> polygons;
   std::vector<MarkedPixel> pixels;  // marked pixels (from sidecars)
+  bool usable = true;               // false once its image or mask failed (pass 1)
 };
+
+// Per-pixel labels: the PixelClass values, and pixels that train nothing.
+constexpr std::uint8_t kUnused = 3U;
+
+// Mask coding (docs/vision.md). PPM: saturated blue / yellow, black for
+// background; PGM: the small values 1, 2, 3. Everything else is unused, so
+// that white paper, anti-aliased edges and the image itself train nothing.
+std::uint8_t mask_label_rgb(std::uint8_t r, std::uint8_t g, std::uint8_t b) noexcept {
+  if (b >= 160U && r <= 96U && g <= 96U) {
+    return static_cast<std::uint8_t>(vision::PixelClass::Blue);
+  }
+  if (r >= 160U && g >= 160U && b <= 96U) {
+    return static_cast<std::uint8_t>(vision::PixelClass::Yellow);
+  }
+  if (r <= 32U && g <= 32U && b <= 32U) {
+    return static_cast<std::uint8_t>(vision::PixelClass::Background);
+  }
+  return kUnused;
+}
+
+std::uint8_t mask_label_grey(std::uint8_t v) noexcept {
+  switch (v) {
+    case 1U:
+      return static_cast<std::uint8_t>(vision::PixelClass::Blue);
+    case 2U:
+      return static_cast<std::uint8_t>(vision::PixelClass::Yellow);
+    case 3U:
+      return static_cast<std::uint8_t>(vision::PixelClass::Background);
+    default:
+      return kUnused;
+  }
+}
+
+// A decoded mask: one label per pixel, and what it marks.
+struct DecodedMask {
+  std::vector<std::uint8_t> labels;
+  std::size_t marked = 0U;      // blue or yellow pixels
+  std::size_t background = 0U;  // explicit background pixels
+  int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // bounding box of the marked pixels
+};
+
+void decode_mask(const std::vector<std::uint8_t>& samples, const PnmInfo& info, DecodedMask& out) {
+  const std::size_t n = static_cast<std::size_t>(info.width) * static_cast<std::size_t>(info.height);
+  out.labels.resize(n);
+  out.marked = 0U;
+  out.background = 0U;
+  out.x0 = info.width;
+  out.y0 = info.height;
+  out.x1 = -1;
+  out.y1 = -1;
+  for (std::size_t i = 0U; i < n; ++i) {
+    const std::uint8_t* s = samples.data() + i * static_cast<std::size_t>(info.channels);
+    const std::uint8_t label = info.channels == 1 ? mask_label_grey(s[0]) : mask_label_rgb(s[0], s[1], s[2]);
+    out.labels[i] = label;
+    if (label == static_cast<std::uint8_t>(vision::PixelClass::Background)) {
+      ++out.background;
+    } else if (label != kUnused) {
+      ++out.marked;
+      const int x = static_cast<int>(i % static_cast<std::size_t>(info.width));
+      const int y = static_cast<int>(i / static_cast<std::size_t>(info.width));
+      out.x0 = std::min(out.x0, x);
+      out.y0 = std::min(out.y0, y);
+      out.x1 = std::max(out.x1, x);
+      out.y1 = std::max(out.y1, y);
+    }
+  }
+}
 
 bool inside(const std::vector<vision::Point>& poly, double x, double y) noexcept {
   bool in = false;
@@ -86,7 +161,8 @@ bool read_text(const char* path, std::string& out) {
   return true;
 }
 
-bool load_polygons(const char* path, std::vector<Frame>& frames) {
+// --polygons (masks optional) or --masks (a mask in every frame).
+bool load_marked_frames(const char* path, bool require_mask, std::vector<Frame>& frames) {
   std::string text;
   if (!read_text(path, text)) {
     std::fprintf(stderr, "tcpest train-colors: cannot read %s\n", path);
@@ -116,6 +192,17 @@ bool load_polygons(const char* path, std::vector<Frame>& frames) {
       return false;
     }
     frame.image = name[0] == '/' ? std::string(name) : base + "/" + name;
+    const auto mask = doc.member(object, "mask");
+    if (mask.ok()) {
+      if (!doc.string(mask.value(), name, sizeof name).ok() || name[0] == '\0') {
+        std::fprintf(stderr, "tcpest train-colors: %s: frame %zu: field 'mask': expected a file name\n", path, f);
+        return false;
+      }
+      frame.mask = name[0] == '/' ? std::string(name) : base + "/" + name;
+    } else if (require_mask) {
+      std::fprintf(stderr, "tcpest train-colors: %s: frame %zu: field 'mask': missing\n", path, f);
+      return false;
+    }
     const char* classes[2] = {"blue", "yellow"};
     for (int c = 0; c < 2; ++c) {
       const auto polys = doc.member(object, classes[c]);
@@ -217,14 +304,21 @@ int cmd_train_colors(int argc, char** argv) {
     std::fprintf(stderr, "tcpest train-colors: %s\n", error);
     return kExitUsage;
   }
-  if (args.help_requested() || (args.value("polygons") == nullptr && args.value("sidecars") == nullptr)) {
-    print_usage("tcpest train-colors (--polygons FILE.json | --sidecars DIR) [--out MODEL.json] [--max N]",
-                "Trains the blue/yellow colour model (a*b* Gaussians, Mahalanobis thresholds) from marked frames.",
+  if (args.help_requested() ||
+      (args.value("polygons") == nullptr && args.value("masks") == nullptr && args.value("sidecars") == nullptr)) {
+    print_usage("tcpest train-colors (--polygons FILE.json | --masks FILE.json | --sidecars DIR)... "
+                "[--out MODEL.json] [--max N]",
+                "Trains the blue/yellow colour model (a*b* Gaussians, Mahalanobis thresholds) from marked frames.\n"
+                "Masks: 8-bit binary PPM (blue, yellow, black = background, other = unused) or PGM\n"
+                "(1 blue, 2 yellow, 3 background), the size of the image; see docs/vision.md.",
                 kSpecs, kSpecCount);
     return args.help_requested() ? kExitOk : kExitUsage;
   }
   std::vector<Frame> frames;
-  if (args.value("polygons") != nullptr && !load_polygons(args.value("polygons"), frames)) {
+  if (args.value("polygons") != nullptr && !load_marked_frames(args.value("polygons"), false, frames)) {
+    return kExitConfig;
+  }
+  if (args.value("masks") != nullptr && !load_marked_frames(args.value("masks"), true, frames)) {
     return kExitConfig;
   }
   ModelSetup setup;
@@ -250,38 +344,77 @@ int cmd_train_colors(int argc, char** argv) {
   vision::ColorTrainer trainer;
   std::vector<std::uint8_t> pixels;
   std::vector<std::uint8_t> label;
+  std::vector<std::uint8_t> mask_samples;
+  DecodedMask mask;
   for (int pass = 0; pass < 2; ++pass) {
-    for (const Frame& frame : frames) {
+    for (Frame& frame : frames) {
+      if (!frame.usable) {
+        continue;  // reported in pass 1
+      }
       ImageView view;
       if (!reader.read(frame.image.c_str(), pixels, view, error, sizeof error)) {
         std::fprintf(stderr, "tcpest train-colors: %s: %s (skipped)\n", frame.image.c_str(), error);
+        frame.usable = false;
         continue;
       }
-      // Labels: 1 blue, 2 yellow, 0 background, 3 unused (near the marks).
-      constexpr std::uint8_t kUnused = 3U;
-      label.assign(static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height), 0U);
-      double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
-      const auto grow = [&](double x, double y) {
-        x0 = std::min(x0, x);
-        y0 = std::min(y0, y);
-        x1 = std::max(x1, x);
-        y1 = std::max(y1, y);
-      };
-      for (const Polygon& p : frame.polygons) {
-        for (const vision::Point& q : p.points) {
-          grow(q.x, q.y);
+      const bool has_mask = !frame.mask.empty();
+      if (has_mask) {
+        PnmInfo info;
+        if (!reader.read_pnm(frame.mask.c_str(), mask_samples, info, error, sizeof error)) {
+          std::fprintf(stderr, "tcpest train-colors: mask %s: %s (frame skipped)\n", frame.mask.c_str(), error);
+          frame.usable = false;
+          continue;
+        }
+        if (info.width != view.width || info.height != view.height) {
+          std::fprintf(stderr, "tcpest train-colors: mask %s is %dx%d but image %s is %dx%d (frame skipped)\n",
+                       frame.mask.c_str(), info.width, info.height, frame.image.c_str(), view.width, view.height);
+          frame.usable = false;
+          continue;
+        }
+        decode_mask(mask_samples, info, mask);
+        if (mask.marked == 0U && mask.background == 0U) {
+          std::fprintf(stderr, "tcpest train-colors: mask %s marks no pixel (frame skipped)\n", frame.mask.c_str());
+          frame.usable = false;
+          continue;
         }
       }
-      for (const MarkedPixel& m : frame.pixels) {
-        grow(m.x, m.y);
-      }
-      const double gx = 0.5 * (x1 - x0) + 10.0;
-      const double gy = 0.5 * (y1 - y0) + 10.0;
+      const std::size_t pixel_count = static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height);
+      const auto at = [&view](int x, int y) {
+        return static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x);
+      };
       const auto clamp_x = [&view](double v) { return std::max(0, std::min(view.width - 1, static_cast<int>(v))); };
       const auto clamp_y = [&view](double v) { return std::max(0, std::min(view.height - 1, static_cast<int>(v))); };
-      for (int y = clamp_y(y0 - gy); y <= clamp_y(y1 + gy); ++y) {
-        for (int x = clamp_x(x0 - gx); x <= clamp_x(x1 + gx); ++x) {
-          label[static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x)] = kUnused;
+      if (has_mask && mask.background > 0U) {
+        // Explicit background samples replace the automatic rule.
+        label.assign(pixel_count, kUnused);
+      } else {
+        // Labels: 1 blue, 2 yellow, 0 background, 3 unused (near the marks).
+        label.assign(pixel_count, 0U);
+        double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+        const auto grow = [&](double x, double y) {
+          x0 = std::min(x0, x);
+          y0 = std::min(y0, y);
+          x1 = std::max(x1, x);
+          y1 = std::max(y1, y);
+        };
+        for (const Polygon& p : frame.polygons) {
+          for (const vision::Point& q : p.points) {
+            grow(q.x, q.y);
+          }
+        }
+        for (const MarkedPixel& m : frame.pixels) {
+          grow(m.x, m.y);
+        }
+        if (has_mask && mask.marked > 0U) {
+          grow(mask.x0, mask.y0);
+          grow(mask.x1 + 1, mask.y1 + 1);
+        }
+        const double gx = 0.5 * (x1 - x0) + 10.0;
+        const double gy = 0.5 * (y1 - y0) + 10.0;
+        for (int y = clamp_y(y0 - gy); y <= clamp_y(y1 + gy); ++y) {
+          for (int x = clamp_x(x0 - gx); x <= clamp_x(x1 + gx); ++x) {
+            label[at(x, y)] = kUnused;
+          }
         }
       }
       for (const Polygon& p : frame.polygons) {
@@ -295,21 +428,26 @@ int cmd_train_colors(int argc, char** argv) {
         for (int y = clamp_y(py0); y <= clamp_y(py1 + 1.0); ++y) {
           for (int x = clamp_x(px0); x <= clamp_x(px1 + 1.0); ++x) {
             if (inside(p.points, x, y)) {
-              label[static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x)] =
-                  static_cast<std::uint8_t>(p.cls);
+              label[at(x, y)] = static_cast<std::uint8_t>(p.cls);
             }
           }
         }
       }
       for (const MarkedPixel& m : frame.pixels) {
         if (m.x >= 0 && m.y >= 0 && m.x < view.width && m.y < view.height) {
-          label[static_cast<std::size_t>(m.y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(m.x)] =
-              static_cast<std::uint8_t>(m.cls);
+          label[at(m.x, m.y)] = static_cast<std::uint8_t>(m.cls);
+        }
+      }
+      if (has_mask) {
+        for (std::size_t i = 0U; i < pixel_count; ++i) {
+          if (mask.labels[i] != kUnused) {
+            label[i] = mask.labels[i];  // the mask wins where it overlaps a polygon
+          }
         }
       }
       for (int y = 0; y < view.height; ++y) {
         const std::uint8_t* row = view.row(y);
-        const std::uint8_t* lab_row = label.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width);
+        const std::uint8_t* lab_row = label.data() + at(0, y);
         for (int x = 0; x < view.width; ++x) {
           if (lab_row[x] == kUnused) {
             continue;
@@ -335,8 +473,10 @@ int cmd_train_colors(int argc, char** argv) {
   const vision::ColorModel model = trainer.finish();
   char text[2048];
   const std::size_t n = vision::format_color_model(model, text, sizeof text);
-  std::fprintf(stderr, "tcpest train-colors: %zu frames, %llu blue, %llu yellow, %llu background pixels\n",
-               frames.size(), static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Blue)),
+  const std::size_t used =
+      static_cast<std::size_t>(std::count_if(frames.begin(), frames.end(), [](const Frame& f) { return f.usable; }));
+  std::fprintf(stderr, "tcpest train-colors: %zu frames (%zu skipped), %llu blue, %llu yellow, %llu background pixels\n",
+               used, frames.size() - used, static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Blue)),
                static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Yellow)),
                static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Background)));
   if (args.value("out") == nullptr) {

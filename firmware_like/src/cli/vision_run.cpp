@@ -47,17 +47,18 @@ bool read_file(const char* path, std::vector<std::uint8_t>& out, char* error, st
   return ok;
 }
 
-// Parses a binary PPM header; returns the offset of the pixels or 0.
-std::size_t parse_ppm(const std::vector<std::uint8_t>& data, int& width, int& height) noexcept {
-  if (data.size() < 8U || data[0] != 'P' || data[1] != '6') {
+// Parses a binary PGM (P5) or PPM (P6) header; returns the offset of the
+// samples or 0 (not P5/P6, a missing or overlong number, a zero size).
+std::size_t parse_pnm(const std::vector<std::uint8_t>& data, PnmInfo& info, long& maxval) noexcept {
+  if (data.size() < 8U || data[0] != 'P' || (data[1] != '5' && data[1] != '6')) {
     return 0U;
   }
+  const auto is_space = [](std::uint8_t c) { return c == ' ' || c == '\n' || c == '\r' || c == '\t'; };
   std::size_t i = 2U;
   long values[3] = {0, 0, 0};
   for (int v = 0; v < 3; ++v) {
     // Skip white space and comments.
-    while (i < data.size() && (data[i] == ' ' || data[i] == '\n' || data[i] == '\r' || data[i] == '\t' ||
-                               data[i] == '#')) {
+    while (i < data.size() && (is_space(data[i]) || data[i] == '#')) {
       if (data[i] == '#') {
         while (i < data.size() && data[i] != '\n') {
           ++i;
@@ -73,16 +74,18 @@ std::size_t parse_ppm(const std::vector<std::uint8_t>& data, int& width, int& he
       ++i;
       ++digits;
     }
-    if (digits == 0) {
-      return 0U;
+    if (digits == 0 || i >= data.size() || !is_space(data[i])) {
+      return 0U;  // no number, or more than 7 digits (absurd), or no separator
     }
     values[v] = value;
   }
-  if (i >= data.size() || values[2] != 255 || values[0] <= 0 || values[1] <= 0) {
+  if (values[0] <= 0 || values[1] <= 0) {
     return 0U;
   }
-  width = static_cast<int>(values[0]);
-  height = static_cast<int>(values[1]);
+  info.width = static_cast<int>(values[0]);
+  info.height = static_cast<int>(values[1]);
+  info.channels = data[1] == '5' ? 1 : 3;
+  maxval = values[2];
   return i + 1U;
 }
 
@@ -104,10 +107,12 @@ bool ImageReader::read(const char* path, std::vector<std::uint8_t>& pixels, Imag
   if (!read_file(path, file_, error, error_capacity)) {
     return false;
   }
-  int width = 0;
-  int height = 0;
-  const std::size_t ppm_offset = parse_ppm(file_, width, height);
-  if (ppm_offset > 0U) {
+  PnmInfo pnm;
+  long maxval = 0;
+  const std::size_t ppm_offset = parse_pnm(file_, pnm, maxval);
+  int width = pnm.width;
+  int height = pnm.height;
+  if (ppm_offset > 0U && pnm.channels == 3 && maxval == 255) {
     const std::size_t bytes = static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * 3U;
     if (width > max_width_ || height > max_height_ || file_.size() < ppm_offset + bytes) {
       static_cast<void>(std::snprintf(error, error_capacity, "PPM too large or truncated"));  // message only
@@ -139,6 +144,39 @@ bool ImageReader::read(const char* path, std::vector<std::uint8_t>& pixels, Imag
     }
   }
   view = ImageView{pixels.data(), width, height, static_cast<std::size_t>(width) * 3U};
+  return true;
+}
+
+bool ImageReader::read_pnm(const char* path, std::vector<std::uint8_t>& samples, PnmInfo& info, char* error,
+                           std::size_t error_capacity) noexcept {
+  if (!read_file(path, file_, error, error_capacity)) {
+    return false;
+  }
+  long maxval = 0;
+  const std::size_t offset = parse_pnm(file_, info, maxval);
+  if (offset == 0U) {
+    static_cast<void>(std::snprintf(error, error_capacity, "not a binary PGM (P5) or PPM (P6)"));  // message only
+    return false;
+  }
+  if (maxval != 255) {
+    static_cast<void>(std::snprintf(error, error_capacity,  // message only
+                                    "maxval %ld, expected 255 (8 bits per sample)", maxval));
+    return false;
+  }
+  if (info.width > max_width_ || info.height > max_height_) {
+    static_cast<void>(std::snprintf(error, error_capacity, "%dx%d larger than %dx%d", info.width,  // message only
+                                    info.height, max_width_, max_height_));
+    return false;
+  }
+  const std::size_t bytes = static_cast<std::size_t>(info.width) * static_cast<std::size_t>(info.height) *
+                            static_cast<std::size_t>(info.channels);
+  if (file_.size() < offset + bytes) {
+    static_cast<void>(std::snprintf(error, error_capacity, "truncated: %zu of %zu sample bytes",  // message only
+                                    file_.size() - offset, bytes));
+    return false;
+  }
+  samples.assign(file_.begin() + static_cast<std::ptrdiff_t>(offset),
+                 file_.begin() + static_cast<std::ptrdiff_t>(offset + bytes));
   return true;
 }
 

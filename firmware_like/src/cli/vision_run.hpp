@@ -18,6 +18,13 @@
 namespace tcpest {
 namespace cli {
 
+// A binary PGM (P5: 1 sample per pixel) or PPM (P6: 3 samples per pixel).
+struct PnmInfo {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+};
+
 // Reads a JPEG or binary PPM (P6) file into `pixels` (RGB24, resized to fit).
 class ImageReader {
  public:
@@ -25,6 +32,11 @@ class ImageReader {
   // False with a message in `error` (file missing, corrupt, too large ...).
   bool read(const char* path, std::vector<std::uint8_t>& pixels, ImageView& view, char* error,
             std::size_t error_capacity) noexcept;
+  // The raw samples of an 8-bit binary PGM or PPM (`info.channels` per pixel,
+  // rows packed), e.g. a hand-made mask; no JPEG. False with a message in
+  // `error` (missing, not P5/P6, maxval not 255, too large, truncated).
+  bool read_pnm(const char* path, std::vector<std::uint8_t>& samples, PnmInfo& info, char* error,
+                std::size_t error_capacity) noexcept;
 
  private:
   hal::JpegDecoder decoder_;
