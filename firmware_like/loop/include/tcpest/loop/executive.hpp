@@ -163,6 +163,7 @@ class Executive {
   LoopParts parts_;
   hal::PeriodicTimer timer_;
   bool use_timer_ = false;
+  std::int64_t woke_ns_ = 0;  // the timer's wake-up of this cycle (the cycle's start)
   bool publish_first_ = false;
   std::int64_t cycle_budget_ns_ = 0;
   std::unique_ptr<std::uint8_t[]> frame_buffer_;
