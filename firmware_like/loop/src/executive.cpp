@@ -284,6 +284,10 @@ CycleOutcome Executive::run_cycle() noexcept {
     parts_.node->set_fault(Fault::kCycleOverrun, record_.overrun,
                            static_cast<std::uint32_t>(record_.total_ns / hal::kNsPerUs));
     overrun_reported_ = record_.overrun;
+    // Its EMCY goes out now, not at the next flush: with the period and SYNC
+    // triggers that is the tick's, where it would be sent before the TCP
+    // frame and delay it by one frame (measured on vcan: docs/loop.md).
+    flush_node(clock.now_ns(), 3U);
   }
   if (camera_cycle()) {
     ++s.status[static_cast<std::size_t>(record_.publication.status)];
@@ -566,16 +570,21 @@ void Executive::make_publication() noexcept {
   }
 }
 
+void Executive::flush_node(std::int64_t now_ns, std::uint32_t where) noexcept {
+  NodePort& node = *parts_.node;
+  const auto kept = node.housekeeping(now_ns);
+  if (!kept.ok() && kept.error() == PortError::kBusDown && !bus_lost_) {
+    bus_lost_ = true;
+    ++stats_->bus_lost_events;
+    node.set_fault(Fault::kBusLost, true, where);
+  }
+}
+
 void Executive::step_housekeeping() noexcept {
   NodePort& node = *parts_.node;
   hal::Clock& clock = *parts_.clock;
   const std::int64_t now = clock.now_ns();
-  const auto kept = node.housekeeping(now);
-  if (!kept.ok() && kept.error() == PortError::kBusDown && !bus_lost_) {
-    bus_lost_ = true;
-    ++stats_->bus_lost_events;
-    node.set_fault(Fault::kBusLost, true, 2U);
-  }
+  flush_node(now, 2U);
   if ((camera_lost_ || bus_lost_) && now >= next_retry_ns_) {
     next_retry_ns_ = now + ms_to_ns(config_.loop.retry_ms);
     if (camera_lost_ && parts_.source->reopen().ok()) {

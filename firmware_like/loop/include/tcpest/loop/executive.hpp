@@ -154,6 +154,9 @@ class Executive {
   void run_pipeline() noexcept;
   void step_solve() noexcept;
   void step_housekeeping() noexcept;
+  // Heartbeat and EMCY out now (the node's housekeeping); `where` is the
+  // bus-lost EMCY's detail (1 receive, 2 housekeeping, 3 after the cycle).
+  void flush_node(std::int64_t now_ns, std::uint32_t where) noexcept;
   void choose_prior(std::int64_t now_ns) noexcept;
   void make_publication() noexcept;
   void reset_track() noexcept;
