@@ -141,7 +141,7 @@ echo "== receiver side (candump time stamps), $out/candump.log"
 loop_p999=$(awk '$1 == "RESULT" && $2 == "loop-tcp" { print $8 }' "$out/analysis.txt")
 floor_p999=$(awk '$1 == "RESULT" && $2 == "floor" { print $8 }' "$out/analysis.txt")
 awk -v l="$loop_p999" -v f="$floor_p999" 'BEGIN {
-  printf "ratio p99.9 |actual - nominal| loop / floor: %.2f (target <= 1.2)\n", f > 0 ? l / f : 0 }' | tee -a "$out/analysis.txt"
+  printf "ratio p99.9 |actual - nominal| loop / floor: %.2f (target <= 1.2)\n", (f > 0 ? l / f : 0) }' | tee -a "$out/analysis.txt"
 
 if [ "$check" = 1 ]; then
   published=$(awk '/^published / { print $2 }' "$out/run.txt")

@@ -49,6 +49,7 @@ struct Options {
   double seconds = 10.0;
   int fifo_priority = 0;
   bool lock_memory = false;
+  std::int64_t busy_us = 0;  // CPU time burnt after each send (a stand-in for a cycle's work)
 };
 
 std::int64_t now_ns() noexcept {
@@ -67,8 +68,10 @@ bool sleep_until(std::int64_t deadline_ns) noexcept {
 void usage() noexcept {
   std::fprintf(stderr,
                "usage: tcpest_period_floor [--iface IFACE] [--id HEX] [--period-us P] [--seconds S]\n"
-               "                           [--fifo PRIO] [--lock]\n"
-               "A bare clock_nanosleep(TIMER_ABSTIME) loop; with --iface one CAN frame per wake-up.\n");
+               "                           [--fifo PRIO] [--lock] [--busy-us N]\n"
+               "A bare clock_nanosleep(TIMER_ABSTIME) loop; with --iface one CAN frame per wake-up;\n"
+               "with --busy-us N microseconds of CPU burnt after each wake-up (the floor of a task that\n"
+               "works as much as the loop's cycle: the scheduler treats such a task differently).\n");
 }
 
 bool parse(int argc, char** argv, Options& o) noexcept {
@@ -94,6 +97,11 @@ bool parse(int argc, char** argv, Options& o) noexcept {
     } else if (std::strcmp(a, "--seconds") == 0 && has_value) {
       o.seconds = std::strtod(argv[++i], &end);
       if (*end != '\0' || !(o.seconds > 0.0) || o.seconds > 86400.0) {
+        return false;
+      }
+    } else if (std::strcmp(a, "--busy-us") == 0 && has_value) {
+      o.busy_us = std::strtoll(argv[++i], &end, 10);
+      if (*end != '\0' || o.busy_us < 0) {
         return false;
       }
     } else if (std::strcmp(a, "--fifo") == 0 && has_value) {
@@ -194,6 +202,12 @@ int main(int argc, char** argv) {
       }
     }
     late_ns.push_back(woke - deadline);
+    if (o.busy_us > 0) {
+      const std::int64_t until = woke + o.busy_us * kNsPerUs;
+      while (now_ns() < until) {
+        // burn CPU: the stand-in for a cycle's work
+      }
+    }
     deadline += period_ns;
     ++sequence;
     if (woke > deadline) {
@@ -212,8 +226,9 @@ int main(int argc, char** argv) {
   std::printf("%-34s %8zu %9.1f %9.1f %9.1f %9.1f\n", "bare clock_nanosleep wake-up", late_ns.size(),
               quantile_us(late_ns, 0.5), quantile_us(late_ns, 0.99), quantile_us(late_ns, 0.999),
               quantile_us(late_ns, 1.0));
-  std::printf("period %.3f ms, skipped deadlines %llu, send errors %llu%s\n",
+  std::printf("period %.3f ms, skipped deadlines %llu, send errors %llu%s, busy %lld us per period\n",
               static_cast<double>(period_ns) / 1e6, static_cast<unsigned long long>(skipped),
-              static_cast<unsigned long long>(send_errors), o.iface != nullptr ? "" : " (no bus)");
+              static_cast<unsigned long long>(send_errors), o.iface != nullptr ? "" : " (no bus)",
+              static_cast<long long>(o.busy_us));
   return 0;
 }
