@@ -287,6 +287,8 @@ CycleOutcome Executive::run_cycle() noexcept {
     // Its EMCY goes out now, not at the next flush: with the period and SYNC
     // triggers that is the tick's, where it would be sent before the TCP
     // frame and delay it by one frame (measured on vcan: docs/loop.md).
+    // It is outside the cycle's timing, which decided the overrun: one
+    // frame, on a run's first and last cycle only.
     flush_node(clock.now_ns(), 3U);
   }
   if (camera_cycle()) {
