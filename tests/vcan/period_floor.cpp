@@ -38,7 +38,7 @@ namespace {
 constexpr std::int64_t kNsPerS = 1000000000;
 constexpr std::int64_t kNsPerUs = 1000;
 
-std::atomic<bool> g_stop{false};
+std::atomic<bool> g_stop{false};  // NOLINT(cppcoreguidelines-avoid-non-const-global-variables): set by the signal handler
 
 extern "C" void on_stop_signal(int /*signal*/) { g_stop.store(true); }
 
@@ -188,7 +188,7 @@ int main(int argc, char** argv) {
   std::uint32_t sequence = 0U;
   can_frame frame{};
   frame.can_id = o.can_id;
-  frame.len = 8U;
+  frame.len = 8U;  // NOLINT(cppcoreguidelines-pro-type-union-access): can_frame's length is a union member in linux/can.h
   std::int64_t deadline = now_ns() + period_ns;
   for (std::size_t i = 0; i < periods && !g_stop.load(); ++i) {
     if (!sleep_until(deadline)) {
