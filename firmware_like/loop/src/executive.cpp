@@ -196,6 +196,7 @@ CycleOutcome Executive::wait_trigger() noexcept {
     }
     record_.trigger_ns = tick.value().deadline_ns;
     record_.slipped = tick.value().slipped;
+    woke_ns_ = tick.value().woke_ns;
     return CycleOutcome::kContinue;
   }
   if (config_.loop.trigger == Trigger::kSync) {
@@ -233,7 +234,10 @@ CycleOutcome Executive::run_cycle() noexcept {
   record_.slipped = slipped;
   record_.cycle = cycle_++;
   hal::Clock& clock = *parts_.clock;
-  const std::int64_t start = clock.now_ns();
+  // On the timer the cycle starts at the wake-up, read once by the timer: no
+  // clock read between the tick and the send that the send does not need
+  // (under user-mode-linux each read is a syscall of tens of microseconds).
+  const std::int64_t start = use_timer_ ? woke_ns_ : clock.now_ns();
   record_.start_ns = start;
 
   std::int64_t t = start;
@@ -287,6 +291,12 @@ CycleOutcome Executive::run_cycle() noexcept {
     parts_.node->set_fault(Fault::kCycleOverrun, record_.overrun,
                            static_cast<std::uint32_t>(record_.total_ns / hal::kNsPerUs));
     overrun_reported_ = record_.overrun;
+    // Its EMCY goes out now, not at the next flush: with the period and SYNC
+    // triggers that is the tick's, where it would be sent before the TCP
+    // frame and delay it by one frame (measured on vcan: docs/loop.md).
+    // It is outside the cycle's timing, which decided the overrun: one
+    // frame, on a run's first and last cycle only.
+    flush_node(clock.now_ns(), 3U);
   }
   if (camera_cycle()) {
     ++s.status[static_cast<std::size_t>(record_.publication.status)];
@@ -335,7 +345,6 @@ void Executive::step_publish(std::int64_t trigger_ns) noexcept {
     }
     p = record_.publication;
   }
-  const std::int64_t send_ns = parts_.clock->now_ns();
   std::int64_t latency_ns = -1;
   const auto sent = node.publish(p, latency_ns);
   if (!sent.ok()) {
@@ -348,6 +357,9 @@ void Executive::step_publish(std::int64_t trigger_ns) noexcept {
     return;
   }
   ++stats_->published;
+  // The port read the send time once, for the latency (send - frame time
+  // stamp): the send offset is taken from the same reading.
+  const std::int64_t send_ns = p.frame_timestamp_ns + latency_ns;
   record_.latency_ns = latency_ns;
   record_.send_offset_ns = send_ns - trigger_ns;
   stats_->latency.add(latency_ns);
@@ -583,16 +595,21 @@ void Executive::make_publication() noexcept {
   }
 }
 
+void Executive::flush_node(std::int64_t now_ns, std::uint32_t where) noexcept {
+  NodePort& node = *parts_.node;
+  const auto kept = node.housekeeping(now_ns);
+  if (!kept.ok() && kept.error() == PortError::kBusDown && !bus_lost_) {
+    bus_lost_ = true;
+    ++stats_->bus_lost_events;
+    node.set_fault(Fault::kBusLost, true, where);
+  }
+}
+
 void Executive::step_housekeeping() noexcept {
   NodePort& node = *parts_.node;
   hal::Clock& clock = *parts_.clock;
   const std::int64_t now = clock.now_ns();
-  const auto kept = node.housekeeping(now);
-  if (!kept.ok() && kept.error() == PortError::kBusDown && !bus_lost_) {
-    bus_lost_ = true;
-    ++stats_->bus_lost_events;
-    node.set_fault(Fault::kBusLost, true, 2U);
-  }
+  flush_node(now, 2U);
   if ((camera_lost_ || bus_lost_) && now >= next_retry_ns_) {
     next_retry_ns_ = now + ms_to_ns(config_.loop.retry_ms);
     if (camera_lost_ && parts_.source->reopen().ok()) {

@@ -234,6 +234,85 @@ TEST(LoopWithUnits, SyncTriggerAnswersEachSyncWithTheLatestEstimate) {
   EXPECT_EQ(loop.last().latency_ns, -1);
 }
 
+// The oracle with a classify stage that takes simulated time (cycle overruns).
+class SlowClassify final : public FeaturePipeline {
+ public:
+  SlowClassify(hal::SimulatedClock& clock, OraclePipeline& inner) : clock_(clock), inner_(inner) {}
+  const char* name() const noexcept override { return "slow"; }
+  void begin_frame(const hal::FrameInfo& info) noexcept override { inner_.begin_frame(info); }
+  Status<StageError> classify(const ImageView& image) noexcept override {
+    clock_.advance_ns(next_ns);
+    return inner_.classify(image);
+  }
+  Status<StageError> interpret(PriorSource s, const solver::PoseVector& r) noexcept override {
+    return inner_.interpret(s, r);
+  }
+  Status<StageError> borders(const ImageView& image) noexcept override { return inner_.borders(image); }
+  Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept override {
+    return inner_.corners(image, out);
+  }
+  void end_frame(bool success) noexcept override { inner_.end_frame(success); }
+  void drop_track() noexcept override { inner_.drop_track(); }
+  bool has_temporal_prior() const noexcept override { return inner_.has_temporal_prior(); }
+  const char* describe(StageError e) const noexcept override { return inner_.describe(e); }
+  std::int64_t next_ns = 0;
+
+ private:
+  hal::SimulatedClock& clock_;
+  OraclePipeline& inner_;
+};
+
+TEST(LoopWithUnits, PeriodTriggerSendsTheTcpFrameFirstAtTheTickEvenAfterAnOverrun) {
+  // The cycle-overrun EMCY is decided at the end of its cycle: it goes out
+  // then, not at the next tick ahead of the TCP frame (which it would delay).
+  Models m;
+  MotionSequence motion;
+  motion.frames = 100U;
+  ModelScene scene(m.camera, m.model, motion);
+  hal::SimCamera source(scene, 25.0, false);
+  OraclePipeline oracle;
+  hal::SimulatedClock clock(hal::kNsPerS);
+  SlowClassify slow(clock, oracle);
+  auto bus = std::make_unique<hal::SimBus>();
+  LoopConfig config;
+  config.loop.trigger = Trigger::kPeriod;
+  config.loop.period_us = 40000;
+  CanNodePort node(clock, bus->endpoint(0), bus.get(), nullptr, "sim0");
+  ASSERT_TRUE(node.configure(node_config(config)).ok());
+  LoopParts parts{&source, &clock, &slow, &node, &m.camera, &m.model};
+  auto created = Executive::create(config, parts);
+  ASSERT_TRUE(created.ok());
+  Executive& loop = *created.value();
+  loop.start();
+  std::array<hal::ReceivedFrame, 64> rx{};
+  int tcp_frames = 0;
+  int emcy_frames = 0;
+  for (int i = 0; i < 20; ++i) {
+    // Runs of two overrunning cycles (8 ms > the 5 ms budget) start and end.
+    slow.next_ns = (i % 4 == 1 || i % 4 == 2) ? 8 * hal::kNsPerMs : 0;
+    ASSERT_EQ(loop.run_cycle(), CycleOutcome::kContinue);
+    EXPECT_EQ(loop.last().overrun, i % 4 == 1 || i % 4 == 2);
+    // This cycle's traffic, in order: the tick's PDOs first, then whatever the cycle raised.
+    const auto got = bus->endpoint(1).receive(rx.data(), rx.size());
+    ASSERT_TRUE(got.ok());
+    bool tcp_seen = false;
+    for (std::size_t k = 0; k < got.value(); ++k) {
+      const std::uint32_t id = rx[k].frame.id;
+      if (id == can::tcp_id(0x10U)) {
+        ++tcp_frames;
+        tcp_seen = true;
+        EXPECT_EQ(k, 0U) << "cycle " << i << ": the TCP frame is not the first frame of the tick";
+      } else if (id == can::emcy_id(0x10U)) {
+        ++emcy_frames;
+        EXPECT_TRUE(tcp_seen || i == 0) << "cycle " << i << ": an EMCY went out before the TCP frame";
+      }
+    }
+  }
+  EXPECT_EQ(tcp_frames, 19);   // none in the first cycle (boot-up)
+  EXPECT_EQ(emcy_frames, 10);  // five runs of overruns: raised and reset each
+  EXPECT_EQ(loop.stats().slips, 0U);
+}
+
 }  // namespace
 }  // namespace loop
 }  // namespace tcpest

@@ -159,6 +159,9 @@ class Executive {
   void step_refine(const ImageView& image) noexcept;
   void take_estimate() noexcept;
   void step_housekeeping() noexcept;
+  // Heartbeat and EMCY out now (the node's housekeeping); `where` is the
+  // bus-lost EMCY's detail (1 receive, 2 housekeeping, 3 after the cycle).
+  void flush_node(std::int64_t now_ns, std::uint32_t where) noexcept;
   void choose_prior(std::int64_t now_ns) noexcept;
   void make_publication() noexcept;
   void reset_track() noexcept;
@@ -168,6 +171,7 @@ class Executive {
   LoopParts parts_;
   hal::PeriodicTimer timer_;
   bool use_timer_ = false;
+  std::int64_t woke_ns_ = 0;  // the timer's wake-up of this cycle (the cycle's start)
   bool publish_first_ = false;
   std::int64_t cycle_budget_ns_ = 0;
   std::unique_ptr<std::uint8_t[]> frame_buffer_;
