@@ -99,16 +99,28 @@ Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noex
 
   Interpretation best{};
   double best_score = kNegligible;
+  // Roots: every region, and every region merged with one adjacent region of
+  // its colour (a virtual node at the first level too: the base marker split
+  // by a highlight along the tube is as common as any other).
   for (std::size_t root = 0U; root < n; ++root) {
+    for (std::size_t partner = root; partner < n; ++partner) {
+      if (partner != root && (regions[partner].cls != regions[root].cls ||
+                              !adjacent(regions[root], regions[partner], config_))) {
+        continue;
+      }
     for (int start = 0; start < kNumMarkers; ++start) {
       if (regions[root].cls != level_class(config_, start)) {
         continue;
       }
       Interpretation hyp{};
-      std::uint64_t used = 1ULL << root;
+      std::uint64_t used = (1ULL << root) | (1ULL << partner);
       Node current;
       current.region = regions[root];
       current.index = {{static_cast<std::int16_t>(root), -1}};
+      if (partner != root) {
+        current.region.merge(regions[partner]);
+        current.index[1] = static_cast<std::int16_t>(partner);
+      }
       current.log_posterior = shape_log(current.region, priors.marker[static_cast<std::size_t>(start)]);
       double score = current.log_posterior + config_.level_reward;
       hyp.markers[static_cast<std::size_t>(start)] =
@@ -190,6 +202,7 @@ Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noex
         hyp.score = score;
         best = hyp;
       }
+    }
     }
   }
   out = best;
