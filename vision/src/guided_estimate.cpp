@@ -8,6 +8,8 @@ namespace vision {
 
 namespace {
 
+constexpr int kMinSeedMarkers = 2;
+
 GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                          const solver::CameraModel& camera, const solver::InstrumentModel& model,
                          const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
@@ -44,13 +46,91 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
   return out;
 }
 
+int rank(solver::EstimateQuality q) noexcept {
+  switch (q) {
+    case solver::EstimateQuality::Valid: return 2;
+    case solver::EstimateQuality::Degraded: return 1;
+    case solver::EstimateQuality::None: return 0;
+  }
+  return 0;
+}
+
+// A fallback result replaces the current one when it is of a better quality,
+// or of the same quality with a lower image-fit residual than a result that
+// came from a fit too.
+bool better(const GuidedResult& candidate, const GuidedResult& current) noexcept {
+  if (candidate.rounds_kept == 0) {
+    return false;
+  }
+  const int a = rank(candidate.estimate.quality);
+  const int b = rank(current.estimate.quality);
+  if (a != b) {
+    return a > b;
+  }
+  return current.rounds_kept > 0 && candidate.fit.rms_px < current.fit.rms_px;
+}
+
 }  // namespace
 
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                            const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
-                           const GuidedOptions& options) noexcept {
-  return rounds_from(extractor, estimator, camera, model, image, mode, first, options, false);
+                           const solver::PoseVector& start, const GuidedOptions& options) noexcept {
+  GuidedResult out;
+  out.estimate = first;
+  if (first.quality != solver::EstimateQuality::None) {
+    out = rounds_from(extractor, estimator, camera, model, image, mode, first, options, false);
+  }
+  // The seeds need labelled markers: without them (stage 1 or 2 failed) the
+  // fit would read whatever edges lie where the seed puts the instrument.
+  if (options.rounds <= 0 || out.estimate.quality == solver::EstimateQuality::Valid ||
+      extractor.result().interpretation.found_count < kMinSeedMarkers) {
+    return out;
+  }
+  // Not valid yet: the fit from other seeds, each moved onto the class image
+  // first (class_fit) and fitted from a coarse start. Seed 0: `start` (the
+  // encoders' or the track's pose; retry_seeds): measured the more useful
+  // of the two (docs/vision.md); seed 1: the rough pose of the labelled
+  // regions, only when seed 0 did not give a valid estimate.
+  for (int seed_index = 0; seed_index < 2; ++seed_index) {
+    if (out.estimate.quality == solver::EstimateQuality::Valid) {
+      break;
+    }
+    solver::PoseVector seed_r = start;
+    if (seed_index == 0) {
+      if (!options.retry_seeds || !start.allFinite()) {
+        continue;
+      }
+    } else {
+      const bool wanted = options.from_regions && (first.quality == solver::EstimateQuality::None || options.retry_seeds);
+      if (!wanted || !extractor.pose_from_regions(camera, model, seed_r).ok()) {
+        continue;
+      }
+    }
+    double class_cost_px = 0.0;
+    if (options.class_fit) {
+      solver::PoseVector moved = seed_r;
+      if (extractor.fit_pose_to_classes(camera, model, moved, class_cost_px).ok()) {
+        seed_r = moved;
+      }
+    }
+    solver::Estimate seed = first;
+    seed.quality = solver::EstimateQuality::Degraded;
+    seed.r = seed_r;
+    const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
+    GuidedResult tried = rounds_from(extractor, estimator, camera, model, image, mode, seed, options, true);
+    if (better(tried, out)) {
+      tried.from_start = seed_index == 0;
+      tried.from_regions = seed_index == 1;
+      out = tried;
+    } else {
+      extractor.restore_snapshot(kept);
+      if (out.rounds_kept == 0) {
+        out.fit = tried.fit;  // what the last fit tried saw, for the record
+      }
+    }
+  }
+  return out;
 }
 
 GuidedResult guided_estimate(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
@@ -62,27 +142,7 @@ GuidedResult guided_estimate(FeatureExtractor& extractor, solver::PoseEstimator&
     corners_to_arrays(extractor.result(), observed.pixel, observed.visible);
   }
   const solver::Estimate first = estimator.estimate(observed, mode, start);
-  if (first.quality != solver::EstimateQuality::None) {
-    return rounds_from(extractor, estimator, camera, model, image, mode, first, options, false);
-  }
-  GuidedResult out;
-  out.estimate = first;
-  // Too few corners for the solver: a rough pose from the labelled regions,
-  // kept only if the image fit confirms it (a round is kept).
-  solver::PoseVector rough = start;
-  if (options.from_regions && options.rounds > 0 && extractor.pose_from_regions(camera, model, rough).ok()) {
-    solver::Estimate seed = first;
-    seed.quality = solver::EstimateQuality::Degraded;
-    seed.r = rough;
-    const GuidedResult guided = rounds_from(extractor, estimator, camera, model, image, mode, seed, options, true);
-    if (guided.rounds_kept > 0) {
-      out = guided;
-      out.from_regions = true;
-    } else {
-      out.fit = guided.fit;
-    }
-  }
-  return out;
+  return guided_rounds(extractor, estimator, camera, model, image, mode, first, start, options);
 }
 
 }  // namespace vision

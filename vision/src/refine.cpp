@@ -718,6 +718,11 @@ void FeatureExtractor::restore_stage4_corners() noexcept {
   }
 }
 
+void FeatureExtractor::restore_snapshot(const CornerSnapshot& snapshot) noexcept {
+  restore_corners(snapshot.corners);
+  result_.refined = snapshot.refined;
+}
+
 void FeatureExtractor::restore_corners(const std::array<Corner, kNumCorners>& corners) noexcept {
   Extraction& e = result_;
   e.corners = corners;

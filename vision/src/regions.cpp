@@ -183,8 +183,11 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   e->candidates_.reset(new (std::nothrow) Region[kMaxCandidates]);
   const auto grid_row_bytes = static_cast<std::size_t>(config.max_width);
   e->grid_row_.reset(new (std::nothrow) std::uint8_t[grid_row_bytes]);
+  for (auto& d : e->class_distance_) {
+    d.reset(new (std::nothrow) std::uint16_t[pixels]);
+  }
   if (e->classes_ == nullptr || e->runs_ == nullptr || e->region_of_root_ == nullptr || e->candidates_ == nullptr ||
-      e->grid_row_ == nullptr) {
+      e->grid_row_ == nullptr || e->class_distance_[0] == nullptr || e->class_distance_[1] == nullptr) {
     return R::failure(VisionError::BadParameter);
   }
   return R::success(std::move(e));
@@ -303,6 +306,7 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
   }
   result_.corner_count = 0;
   result_.refined = false;
+  class_distance_ready_ = false;
   RegionSet& out = result_.regions;
   out.regions.clear();
   out.too_many_regions = false;

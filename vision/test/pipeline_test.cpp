@@ -32,8 +32,11 @@ struct Fixture {
     pixels.resize(static_cast<std::size_t>(camera.width() * camera.height() * 3));
   }
   ImageView render_pose(double lambda, double phi_deg, double theta_deg) {
+    return render_r(model.geometry().nominal_pose(lambda, solver::deg_to_rad(phi_deg), solver::deg_to_rad(theta_deg)));
+  }
+  ImageView render_r(const solver::PoseVector& r) {
     render::SceneSpec spec;
-    spec.r = model.geometry().nominal_pose(lambda, solver::deg_to_rad(phi_deg), solver::deg_to_rad(theta_deg));
+    spec.r = r;
     const MutableImageView out{pixels.data(), camera.width(), camera.height(),
                                static_cast<std::size_t>(camera.width()) * 3U};
     EXPECT_TRUE(renderer->render(spec, out, truth).ok());
@@ -96,6 +99,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   solver::PoseEstimator estimator(f.camera, f.model);
   int guided_rounds = 0;
   int region_seeded = 0;
+  int start_seeded = 0;
   TemporalPriors temporal;
   const MarkerPriors generic = generic_priors(f.camera, f.model);
   int extracted = 0;
@@ -118,10 +122,15 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
       solver::PoseVector r = f.model.geometry().nominal_pose(25.0, 0.0, 0.0);
       static_cast<void>(pose_solver.solve(observed, solver::SolveMode::Adaptive, r));  // outcome not under test
       // The model-guided rounds (image fit, refinement, re-solves) too.
-      // Every fifth frame as if stage 4 had failed: the region-pose path.
+      // Every fifth frame as if stage 4 had failed: the fallback seeds, the
+      // start pose moved onto the class image (default options) or, every
+      // tenth, the regions' rough pose alone.
+      GuidedOptions options;
+      options.retry_seeds = i % 10 != 0;
       const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, i % 5 != 0,
-                                                  solver::SolveMode::Adaptive, r, GuidedOptions{});
+                                                  solver::SolveMode::Adaptive, r, options);
       region_seeded += guided.from_regions ? 1 : 0;
+      start_seeded += guided.from_start ? 1 : 0;
       guided_rounds += guided.rounds_kept;
     }
     EXPECT_EQ(scope.count(), 0U);
@@ -129,6 +138,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   EXPECT_GT(extracted, 0);
   EXPECT_GT(guided_rounds, 0);  // the refinement ran, so its path was counted
   EXPECT_GT(region_seeded, 0);  // idem for the region pose
+  EXPECT_GT(start_seeded, 0);   // and for the start seed with the class-image fit
 }
 
 // The model-guided corners on rendered frames: from stage 4's first pose,
@@ -183,18 +193,92 @@ TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
   solver::PoseVector rough = prior;
   ASSERT_TRUE(fx->pose_from_regions(f.camera, f.model, rough).ok());
   EXPECT_LT(std::fabs(rough[solver::kTheta] - truth[solver::kTheta]), std::fabs(prior[solver::kTheta] - truth[solver::kTheta]));
+  GuidedOptions regions_only;
+  regions_only.retry_seeds = false;  // the start seed (tried first by default) would serve too
   const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, false,
-                                              solver::SolveMode::Adaptive, prior, GuidedOptions{});
+                                              solver::SolveMode::Adaptive, prior, regions_only);
   EXPECT_TRUE(guided.from_regions);
   ASSERT_NE(guided.estimate.quality, solver::EstimateQuality::None);
   EXPECT_LT((f.model.tcp(guided.estimate.r) - f.model.tcp(truth)).norm(), 2.0);
   // Off: no estimate.
   GuidedOptions off;
   off.from_regions = false;
+  off.retry_seeds = false;
   ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
   EXPECT_EQ(guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, off)
                 .estimate.quality,
             solver::EstimateQuality::None);
+}
+
+// The class-image fit brings a seed far off (the encoders' error plus the
+// channel's play) close to the truth, with no labelling and no borders: the
+// model's stripes onto the blue and yellow pixels.
+TEST(Pipeline, ClassImageFitMovesAFarSeedTowardsTheTruth) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  const double poses[3][3] = {{25.0, 30.0, 40.0}, {20.0, -60.0, -90.0}, {30.0, -30.0, -20.0}};
+  for (const auto& p : poses) {
+    // The truth: the channel off its CAD pose by the play; the seed: the
+    // CAD pose with the encoders' joints, off by a few mm and 0.15 rad.
+    solver::PoseVector truth =
+        f.model.geometry().nominal_pose(p[0], solver::deg_to_rad(p[1]), solver::deg_to_rad(p[2]));
+    truth[solver::kXch] += 1.0;
+    truth[solver::kYch] -= 1.0;
+    truth[solver::kPsi] += 0.03;
+    const ImageView image = f.render_r(truth);
+    ASSERT_TRUE(fx->find_regions(image).ok());
+    const solver::PoseVector seed = f.model.geometry().nominal_pose(
+        p[0] + 2.0, solver::deg_to_rad(p[1]) - 0.15, solver::deg_to_rad(p[2]) + 0.15);
+    solver::CornerSet expected, before, after;
+    f.model.corners(f.camera, truth, expected);
+    f.model.corners(f.camera, seed, before);
+    solver::PoseVector moved = seed;
+    double cost_px = -1.0;
+    ASSERT_TRUE(fx->fit_pose_to_classes(f.camera, f.model, moved, cost_px).ok()) << p[0] << " " << p[1] << " " << p[2];
+    EXPECT_GE(cost_px, 0.0);
+    EXPECT_LT(cost_px, 2.0);  // the stripes' samples lie on their colour
+    f.model.corners(f.camera, moved, after);
+    double err_before = 0.0, err_after = 0.0;
+    int n = 0;
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
+      if (expected.present[k] && expected.in_image[k] && before.present[k] && after.present[k]) {
+        err_before += (before.pixel[k] - expected.pixel[k]).norm();
+        err_after += (after.pixel[k] - expected.pixel[k]).norm();
+        ++n;
+      }
+    }
+    ASSERT_GT(n, 6);
+    EXPECT_LT(err_after, 0.5 * err_before) << "mean corner error " << err_before / n << " -> " << err_after / n << " px";
+  }
+  // Without a frame's regions (nothing coloured) there is nothing to fit.
+  std::vector<std::uint8_t> tissue(f.pixels.size(), 120U);
+  const ImageView empty{tissue.data(), f.camera.width(), f.camera.height(), static_cast<std::size_t>(f.camera.width()) * 3U};
+  static_cast<void>(fx->find_regions(empty));  // no region: the outcome is not under test
+  solver::PoseVector r = f.model.geometry().nominal_pose(25.0, 0.0, 0.0);
+  double cost_px = 0.0;
+  const auto status = fx->fit_pose_to_classes(f.camera, f.model, r, cost_px);
+  EXPECT_TRUE(!status.ok() || cost_px >= 59.0);
+}
+
+// When stage 4 gives no pose, the start pose (the encoders') moved onto the
+// class image seeds the image fit: the estimate comes, near the truth.
+TEST(Pipeline, StartSeedOnTheClassImageGivesTheEstimateWhenStage4GivesNoPose) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const ImageView image = f.render_pose(20.0, -60.0, -90.0);
+  const solver::PoseVector truth = f.truth.instruments[0].r;
+  // The encoders: off by 2.5 mm and 0.15 rad; the channel at its CAD pose.
+  const solver::PoseVector prior = f.model.geometry().nominal_pose(22.5, solver::deg_to_rad(-60.0) + 0.15,
+                                                                   solver::deg_to_rad(-90.0) - 0.15);
+  ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
+  const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, false,
+                                              solver::SolveMode::Adaptive, prior, GuidedOptions{});
+  EXPECT_TRUE(guided.from_start);
+  ASSERT_NE(guided.estimate.quality, solver::EstimateQuality::None);
+  EXPECT_LT((f.model.tcp(guided.estimate.r) - f.model.tcp(truth)).norm(), 2.0);
 }
 
 TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
@@ -217,6 +301,7 @@ TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
   // A failed extraction gives no estimate, whatever corners an older frame left.
   GuidedOptions no_regions;
   no_regions.from_regions = false;
+  no_regions.retry_seeds = false;
   const GuidedResult none =
       guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, no_regions);
   EXPECT_EQ(none.estimate.quality, solver::EstimateQuality::None);

@@ -495,12 +495,13 @@ void Executive::run_pipeline() noexcept {
     record_.stage_error = stage.error().code;
   }
   record_.publication.corners_detected = static_cast<std::uint8_t>(corners_.count_visible());
-  if (stage.ok()) {
-    step_solve();
-    lap(Step::kSolve);
-    step_refine(image);
-    lap(Step::kRefine);
-  }
+  // After a failed stage there are no corners (no pose from the solve), but
+  // the model-guided step may still confirm a pose seeded from the labelled
+  // regions or the prior (vision::guided_rounds), as estimate/evaluate do.
+  step_solve();
+  lap(Step::kSolve);
+  step_refine(image);
+  lap(Step::kRefine);
   pipeline.end_frame(record_.solved);
   if (record_.solved) {
     track_alive_ = true;
@@ -524,13 +525,10 @@ void Executive::step_solve() noexcept {
 }
 
 void Executive::step_refine(const ImageView& image) noexcept {
-  if (estimate_.quality == solver::EstimateQuality::None) {
-    return;
-  }
   const solver::SolveMode mode = config_.loop.solve_mode == SolveModeSetting::kFixedModel
                                      ? solver::SolveMode::FixedModel
                                      : solver::SolveMode::Adaptive;
-  if (parts_.pipeline->refine(image, *estimator_, mode, estimate_)) {
+  if (parts_.pipeline->refine(image, *estimator_, mode, prior_r_, estimate_)) {
     record_.refined = true;
     take_estimate();
   }

@@ -72,9 +72,9 @@ Status<StageError> VisionPipeline::corners(const ImageView& image, solver::Corne
 }
 
 bool VisionPipeline::refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
-                            solver::Estimate& estimate) noexcept {
+                            const solver::PoseVector& start, solver::Estimate& estimate) noexcept {
   const vision::GuidedResult guided =
-      vision::guided_rounds(*extractor_, estimator, camera_, model_, image, mode, estimate, guided_);
+      vision::guided_rounds(*extractor_, estimator, camera_, model_, image, mode, estimate, start, guided_);
   if (guided.rounds_kept == 0) {
     return false;
   }

@@ -271,10 +271,30 @@ class FeatureExtractor {
   // where stage 4's corners give the solver too little.
   Status<VisionError> pose_from_regions(const solver::CameraModel& camera, const solver::InstrumentModel& model,
                                         solver::PoseVector& r) const noexcept;
+  // A coarse pose from the class image alone (ours, for frames the borders
+  // and corners cannot serve: a tube seen end-on, markers merged into one
+  // region, a wrong labelling): r is moved so that points of every stripe's
+  // visible face, projected, fall on pixels of the stripe's colour (chamfer
+  // matching on the distance images of the blue and yellow classes;
+  // Levenberg-Marquardt, finite differences, a weak prior around `r`, at
+  // most kClassFitIterations). Updates `r` and returns the mean capped
+  // distance in pixels of the points to their colour (`cost_px`); fails
+  // when too few points project into the image.
+  static constexpr int kClassFitIterations = 12;
+  Status<VisionError> fit_pose_to_classes(const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                                          solver::PoseVector& r, double& cost_px) noexcept;
   // Back to earlier corners after refine_corners (a refinement the caller
   // did not keep): stage 4's, or those of an earlier refinement.
   void restore_stage4_corners() noexcept;
   void restore_corners(const std::array<Corner, kNumCorners>& corners) noexcept;
+  // The reported corners and whether they are refined ones: taken before a
+  // trial refinement, put back if the caller does not keep it.
+  struct CornerSnapshot {
+    std::array<Corner, kNumCorners> corners{};
+    bool refined = false;
+  };
+  CornerSnapshot snapshot_corners() const noexcept { return CornerSnapshot{result_.corners, result_.refined}; }
+  void restore_snapshot(const CornerSnapshot& snapshot) noexcept;
   // All four stages.
   Status<VisionError> extract(const ImageView& image, const MarkerPriors& priors) noexcept;
 
@@ -317,6 +337,14 @@ class FeatureExtractor {
   std::unique_ptr<std::int32_t[]> region_of_root_;
   std::unique_ptr<Region[]> candidates_;
   std::unique_ptr<std::uint8_t[]> grid_row_;  // one row of grid classes (step > 1)
+  // Chamfer distance (3-4 weights: 3 per pixel step) of every pixel to the
+  // nearest blue [0] and yellow [1] pixel of the class image, capped;
+  // computed by fit_pose_to_classes once per frame.
+  std::unique_ptr<std::uint16_t[]> class_distance_[2];
+  bool class_distance_ready_ = false;
+  std::array<int, 4> distance_box_{};  // x0, y0, x1, y1 (inclusive) where the distances were computed
+  void compute_class_distances() noexcept;
+  double class_distance_px(int colour, double x, double y) const noexcept;
   std::int32_t max_runs_ = 0;
   int width_ = 0;
   int height_ = 0;

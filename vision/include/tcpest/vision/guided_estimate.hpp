@@ -26,6 +26,15 @@ struct GuidedOptions {
   // regions (pose_from_regions), fitted to the image from a coarse start;
   // kept only if the fit passes the test above and the re-solve succeeds.
   bool from_regions = true;
+  // When the result is still not valid (no pose, or a degraded one): the
+  // image fit is also tried from the rough pose of the regions and from the
+  // start pose (the encoders' or the track's), each from a coarse start; the
+  // best result is kept (valid over degraded, then the lower fit residual).
+  // Bounded: at most two more fits per frame, only on frames not yet valid.
+  bool retry_seeds = true;
+  // Each fallback seed is first moved onto the class image
+  // (FeatureExtractor::fit_pose_to_classes) before the image fit.
+  bool class_fit = true;
 };
 constexpr int kMaxGuidedRounds = 4;
 
@@ -34,15 +43,18 @@ struct GuidedResult {
   int rounds_kept = 0;            // rounds whose corners and pose were kept
   ImageFitSummary fit{};          // of the last fit tried
   bool from_regions = false;      // the rounds started from pose_from_regions
+  bool from_start = false;        // the rounds started from the start pose (retry_seeds)
 };
 
-// The rounds alone, from a first estimate solved from stage 4's corners
-// (the loop times them as their own step). On return the extractor's
-// corners are those of the kept estimate (stage 4's if no round was kept).
+// Everything after the first solve (the loop times it as its own step):
+// the rounds from `first` when it has a pose, then, while the result is not
+// valid, the fallback seeds (the regions' rough pose, `start`). `first` may
+// have no pose. On return the extractor's corners are those of the kept
+// estimate (stage 4's if no round was kept).
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                            const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
-                           const GuidedOptions& options) noexcept;
+                           const solver::PoseVector& start, const GuidedOptions& options) noexcept;
 
 // The first solve and the rounds. `extraction_ok`: stages 1-4 succeeded
 // (else no corners are used and the estimate is None).

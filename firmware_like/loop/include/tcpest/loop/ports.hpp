@@ -45,14 +45,16 @@ class FeaturePipeline {
   virtual Status<StageError> interpret(PriorSource source, const solver::PoseVector& prior_r) noexcept = 0;
   virtual Status<StageError> borders(const ImageView& image) noexcept = 0;
   virtual Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept = 0;
-  // After the first solve from corners(): the model-guided rounds (vision's
-  // guided_rounds), which may replace `estimate`; false when none was kept.
-  // A stand-in pipeline keeps the first estimate.
+  // After the first solve from corners() (which may have given no pose):
+  // the model-guided rounds (vision's guided_rounds; `start` is the prior's
+  // configuration, a fallback seed), which may replace `estimate`; false when
+  // none was kept. A stand-in pipeline keeps the first estimate.
   virtual bool refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
-                      solver::Estimate& estimate) noexcept {
+                      const solver::PoseVector& start, solver::Estimate& estimate) noexcept {
     static_cast<void>(image);
     static_cast<void>(estimator);
     static_cast<void>(mode);
+    static_cast<void>(start);
     static_cast<void>(estimate);
     return false;
   }

@@ -31,7 +31,7 @@ class VisionPipeline final : public FeaturePipeline {
   Status<StageError> borders(const ImageView& image) noexcept override;
   Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept override;
   bool refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
-              solver::Estimate& estimate) noexcept override;
+              const solver::PoseVector& start, solver::Estimate& estimate) noexcept override;
   vision::GuidedOptions& guided_options() noexcept { return guided_; }
   void end_frame(bool success) noexcept override;
   void drop_track() noexcept override { temporal_.reset(); }

@@ -1,0 +1,289 @@
+// A coarse pose from the class image (ours): chamfer matching of the model's
+// stripes onto the blue and yellow pixels. It needs neither the labelling of
+// stage 2 nor the borders of stage 3, so it serves the views those stages
+// cannot: a tube seen nearly end-on (stripes a few pixels long), markers
+// that touch in the image and form one region, a reversed labelling. It only
+// brings a seed (the encoders' pose, or the regions' rough pose) close
+// enough for the image fit (fit_pose_to_image), which then decides.
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace vision {
+
+namespace {
+
+// "No pixel of the class near": larger than any capped distance (x3), and
+// small enough that adding a step cannot overflow.
+constexpr std::uint16_t kFar = 4000U;
+constexpr int kStepsAlong = 3;      // samples along each stripe (at 0.2, 0.5, 0.8 of its length)
+constexpr int kStepsAround = 12;    // samples around the tube
+constexpr int kMaxSamples = kNumMarkers * kStepsAlong * kStepsAround;
+constexpr double kMinSamples = 20.0;  // facing samples in the image (summed weights), at least
+constexpr double kFacingMin = 0.0;   // -n . view: a sample's weight rises from 0 here ...
+constexpr double kFacingRamp = 0.25; // ... to 1 this much higher (facing the camera)
+constexpr double kCapPx = 60.0;     // a sample farther than this from its colour counts as this far
+constexpr double kPriorWeightPx = 3.0;  // residual of one prior standard deviation
+// The other direction: coloured pixels of the class image (a grid sample)
+// should lie near a sample of their colour. Without it, a pose that moves
+// the instrument away (smaller in the image, inside its regions) would cost
+// nothing. Capped, so that colour far from the model (tissue, a decoy) has
+// no pull.
+constexpr int kMaxCoverage = 64;
+constexpr double kCoverageCapPx = 15.0;
+
+int colour_index(PixelClass c) noexcept { return c == PixelClass::Yellow ? 1 : 0; }
+
+}  // namespace
+
+void FeatureExtractor::compute_class_distances() noexcept {
+  // Only where a distance below the cap can occur: the coloured regions'
+  // bounding box grown by the cap. Outside it every distance is capped.
+  int x0 = width_, y0 = height_, x1 = -1, y1 = -1;
+  for (const Region& region : result_.regions.regions) {
+    x0 = std::min(x0, region.x_min);
+    y0 = std::min(y0, region.y_min);
+    x1 = std::max(x1, region.x_max);
+    y1 = std::max(y1, region.y_max);
+  }
+  const int margin = static_cast<int>(kCapPx) + 2;
+  distance_box_ = {std::max(0, x0 - margin), std::max(0, y0 - margin), std::min(width_ - 1, x1 + margin),
+                   std::min(height_ - 1, y1 + margin)};
+  class_distance_ready_ = true;
+  if (x1 < 0) {
+    return;  // no coloured region: every distance is capped
+  }
+  const int bx0 = distance_box_[0], by0 = distance_box_[1], bx1 = distance_box_[2], by1 = distance_box_[3];
+  const auto w = static_cast<std::size_t>(width_);
+  for (int c = 0; c < 2; ++c) {
+    std::uint16_t* d = class_distance_[static_cast<std::size_t>(c)].get();
+    const auto want = static_cast<std::uint8_t>(c == 0 ? PixelClass::Blue : PixelClass::Yellow);
+    // Forward pass (left, up-left, up, up-right), then backward (right,
+    // down-right, down, down-left): the 3-4 chamfer distance.
+    for (int y = by0; y <= by1; ++y) {
+      const std::uint8_t* cls = classes_.get() + static_cast<std::size_t>(y) * w;
+      std::uint16_t* row = d + static_cast<std::size_t>(y) * w;
+      const std::uint16_t* up = y > by0 ? row - w : nullptr;
+      for (int x = bx0; x <= bx1; ++x) {
+        std::uint16_t v = cls[x] == want ? std::uint16_t{0} : kFar;
+        if (v != 0U) {
+          if (x > bx0) {
+            v = std::min(v, static_cast<std::uint16_t>(row[x - 1] + 3U));
+          }
+          if (up != nullptr) {
+            v = std::min(v, static_cast<std::uint16_t>(up[x] + 3U));
+            if (x > bx0) {
+              v = std::min(v, static_cast<std::uint16_t>(up[x - 1] + 4U));
+            }
+            if (x < bx1) {
+              v = std::min(v, static_cast<std::uint16_t>(up[x + 1] + 4U));
+            }
+          }
+        }
+        row[x] = v;
+      }
+    }
+    for (int y = by1; y >= by0; --y) {
+      std::uint16_t* row = d + static_cast<std::size_t>(y) * w;
+      const std::uint16_t* down = y < by1 ? row + w : nullptr;
+      for (int x = bx1; x >= bx0; --x) {
+        std::uint16_t v = row[x];
+        if (v != 0U) {
+          if (x < bx1) {
+            v = std::min(v, static_cast<std::uint16_t>(row[x + 1] + 3U));
+          }
+          if (down != nullptr) {
+            v = std::min(v, static_cast<std::uint16_t>(down[x] + 3U));
+            if (x < bx1) {
+              v = std::min(v, static_cast<std::uint16_t>(down[x + 1] + 4U));
+            }
+            if (x > bx0) {
+              v = std::min(v, static_cast<std::uint16_t>(down[x - 1] + 4U));
+            }
+          }
+        }
+        row[x] = v;
+      }
+    }
+  }
+}
+
+double FeatureExtractor::class_distance_px(int colour, double x, double y) const noexcept {
+  if (!(x >= distance_box_[0]) || !(y >= distance_box_[1]) || !(x < distance_box_[2]) || !(y < distance_box_[3])) {
+    return kCapPx;  // outside the box every distance is capped (and the box may be empty)
+  }
+  const int x0 = static_cast<int>(x);
+  const int y0 = static_cast<int>(y);
+  const double fx = x - x0;
+  const double fy = y - y0;
+  const std::uint16_t* d = class_distance_[static_cast<std::size_t>(colour)].get();
+  const auto v = [&](int xx, int yy) noexcept {
+    return static_cast<double>(
+        d[static_cast<std::size_t>(yy) * static_cast<std::size_t>(width_) + static_cast<std::size_t>(xx)]);
+  };
+  const double value = (1.0 - fy) * ((1.0 - fx) * v(x0, y0) + fx * v(x0 + 1, y0)) +
+                       fy * ((1.0 - fx) * v(x0, y0 + 1) + fx * v(x0 + 1, y0 + 1));
+  return std::min(value / 3.0, kCapPx);
+}
+
+Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraModel& camera,
+                                                          const solver::InstrumentModel& model, solver::PoseVector& r,
+                                                          double& cost_px) noexcept {
+  if (width_ < 2 || height_ < 2 || !r.allFinite()) {
+    return Status<VisionError>::failure(VisionError::BadImage);
+  }
+  if (!class_distance_ready_) {
+    compute_class_distances();
+  }
+  const auto& g = model.geometry();
+  const solver::PoseVector start = r;
+  constexpr int kParams = solver::kNumParams;
+  constexpr int kRows = kMaxSamples + kMaxCoverage + kParams;
+  const double prior_sd[kParams] = {3.0, 3.0, 0.1, 0.1, 5.0, 0.5, 0.5};
+  // Steps of about a pixel: the distance image is piecewise linear.
+  const double step_h[kParams] = {0.05, 0.05, 0.002, 0.002, 0.05, 0.004, 0.004};
+  using Residuals = Eigen::Matrix<double, kRows, 1>;
+  const auto sample = [&](const solver::PoseFrames& f, int i, solver::Vec3& point, solver::Vec3& normal) noexcept {
+    const int m = i / (kStepsAlong * kStepsAround);
+    const int along = (i / kStepsAround) % kStepsAlong;
+    const int around = i % kStepsAround;
+    const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
+    const double s1 = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
+    const double s = s0 + (s1 - s0) * (0.2 + 0.3 * along);
+    const double a = 6.283185307179586 * around / kStepsAround;
+    const solver::CentrelineFrame c = model.centreline(f, s);
+    normal = std::cos(a) * c.normal + std::sin(a) * c.binormal;
+    point = c.position + g.radius_mm * normal;
+    return m;
+  };
+  // Coverage points: the class image on a grid whose step gives at most
+  // about kMaxCoverage coloured points (from the regions' total area).
+  std::array<solver::Vec2, kMaxCoverage> coverage{};
+  std::array<int, kMaxCoverage> coverage_colour{};
+  int coverage_count = 0;
+  {
+    double coloured = 0.0;
+    for (const Region& region : result_.regions.regions) {
+      coloured += static_cast<double>(region.area);
+    }
+    const int step = std::max(2, static_cast<int>(std::ceil(1.2 * std::sqrt(coloured / kMaxCoverage))));
+    const std::uint8_t* cls = classes_.get();
+    for (int y = step / 2; y < height_ && coverage_count < kMaxCoverage; y += step) {
+      for (int x = step / 2; x < width_ && coverage_count < kMaxCoverage; x += step) {
+        const std::uint8_t c = cls[static_cast<std::size_t>(y) * static_cast<std::size_t>(width_) +
+                                   static_cast<std::size_t>(x)];
+        if (c == static_cast<std::uint8_t>(PixelClass::Blue) || c == static_cast<std::uint8_t>(PixelClass::Yellow)) {
+          coverage[static_cast<std::size_t>(coverage_count)] = solver::Vec2(x, y);
+          coverage_colour[static_cast<std::size_t>(coverage_count)] = colour_index(static_cast<PixelClass>(c));
+          ++coverage_count;
+        }
+      }
+    }
+  }
+  // Every sample counts with a weight that grows from 0 where the surface
+  // grazes the line of sight to 1 where it faces the camera: a smooth cost,
+  // whatever the view (a tube seen end-on shows only grazing surface).
+  std::array<solver::Vec2, kMaxSamples> projected{};
+  std::array<int, kMaxSamples> projected_colour{};
+  const auto residuals = [&](const solver::PoseVector& at, Residuals& out, double& weight_sum) noexcept {
+    out.setZero();
+    weight_sum = 0.0;
+    int n_projected = 0;
+    const solver::PoseFrames f = model.frames(at);
+    for (int i = 0; i < kMaxSamples; ++i) {
+      solver::Vec3 point, normal;
+      const int m = sample(f, i, point, normal);
+      const double depth = point.norm();
+      const double facing = depth > 0.0 ? -normal.dot(point) / depth : 0.0;
+      const double w = std::min(1.0, std::max(0.0, (facing - kFacingMin) / kFacingRamp));
+      solver::Vec2 p;
+      if (w <= 0.0 || !camera.project(point, p)) {
+        continue;
+      }
+      const int colour = colour_index(config_.marker_classes[static_cast<std::size_t>(m)]);
+      out[i] = w * class_distance_px(colour, p.x(), p.y());
+      weight_sum += camera.in_image(p) ? w : 0.0;
+      if (w > 0.5) {
+        projected[static_cast<std::size_t>(n_projected)] = p;
+        projected_colour[static_cast<std::size_t>(n_projected)] = colour;
+        ++n_projected;
+      }
+    }
+    for (int q = 0; q < coverage_count; ++q) {
+      double best_sq = kCoverageCapPx * kCoverageCapPx;
+      for (int i = 0; i < n_projected; ++i) {
+        if (projected_colour[static_cast<std::size_t>(i)] == coverage_colour[static_cast<std::size_t>(q)]) {
+          best_sq = std::min(best_sq,
+                             (projected[static_cast<std::size_t>(i)] - coverage[static_cast<std::size_t>(q)]).squaredNorm());
+        }
+      }
+      out[kMaxSamples + q] = std::sqrt(best_sq);
+    }
+    for (int k = 0; k < kParams; ++k) {
+      out[kMaxSamples + kMaxCoverage + k] = kPriorWeightPx * (at[k] - start[k]) / prior_sd[k];
+    }
+  };
+  solver::PoseVector x = r;
+  Residuals e;
+  double weight_sum = 0.0;
+  residuals(x, e, weight_sum);
+  if (weight_sum < kMinSamples) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  double cost = e.squaredNorm();
+  double damping = 1e-2;
+  for (int it = 0; it < kClassFitIterations; ++it) {
+    Eigen::Matrix<double, kRows, kParams> jac;
+    for (int k = 0; k < kParams; ++k) {
+      solver::PoseVector xk = x;
+      xk[k] += step_h[k];
+      Residuals ek;
+      double wk = 0.0;
+      residuals(xk, ek, wk);
+      jac.col(k) = (ek - e) / step_h[k];
+    }
+    const Eigen::Matrix<double, kParams, kParams> jtj = jac.transpose() * jac;
+    const Eigen::Matrix<double, kParams, 1> grad = jac.transpose() * e;
+    bool improved = false;
+    bool converged = false;
+    for (int attempt = 0; attempt < 6 && !improved; ++attempt) {
+      Eigen::Matrix<double, kParams, kParams> normal = jtj;
+      normal.diagonal() *= 1.0 + damping;
+      const Eigen::Matrix<double, kParams, 1> delta = normal.ldlt().solve(-grad);
+      if (!delta.allFinite()) {
+        return Status<VisionError>::failure(VisionError::NoInstrument);
+      }
+      const solver::PoseVector trial = x + delta;
+      Residuals et;
+      double wt = 0.0;
+      residuals(trial, et, wt);
+      const double trial_cost = et.squaredNorm();
+      if (trial_cost < cost && wt >= kMinSamples) {
+        converged = cost - trial_cost < 1e-3 * cost;
+        x = trial;
+        e = et;
+        cost = trial_cost;
+        weight_sum = wt;
+        damping = std::max(damping * 0.3, 1e-4);
+        improved = true;
+      } else {
+        damping *= 10.0;
+      }
+    }
+    if (!improved || converged) {
+      break;  // no step lowers the cost (a minimum at this damping), or hardly
+    }
+  }
+  if (!x.allFinite()) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  cost_px = e.head(kMaxSamples).sum() / weight_sum;
+  r = x;
+  return ok_status<VisionError>();
+}
+
+}  // namespace vision
+}  // namespace tcpest
