@@ -55,9 +55,10 @@ int rank(solver::EstimateQuality q) noexcept {
   return 0;
 }
 
-// A fallback result replaces the current one when it is of a better quality,
-// or of the same quality with a lower image-fit residual than a result that
-// came from a fit too.
+// A fallback result (always confirmed by an image fit) replaces the current
+// one when it is of a better quality; at the same quality, when the current
+// one was not confirmed by a fit (stage 4's corners alone), or had a higher
+// image-fit residual.
 bool better(const GuidedResult& candidate, const GuidedResult& current) noexcept {
   if (candidate.rounds_kept == 0) {
     return false;
@@ -67,7 +68,7 @@ bool better(const GuidedResult& candidate, const GuidedResult& current) noexcept
   if (a != b) {
     return a > b;
   }
-  return current.rounds_kept > 0 && candidate.fit.rms_px < current.fit.rms_px;
+  return current.rounds_kept == 0 || candidate.fit.rms_px < current.fit.rms_px;
 }
 
 }  // namespace
