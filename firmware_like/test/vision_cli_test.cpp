@@ -86,6 +86,9 @@ TEST(VisionCommands, UsageErrorsAndHelp) {
   EXPECT_EQ(run({"evaluate"}), kExitUsage);
   EXPECT_EQ(run({"evaluate", "/nonexistent-dir"}), kExitConfig);
   EXPECT_EQ(run({"train-colors"}), kExitUsage);
+  EXPECT_EQ(run({"estimate", "--guided-rounds", "5", "x.jpg"}), kExitUsage);
+  EXPECT_EQ(run({"estimate", "--fallback-seeds", "3", "x.jpg"}), kExitUsage);
+  EXPECT_EQ(run({"evaluate", "--fallback-seeds", "-1", "/tmp"}), kExitUsage);
 }
 
 TEST(VisionCommands, EstimateGoesOnAfterABadImageAndWritesOverlays) {
@@ -106,6 +109,7 @@ TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
   const std::string dir = make_dataset("vision_cli_evaluate");
   EXPECT_EQ(run({"evaluate", dir}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--no-prior", "--max", "1", dir}), kExitOk);
+  EXPECT_EQ(run({"evaluate", "--fallback-seeds", "0", "--guided-rounds", "0", dir}), kExitOk);
   const std::string model = dir + "/colors.json";
   ASSERT_EQ(run({"train-colors", "--sidecars", dir, "--out", model}), kExitOk);
   // The trained model is readable and close to the shipped one.

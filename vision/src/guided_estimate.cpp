@@ -93,8 +93,9 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   // encoders' or the track's pose; retry_seeds): measured the more useful
   // of the two (docs/vision.md); seed 1: the rough pose of the labelled
   // regions, only when seed 0 did not give a valid estimate.
+  int seeds_tried = 0;
   for (int seed_index = 0; seed_index < 2; ++seed_index) {
-    if (out.estimate.quality == solver::EstimateQuality::Valid) {
+    if (out.estimate.quality == solver::EstimateQuality::Valid || seeds_tried >= options.fallback_seeds) {
       break;
     }
     solver::PoseVector seed_r = start;
@@ -118,6 +119,7 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
     solver::Estimate seed = first;
     seed.quality = solver::EstimateQuality::Degraded;
     seed.r = seed_r;
+    ++seeds_tried;
     const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
     GuidedResult tried = rounds_from(extractor, estimator, camera, model, image, mode, seed, options, true);
     if (better(tried, out)) {

@@ -288,8 +288,8 @@ TEST(LoopWithUnits, PeriodTriggerSendsTheTcpFrameFirstAtTheTickEvenAfterAnOverru
   int tcp_frames = 0;
   int emcy_frames = 0;
   for (int i = 0; i < 20; ++i) {
-    // Runs of two overrunning cycles (8 ms > the 5 ms budget) start and end.
-    slow.next_ns = (i % 4 == 1 || i % 4 == 2) ? 8 * hal::kNsPerMs : 0;
+    // Runs of two overrunning cycles (over the cycle budget) start and end.
+    slow.next_ns = (i % 4 == 1 || i % 4 == 2) ? (cycle_budget_us() + 2000) * hal::kNsPerUs : 0;
     ASSERT_EQ(loop.run_cycle(), CycleOutcome::kContinue);
     EXPECT_EQ(loop.last().overrun, i % 4 == 1 || i % 4 == 2);
     // This cycle's traffic, in order: the tick's PDOs first, then whatever the cycle raised.

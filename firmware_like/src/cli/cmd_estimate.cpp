@@ -22,6 +22,7 @@ const OptionSpec kSpecs[] = {
     {"prior", "LAMBDA,PHI,THETA", "encoder joints (mm, rad, rad) for every image: stage-2 priors and solver start"},
     {"fixed-model", nullptr, "estimate lambda, phi, theta only (channel pose held at its nominal value)"},
     kGuidedRoundsOption,
+    kFallbackSeedsOption,
     {"overlay", "DIR", "write DIR/<image name>.overlay.jpg: borders, corners, model at the estimate, TCP"},
     {"json", nullptr, "one JSON object per image and line"},
 };
@@ -43,7 +44,7 @@ int cmd_estimate(int argc, char** argv) {
   }
   if (args.help_requested()) {
     print_usage("tcpest estimate --calib CAM.yaml [--config CFG] [--colors MODEL] [--prior LAMBDA,PHI,THETA] "
-                "[--fixed-model] [--guided-rounds N] [--overlay DIR] [--json] IMAGE...",
+                "[--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--overlay DIR] [--json] IMAGE...",
                 "Extracts the labelled apparent corners of each image (JPEG or PPM) and solves the pose.",
                 kSpecs, kSpecCount);
     return kExitOk;
@@ -71,6 +72,9 @@ int cmd_estimate(int argc, char** argv) {
     return kExitConfig;
   }
   if (!apply_guided_rounds("estimate", args.value("guided-rounds"), pipeline)) {
+    return kExitUsage;
+  }
+  if (!apply_fallback_seeds("estimate", args.value("fallback-seeds"), pipeline)) {
     return kExitUsage;
   }
   ImageReader reader;

@@ -29,6 +29,7 @@ const OptionSpec kSpecs[] = {
     {"colors", "MODEL.json", "colour model; default: the built-in model"},
     {"fixed-model", nullptr, "solve with the channel pose held at its nominal value"},
     kGuidedRoundsOption,
+    kFallbackSeedsOption,
     {"no-prior", nullptr, "ignore the sidecars' encoder priors (generic / temporal priors only)"},
     {"max", "N", "score at most N images"},
     {"tolerance", "PX", "distance under which a corner counts as found (default 1.5)"},
@@ -55,7 +56,7 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitUsage;
   }
   if (args.help_requested() || args.positional_count() != 1U) {
-    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--no-prior] "
+    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--no-prior] "
                 "[--max N] [--verbose] DATASET_DIR",
                 "Runs extraction and the solver on every image of a dataset and scores them against the sidecars.",
                 kSpecs, kSpecCount);
@@ -103,6 +104,9 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitConfig;
   }
   if (!apply_guided_rounds("evaluate", args.value("guided-rounds"), pipeline)) {
+    return kExitUsage;
+  }
+  if (!apply_fallback_seeds("evaluate", args.value("fallback-seeds"), pipeline)) {
     return kExitUsage;
   }
   ImageReader reader;

@@ -18,6 +18,9 @@ constexpr OptionSpec kInstrumentConfigOption{"config", "CFG.yaml", "instrument c
 constexpr OptionSpec kGuidedRoundsOption{"guided-rounds", "N",
                                          "model-guided corner rounds after the first solve, 0..4 (default 1; 0: stage 4's "
                                          "corners, the paper's pipeline)"};
+constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
+                                          "image fits from other seeds (the prior's pose, the regions' pose) on a frame "
+                                          "not yet valid, 0..2 (default 2; the loop's loop.fallback_seeds: 1)"};
 
 struct ModelSetup {
   solver::CameraModel camera;

@@ -309,6 +309,19 @@ bool apply_guided_rounds(const char* command, const char* value, EstimatePipelin
   return true;
 }
 
+bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept {
+  if (value == nullptr) {
+    return true;
+  }
+  unsigned long long seeds = 0ULL;
+  if (!parse_unsigned(value, seeds) || seeds > static_cast<unsigned long long>(vision::kMaxFallbackSeeds)) {
+    std::fprintf(stderr, "tcpest %s: --fallback-seeds needs an integer 0..%d\n", command, vision::kMaxFallbackSeeds);
+    return false;
+  }
+  pipeline.guided_options().fallback_seeds = static_cast<int>(seeds);
+  return true;
+}
+
 void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept {
   vision::ReprojectedModel model;
   if (result.status != EstimateStatus::None) {

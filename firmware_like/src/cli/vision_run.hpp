@@ -97,6 +97,9 @@ class EstimatePipeline {
 // --guided-rounds VALUE (may be null: the default stays). False after
 // printing an error.
 bool apply_guided_rounds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept;
+// --fallback-seeds VALUE (may be null: the default stays). False after
+// printing an error.
+bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept;
 
 // The JSON line of `tcpest estimate --json` (no newline).
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,

@@ -27,16 +27,19 @@ struct GuidedOptions {
   // kept only if the fit passes the test above and the re-solve succeeds.
   bool from_regions = true;
   // When the result is still not valid (no pose, or a degraded one): the
-  // image fit is also tried from the rough pose of the regions and from the
-  // start pose (the encoders' or the track's), each from a coarse start; the
-  // best result is kept (valid over degraded, then the lower fit residual).
-  // Bounded: at most two more fits per frame, only on frames not yet valid.
+  // image fit is also tried from the start pose (the encoders' or the
+  // track's) and from the rough pose of the regions, each from a coarse
+  // start; the best result is kept (valid over degraded, then the lower fit
+  // residual). Bounded: at most `fallback_seeds` (0..2) more fits per frame,
+  // only on frames not yet valid (each about 1-3 ms at PAL, docs/vision.md).
   bool retry_seeds = true;
+  int fallback_seeds = 2;
   // Each fallback seed is first moved onto the class image
   // (FeatureExtractor::fit_pose_to_classes) before the image fit.
   bool class_fit = true;
 };
 constexpr int kMaxGuidedRounds = 4;
+constexpr int kMaxFallbackSeeds = 2;
 
 struct GuidedResult {
   solver::Estimate estimate{};

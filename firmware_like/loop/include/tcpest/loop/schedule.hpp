@@ -22,7 +22,7 @@ enum class Step : std::uint8_t {
   kBorders,       // vision stage 3: Bezier borders
   kCorners,       // vision stage 4: the apparent corners
   kSolve,         // pose solver (Levenberg-Marquardt) on stage 4's corners
-  kRefine,        // model-guided corners: image fit, corners re-measured, pose solved again
+  kRefine,        // model-guided corners: image fit, corners re-measured, pose solved again; fallback seeds
   kPublish,       // TCP, JOINTS, MECHANICAL, QUALITY on the bus
   kHousekeeping,  // heartbeat, EMCY, recovery attempts, statistics
 };
@@ -42,7 +42,9 @@ constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
     {Step::kBorders, "borders", 500},
     {Step::kCorners, "corners", 700},
     {Step::kSolve, "solve", 800},
-    {Step::kRefine, "refine", 1500},
+    // 0.5-1 ms for the model-guided round; up to 3.5 ms on a frame that is
+    // not valid yet and tries one fallback seed (loop.fallback_seeds).
+    {Step::kRefine, "refine", 3500},
     {Step::kPublish, "publish", 100},
     {Step::kHousekeeping, "housekeeping", 100},
 }};
