@@ -27,6 +27,9 @@ constexpr double kFacingMin = 0.0;   // -n . view: a sample's weight rises from 
 constexpr double kFacingRamp = 0.25; // ... to 1 this much higher (facing the camera)
 constexpr double kCapPx = 60.0;     // a sample farther than this from its colour counts as this far
 constexpr double kPriorWeightPx = 3.0;  // residual of one prior standard deviation
+constexpr int kGridPoints = 3;              // per axis of the coarse look around the seed
+constexpr double kGridLambdaMm = 2.5;
+constexpr double kGridAngleRad = 0.15;
 // The other direction: coloured pixels of the class image (a grid sample)
 // should lie near a sample of their colour. Without it, a pose that moves
 // the instrument away (smaller in the image, inside its regions) would cost
@@ -226,14 +229,37 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
       out[kMaxSamples + kMaxCoverage + k] = kPriorWeightPx * (at[k] - start[k]) / prior_sd[k];
     }
   };
+  // A coarse look around the seed first (the encoders' joints are off by up
+  // to a few mm and 0.2 rad): the best of a 3 x 3 x 3 grid in lambda, phi and
+  // theta starts the descent. 27 evaluations of the cost, no derivatives.
   solver::PoseVector x = r;
   Residuals e;
   double weight_sum = 0.0;
-  residuals(x, e, weight_sum);
-  if (weight_sum < kMinSamples) {
+  double cost = 0.0;
+  bool have_start = false;
+  for (int g_index = 0; g_index < kGridPoints * kGridPoints * kGridPoints; ++g_index) {
+    solver::PoseVector trial = r;
+    trial[solver::kLambda] += kGridLambdaMm * static_cast<double>(g_index % kGridPoints - 1);
+    trial[solver::kPhi] += kGridAngleRad * static_cast<double>((g_index / kGridPoints) % kGridPoints - 1);
+    trial[solver::kTheta] += kGridAngleRad * static_cast<double>(g_index / (kGridPoints * kGridPoints) - 1);
+    Residuals et;
+    double wt = 0.0;
+    residuals(trial, et, wt);
+    // Mean per sample (a pose that shows fewer samples is not cheaper for
+    // that), plus the prior's rows as they are.
+    const double trial_cost = et.head(kMaxSamples + kMaxCoverage).squaredNorm() / std::max(wt, 1.0) +
+                              et.tail(kParams).squaredNorm() / kMaxSamples;
+    if (wt >= kMinSamples && (!have_start || trial_cost < cost)) {
+      have_start = true;
+      cost = trial_cost;
+      x = trial;
+    }
+  }
+  if (!have_start) {
     return Status<VisionError>::failure(VisionError::NoInstrument);
   }
-  double cost = e.squaredNorm();
+  residuals(x, e, weight_sum);
+  cost = e.squaredNorm();
   double damping = 1e-2;
   for (int it = 0; it < kClassFitIterations; ++it) {
     Eigen::Matrix<double, kRows, kParams> jac;
