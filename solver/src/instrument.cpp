@@ -236,15 +236,17 @@ bool circle_limb_angles(const CentrelineFrame& cf, double radius_mm, double& lim
   return true;
 }
 
-CircleLimbs InstrumentModel::limbs(const CameraModel& camera, const PoseFrames& f, double s_mm) const noexcept {
+namespace {
+
+// The limb points of the circle of `radius` at cf, labelled by side
+// (model.md's rules).
+CircleLimbs circle_limbs(const CameraModel& camera, const CentrelineFrame& cf, double radius) noexcept {
   CircleLimbs out;
-  const CentrelineFrame cf = centreline(f, s_mm);
   Vec2 c_px;
   Eigen::Matrix<double, 2, 3> c_jac;
   if (!camera.project(cf.position, c_px, c_jac)) {
     return out;
   }
-  const double radius = g_.radius_mm;
   double base = 0.0;
   double delta = 0.0;
   if (!circle_limb_angles(cf, radius, base, delta)) {
@@ -276,6 +278,25 @@ CircleLimbs InstrumentModel::limbs(const CameraModel& camera, const PoseFrames& 
     }
   }
   return out;
+}
+
+}  // namespace
+
+CircleLimbs InstrumentModel::limbs(const CameraModel& camera, const PoseFrames& f, double s_mm) const noexcept {
+  return circle_limbs(camera, centreline(f, s_mm), g_.radius_mm);
+}
+
+CentrelineFrame InstrumentModel::shaft_frame(const PoseFrames& f, double back_mm) const noexcept {
+  CentrelineFrame cf;
+  cf.tangent = f.base_rotation.col(2);  // R_b z = R_ch z: Rz(phi) keeps the channel axis
+  cf.normal = f.base_rotation.col(0);
+  cf.binormal = f.base_rotation.col(1);
+  cf.position = f.base_origin - back_mm * cf.tangent;
+  return cf;
+}
+
+CircleLimbs InstrumentModel::shaft_limbs(const CameraModel& camera, const PoseFrames& f, double back_mm) const noexcept {
+  return circle_limbs(camera, shaft_frame(f, back_mm), g_.shaft_radius_mm);
 }
 
 Vec3 InstrumentModel::tcp(const PoseVector& r) const noexcept {

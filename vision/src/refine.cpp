@@ -89,6 +89,29 @@ bool silhouette_at(const solver::CameraModel& camera, const solver::InstrumentMo
   return true;
 }
 
+// The same for the shaft's silhouette `back_mm` before the base.
+bool shaft_silhouette_at(const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                         const solver::PoseFrames& f, double back_mm, std::size_t side, solver::Vec2& point,
+                         solver::Vec2& normal) noexcept {
+  const solver::CircleLimbs at = model.shaft_limbs(camera, f, back_mm);
+  const solver::CircleLimbs next = model.shaft_limbs(camera, f, back_mm - kDsMm);
+  solver::Vec2 centre;
+  if (!at.present[side] || !next.present[side] || !camera.project(model.shaft_frame(f, back_mm).position, centre)) {
+    return false;
+  }
+  solver::Vec2 tangent = next.pixel[side] - at.pixel[side];
+  if (!(tangent.norm() > 0.0)) {
+    return false;
+  }
+  tangent.normalize();
+  normal = solver::Vec2(-tangent.y(), tangent.x());
+  if (normal.dot(at.pixel[side] - centre) < 0.0) {
+    normal = -normal;
+  }
+  point = at.pixel[side];
+  return true;
+}
+
 class Refiner {
  public:
   Refiner(const ImageView& image, const ColorModel& colors, const ExtractorConfig& config,
@@ -338,6 +361,7 @@ struct Reading {
   bool arc = false;
   int boundary = 0;
   double angle_rad = 0.0;   // arc: the point's angle on the circle
+  bool shaft = false;       // a shaft silhouette reading (s_mm: distance before the base)
   double s_mm = 0.0;        // silhouette: arc length
   std::size_t side = 0U;    // silhouette: side
   solver::Vec2 direction = solver::Vec2::Zero();
@@ -346,7 +370,14 @@ struct Reading {
 
 constexpr int kFitArcSamples = 12;        // per boundary
 constexpr int kFitSilhouetteSamples = 10; // per side
-constexpr int kMaxReadings = kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples;
+// The shaft's silhouette just before the base (1 to 8.5 mm): it fixes the
+// channel axis in the image, which the base boundary's corners (never read
+// directly: docs/vision.md) depend on.
+constexpr int kFitShaftSamples = 6;
+constexpr double kFitShaftFirstMm = 1.0;
+constexpr double kFitShaftStepMm = 1.5;
+constexpr int kMaxReadings =
+    kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples + 2 * kFitShaftSamples;
 constexpr int kMaxFitIterations = 20;
 constexpr int kCoarseIterations = 3;  // wide-window iterations from a coarse start
 
@@ -361,7 +392,8 @@ bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& m
                                                                         std::sin(reading.angle_rad) * cf.binormal);
     return camera.project(x, pixel);
   }
-  const solver::CircleLimbs limbs = model.limbs(camera, f, reading.s_mm);
+  const solver::CircleLimbs limbs =
+      reading.shaft ? model.shaft_limbs(camera, f, reading.s_mm) : model.limbs(camera, f, reading.s_mm);
   pixel = limbs.pixel[reading.side];
   return limbs.present[reading.side];
 }
@@ -569,6 +601,33 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
           predicted[static_cast<std::size_t>(n)] = point;
           ++n;
           ++silhouette_readings;
+        }
+      }
+    }
+    // The shaft's silhouette (not counted in the acceptance: the striped
+    // section must be seen for itself).
+    for (std::size_t side = 0U; side < 2U && config_.refine_shaft_readings; ++side) {
+      for (int i = 0; i < kFitShaftSamples; ++i) {
+        const double back = kFitShaftFirstMm + kFitShaftStepMm * i;
+        if (back > x[solver::kLambda] - 1.0) {
+          break;  // the shaft starts at the channel exit
+        }
+        solver::Vec2 point;
+        solver::Vec2 normal;
+        if (!shaft_silhouette_at(camera, model, f, back, side, point, normal) || !camera.in_image(point)) {
+          continue;
+        }
+        double e = 0.0;
+        if (refiner.edge(point, normal, edge_window_px, e)) {
+          Reading& rd = readings[static_cast<std::size_t>(n)];
+          rd = Reading{};
+          rd.shaft = true;
+          rd.s_mm = back;
+          rd.side = side;
+          rd.direction = normal;
+          rd.offset_px = e;
+          predicted[static_cast<std::size_t>(n)] = point;
+          ++n;
         }
       }
     }

@@ -128,6 +128,12 @@ class InstrumentModel {
   // none if the camera is inside the circle's cone, neither if both fall
   // on one side). At s = s_j they are corners() of boundary j (tested).
   CircleLimbs limbs(const CameraModel& camera, const PoseFrames& f, double s_mm) const noexcept;
+  // The shaft (model.md: a straight tube of shaft_radius_mm along the
+  // channel axis, from the channel exit to the base): its axis point
+  // `back_mm` before the base, with the base's frame (tangent = the axis).
+  CentrelineFrame shaft_frame(const PoseFrames& f, double back_mm) const noexcept;
+  // The limb points of the shaft's circle there, with the same rules.
+  CircleLimbs shaft_limbs(const CameraModel& camera, const PoseFrames& f, double back_mm) const noexcept;
   // The apparent corners of model.md (and the TCP). With `jacobians`, also
   // their derivatives with respect to r (the limb points slide on the tube).
   void corners(const CameraModel& camera, const PoseVector& r, CornerSet& out,

@@ -214,6 +214,7 @@ struct ExtractorConfig {
   double refine_fit_tolerance_px = 0.05;    // ... converged when no point read moves more than this
   double refine_coarse_search_mm = 2.5;     // a coarse start's first iterations: along-tube window, +/-
   double refine_coarse_edge_search_px = 10.0;  // ... and silhouette window, +/-
+  bool refine_shaft_readings = true;        // the image fit also reads the shaft's silhouette
 };
 
 // What fit_pose_to_image did.
