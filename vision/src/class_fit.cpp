@@ -238,10 +238,14 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   double cost = 0.0;
   bool have_start = false;
   for (int g_index = 0; g_index < kGridPoints * kGridPoints * kGridPoints; ++g_index) {
+    // The grid index's three digits (base kGridPoints), each -1, 0 or +1.
+    const int digit_lambda = g_index % kGridPoints - 1;
+    const int digit_phi = (g_index / kGridPoints) % kGridPoints - 1;
+    const int digit_theta = g_index / (kGridPoints * kGridPoints) - 1;
     solver::PoseVector trial = r;
-    trial[solver::kLambda] += kGridLambdaMm * static_cast<double>(g_index % kGridPoints - 1);
-    trial[solver::kPhi] += kGridAngleRad * static_cast<double>((g_index / kGridPoints) % kGridPoints - 1);
-    trial[solver::kTheta] += kGridAngleRad * static_cast<double>(g_index / (kGridPoints * kGridPoints) - 1);
+    trial[solver::kLambda] += kGridLambdaMm * static_cast<double>(digit_lambda);
+    trial[solver::kPhi] += kGridAngleRad * static_cast<double>(digit_phi);
+    trial[solver::kTheta] += kGridAngleRad * static_cast<double>(digit_theta);
     Residuals et;
     double wt = 0.0;
     residuals(trial, et, wt);
