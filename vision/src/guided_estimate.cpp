@@ -90,9 +90,9 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   }
   // Not valid yet: the fit from other seeds, each moved onto the class image
   // first (class_fit) and fitted from a coarse start. Seed 0: `start` (the
-  // encoders' or the track's pose; retry_seeds): measured the more useful
-  // of the two (docs/vision.md); seed 1: the rough pose of the labelled
-  // regions, only when seed 0 did not give a valid estimate.
+  // encoders' or the track's pose; start_seed), measured the more useful of
+  // the two (docs/vision.md); seed 1: the rough pose of the labelled regions
+  // (from_regions), when seed 0 did not give a valid estimate.
   int seeds_tried = 0;
   for (int seed_index = 0; seed_index < 2; ++seed_index) {
     if (out.estimate.quality == solver::EstimateQuality::Valid || seeds_tried >= options.fallback_seeds) {
@@ -100,18 +100,17 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
     }
     solver::PoseVector seed_r = start;
     if (seed_index == 0) {
-      if (!options.retry_seeds || !start.allFinite()) {
+      if (!options.start_seed || !start.allFinite()) {
         continue;
       }
     } else {
-      const bool wanted = options.from_regions && (first.quality == solver::EstimateQuality::None || options.retry_seeds);
-      if (!wanted || !extractor.pose_from_regions(camera, model, seed_r).ok()) {
+      if (!options.from_regions || !extractor.pose_from_regions(camera, model, seed_r).ok()) {
         continue;
       }
     }
-    double class_cost_px = 0.0;
     if (options.class_fit) {
       solver::PoseVector moved = seed_r;
+      double class_cost_px = 0.0;  // not used to judge: the image fit's test decides
       if (extractor.fit_pose_to_classes(camera, model, moved, class_cost_px).ok()) {
         seed_r = moved;
       }

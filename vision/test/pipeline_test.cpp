@@ -126,7 +126,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
       // start pose moved onto the class image (default options) or, every
       // tenth, the regions' rough pose alone.
       GuidedOptions options;
-      options.retry_seeds = i % 10 != 0;
+      options.start_seed = i % 10 != 0;
       const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, i % 5 != 0,
                                                   solver::SolveMode::Adaptive, r, options);
       region_seeded += guided.from_regions ? 1 : 0;
@@ -194,7 +194,7 @@ TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
   ASSERT_TRUE(fx->pose_from_regions(f.camera, f.model, rough).ok());
   EXPECT_LT(std::fabs(rough[solver::kTheta] - truth[solver::kTheta]), std::fabs(prior[solver::kTheta] - truth[solver::kTheta]));
   GuidedOptions regions_only;
-  regions_only.retry_seeds = false;  // the start seed (tried first by default) would serve too
+  regions_only.start_seed = false;  // the start seed (tried first by default) would serve too
   const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, false,
                                               solver::SolveMode::Adaptive, prior, regions_only);
   EXPECT_TRUE(guided.from_regions);
@@ -203,7 +203,7 @@ TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
   // Off: no estimate.
   GuidedOptions off;
   off.from_regions = false;
-  off.retry_seeds = false;
+  off.start_seed = false;
   ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
   EXPECT_EQ(guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, off)
                 .estimate.quality,
@@ -301,7 +301,7 @@ TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
   // A failed extraction gives no estimate, whatever corners an older frame left.
   GuidedOptions no_regions;
   no_regions.from_regions = false;
-  no_regions.retry_seeds = false;
+  no_regions.start_seed = false;
   const GuidedResult none =
       guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, no_regions);
   EXPECT_EQ(none.estimate.quality, solver::EstimateQuality::None);

@@ -22,17 +22,18 @@ struct GuidedOptions {
   double max_fit_rms_px = 0.6;
   int min_fit_boundaries = 3;
   int min_fit_silhouette_readings = 12;
-  // When stage 4's corners give no pose: a rough one from the labelled
-  // regions (pose_from_regions), fitted to the image from a coarse start;
-  // kept only if the fit passes the test above and the re-solve succeeds.
+  // Fallback seeds, when the result is not valid yet (no pose, or a degraded
+  // one): the image fit is tried again from the start pose (`start_seed`:
+  // the encoders' or the track's) and then from the rough pose of the
+  // labelled regions (`from_regions`: pose_from_regions), each from a coarse
+  // start; a result is kept only if its fit passes the test above and the
+  // re-solve gives a pose, and replaces the current one when better (valid
+  // over degraded; at the same quality, a fit-confirmed one over stage 4's,
+  // then the lower fit residual). Bounded: at most `fallback_seeds` (0..2)
+  // seeds per frame, only on frames not yet valid (each about 1-3 ms at PAL,
+  // docs/vision.md).
+  bool start_seed = true;
   bool from_regions = true;
-  // When the result is still not valid (no pose, or a degraded one): the
-  // image fit is also tried from the start pose (the encoders' or the
-  // track's) and from the rough pose of the regions, each from a coarse
-  // start; the best result is kept (valid over degraded, then the lower fit
-  // residual). Bounded: at most `fallback_seeds` (0..2) more fits per frame,
-  // only on frames not yet valid (each about 1-3 ms at PAL, docs/vision.md).
-  bool retry_seeds = true;
   int fallback_seeds = 2;
   // Each fallback seed is first moved onto the class image
   // (FeatureExtractor::fit_pose_to_classes) before the image fit.
@@ -46,7 +47,7 @@ struct GuidedResult {
   int rounds_kept = 0;            // rounds whose corners and pose were kept
   ImageFitSummary fit{};          // of the last fit tried
   bool from_regions = false;      // the rounds started from pose_from_regions
-  bool from_start = false;        // the rounds started from the start pose (retry_seeds)
+  bool from_start = false;        // the rounds started from the start pose (start_seed)
 };
 
 // Everything after the first solve (the loop times it as its own step):
