@@ -102,12 +102,15 @@ Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noex
   // Roots: every region, and every region merged with one adjacent region of
   // its colour (a virtual node at the first level too: the base marker split
   // by a highlight along the tube is as common as any other).
-  for (std::size_t root = 0U; root < n; ++root) {
-    for (std::size_t partner = root; partner < n; ++partner) {
-      if (partner != root && (regions[partner].cls != regions[root].cls ||
-                              !adjacent(regions[root], regions[partner], config_))) {
-        continue;
-      }
+  // One loop over the pairs (root, partner), partner >= root; partner ==
+  // root is the region alone.
+  for (std::size_t pair = 0U; pair < n * n; ++pair) {
+    const std::size_t root = pair / n;
+    const std::size_t partner = pair % n;
+    if (partner < root || (partner != root && (regions[partner].cls != regions[root].cls ||
+                                               !adjacent(regions[root], regions[partner], config_)))) {
+      continue;
+    }
     for (int start = 0; start < kNumMarkers; ++start) {
       if (regions[root].cls != level_class(config_, start)) {
         continue;
@@ -202,7 +205,6 @@ Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noex
         hyp.score = score;
         best = hyp;
       }
-    }
     }
   }
   out = best;
