@@ -64,16 +64,13 @@ BoundaryColours colours_of(const ExtractorConfig& config, int j) noexcept {
   return c;
 }
 
-// The model's silhouette point of `side` at arc length s and its outward
-// image normal (away from the centreline's projection); false when the
-// model gives no limb point there.
-bool silhouette_at(const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                   const solver::PoseFrames& f, double s_mm, std::size_t side, solver::Vec2& point,
-                   solver::Vec2& normal) noexcept {
-  const solver::CircleLimbs at = model.limbs(camera, f, s_mm);
-  const solver::CircleLimbs next = model.limbs(camera, f, s_mm + kDsMm);
-  solver::Vec2 centre;
-  if (!at.present[side] || !next.present[side] || !camera.project(model.centreline(f, s_mm).position, centre)) {
+// The silhouette point of `side` from the limb points of two neighbouring
+// circles (`at`, and `next` a little towards the tip) and the image of
+// `at`'s centre: the point and its outward image normal (away from the
+// centre). False when a limb point is missing.
+bool silhouette_from(const solver::CircleLimbs& at, const solver::CircleLimbs& next, bool centre_ok,
+                     const solver::Vec2& centre, std::size_t side, solver::Vec2& point, solver::Vec2& normal) noexcept {
+  if (!at.present[side] || !next.present[side] || !centre_ok) {
     return false;
   }
   solver::Vec2 tangent = next.pixel[side] - at.pixel[side];
@@ -89,27 +86,25 @@ bool silhouette_at(const solver::CameraModel& camera, const solver::InstrumentMo
   return true;
 }
 
+// The model's silhouette point of `side` at arc length s and its outward
+// image normal; false when the model gives no limb point there.
+bool silhouette_at(const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                   const solver::PoseFrames& f, double s_mm, std::size_t side, solver::Vec2& point,
+                   solver::Vec2& normal) noexcept {
+  solver::Vec2 centre;
+  const bool centre_ok = camera.project(model.centreline(f, s_mm).position, centre);
+  return silhouette_from(model.limbs(camera, f, s_mm), model.limbs(camera, f, s_mm + kDsMm), centre_ok, centre, side,
+                         point, normal);
+}
+
 // The same for the shaft's silhouette `back_mm` before the base.
 bool shaft_silhouette_at(const solver::CameraModel& camera, const solver::InstrumentModel& model,
                          const solver::PoseFrames& f, double back_mm, std::size_t side, solver::Vec2& point,
                          solver::Vec2& normal) noexcept {
-  const solver::CircleLimbs at = model.shaft_limbs(camera, f, back_mm);
-  const solver::CircleLimbs next = model.shaft_limbs(camera, f, back_mm - kDsMm);
   solver::Vec2 centre;
-  if (!at.present[side] || !next.present[side] || !camera.project(model.shaft_frame(f, back_mm).position, centre)) {
-    return false;
-  }
-  solver::Vec2 tangent = next.pixel[side] - at.pixel[side];
-  if (!(tangent.norm() > 0.0)) {
-    return false;
-  }
-  tangent.normalize();
-  normal = solver::Vec2(-tangent.y(), tangent.x());
-  if (normal.dot(at.pixel[side] - centre) < 0.0) {
-    normal = -normal;
-  }
-  point = at.pixel[side];
-  return true;
+  const bool centre_ok = camera.project(model.shaft_frame(f, back_mm).position, centre);
+  return silhouette_from(model.shaft_limbs(camera, f, back_mm), model.shaft_limbs(camera, f, back_mm - kDsMm),
+                         centre_ok, centre, side, point, normal);
 }
 
 class Refiner {
