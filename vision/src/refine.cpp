@@ -575,55 +575,41 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       arc_readings += on_this;
       boundaries += on_this >= 3 ? 1 : 0;
     }
-    // Silhouette: both sides along the striped section.
+    // Silhouette readings: both sides along the striped section, and the
+    // shaft's just before the base (not counted in the acceptance: the
+    // striped section must be seen for itself).
+    const auto read_silhouette = [&](bool shaft, double s, std::size_t side) noexcept {
+      solver::Vec2 point;
+      solver::Vec2 normal;
+      const bool at = shaft ? shaft_silhouette_at(camera, model, f, s, side, point, normal) && camera.in_image(point)
+                            : silhouette_at(camera, model, f, s, side, point, normal);
+      double e = 0.0;
+      if (!at || !refiner.edge(point, normal, edge_window_px, e)) {
+        return false;
+      }
+      Reading& rd = readings[static_cast<std::size_t>(n)];
+      rd = Reading{};
+      rd.shaft = shaft;
+      rd.s_mm = s;
+      rd.side = side;
+      rd.direction = normal;
+      rd.offset_px = e;
+      predicted[static_cast<std::size_t>(n)] = point;
+      ++n;
+      return true;
+    };
     int silhouette_readings = 0;
     for (std::size_t side = 0U; side < 2U; ++side) {
       for (int i = 0; i < kFitSilhouetteSamples; ++i) {
         const double s = g.bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
-        solver::Vec2 point;
-        solver::Vec2 normal;
-        if (!silhouette_at(camera, model, f, s, side, point, normal)) {
-          continue;
-        }
-        double e = 0.0;
-        if (refiner.edge(point, normal, edge_window_px, e)) {
-          Reading& rd = readings[static_cast<std::size_t>(n)];
-          rd = Reading{};
-          rd.s_mm = s;
-          rd.side = side;
-          rd.direction = normal;
-          rd.offset_px = e;
-          predicted[static_cast<std::size_t>(n)] = point;
-          ++n;
-          ++silhouette_readings;
-        }
+        silhouette_readings += read_silhouette(false, s, side) ? 1 : 0;
       }
-    }
-    // The shaft's silhouette (not counted in the acceptance: the striped
-    // section must be seen for itself).
-    for (std::size_t side = 0U; side < 2U && config_.refine_shaft_readings; ++side) {
-      for (int i = 0; i < kFitShaftSamples; ++i) {
+      for (int i = 0; i < kFitShaftSamples && config_.refine_shaft_readings; ++i) {
         const double back = kFitShaftFirstMm + kFitShaftStepMm * i;
         if (back > x[solver::kLambda] - 1.0) {
           break;  // the shaft starts at the channel exit
         }
-        solver::Vec2 point;
-        solver::Vec2 normal;
-        if (!shaft_silhouette_at(camera, model, f, back, side, point, normal) || !camera.in_image(point)) {
-          continue;
-        }
-        double e = 0.0;
-        if (refiner.edge(point, normal, edge_window_px, e)) {
-          Reading& rd = readings[static_cast<std::size_t>(n)];
-          rd = Reading{};
-          rd.shaft = true;
-          rd.s_mm = back;
-          rd.side = side;
-          rd.direction = normal;
-          rd.offset_px = e;
-          predicted[static_cast<std::size_t>(n)] = point;
-          ++n;
-        }
+        static_cast<void>(read_silhouette(true, back, side));  // a missing shaft reading is no failure
       }
     }
     summary.iterations = it + 1;

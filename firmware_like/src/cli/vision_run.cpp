@@ -296,30 +296,31 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   return out;
 }
 
-bool apply_guided_rounds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept {
+namespace {
+
+// An optional integer option 0..max into `out`; false after printing an error.
+bool apply_count(const char* command, const char* option, const char* value, int max, int& out) noexcept {
   if (value == nullptr) {
-    return true;
+    return true;  // the default stays
   }
-  unsigned long long rounds = 0ULL;
-  if (!parse_unsigned(value, rounds) || rounds > static_cast<unsigned long long>(vision::kMaxGuidedRounds)) {
-    std::fprintf(stderr, "tcpest %s: --guided-rounds needs an integer 0..%d\n", command, vision::kMaxGuidedRounds);
+  unsigned long long n = 0ULL;
+  if (!parse_unsigned(value, n) || n > static_cast<unsigned long long>(max)) {
+    std::fprintf(stderr, "tcpest %s: --%s needs an integer 0..%d\n", command, option, max);
     return false;
   }
-  pipeline.guided_options().rounds = static_cast<int>(rounds);
+  out = static_cast<int>(n);
   return true;
 }
 
+}  // namespace
+
+bool apply_guided_rounds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept {
+  return apply_count(command, "guided-rounds", value, vision::kMaxGuidedRounds, pipeline.guided_options().rounds);
+}
+
 bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept {
-  if (value == nullptr) {
-    return true;
-  }
-  unsigned long long seeds = 0ULL;
-  if (!parse_unsigned(value, seeds) || seeds > static_cast<unsigned long long>(vision::kMaxFallbackSeeds)) {
-    std::fprintf(stderr, "tcpest %s: --fallback-seeds needs an integer 0..%d\n", command, vision::kMaxFallbackSeeds);
-    return false;
-  }
-  pipeline.guided_options().fallback_seeds = static_cast<int>(seeds);
-  return true;
+  return apply_count(command, "fallback-seeds", value, vision::kMaxFallbackSeeds,
+                     pipeline.guided_options().fallback_seeds);
 }
 
 void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept {
