@@ -121,6 +121,49 @@ TEST(Instrument, LimbsAtABoundaryAreItsCorners) {
   EXPECT_GT(compared, 1500);
 }
 
+// The shaft: its axis points lie on the channel axis, lambda - back from the
+// channel exit; at the base, with the shaft's radius set to the tube's, its
+// limb points are boundary 0's corners (the same circle, the same rule); its
+// limb points are on the shaft's limb (the surface normal is perpendicular
+// to the line of sight).
+TEST(Instrument, ShaftFrameAndLimbs) {
+  const CameraModel camera = vectors_camera();
+  InstrumentGeometry same_radius;
+  same_radius.shaft_radius_mm = same_radius.radius_mm;
+  const InstrumentModel model = InstrumentModel::create(same_radius).value();
+  const InstrumentModel shipped = InstrumentModel::create(InstrumentGeometry{}).value();
+  std::mt19937 rng(23);
+  int compared = 0;
+  for (int i = 0; i < 100; ++i) {
+    const PoseVector r = random_pose(rng);
+    const PoseFrames f = model.frames(r);
+    const Vec3 axis = f.channel_rotation.col(2);
+    const CentrelineFrame cf = model.shaft_frame(f, 4.0);
+    EXPECT_LT((cf.position - (f.channel_origin + (r[kLambda] - 4.0) * axis)).norm(), 1e-9);
+    EXPECT_LT((cf.tangent - axis).norm(), 1e-12);
+    const CircleLimbs at_base = model.shaft_limbs(camera, f, 0.0);
+    const CircleLimbs boundary0 = model.limbs(camera, f, 0.0);
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      ASSERT_EQ(at_base.present[side], boundary0.present[side]);
+      if (at_base.present[side]) {
+        EXPECT_LT((at_base.pixel[side] - boundary0.pixel[side]).norm(), 1e-9);
+        ++compared;
+      }
+    }
+    const CircleLimbs shaft = shipped.shaft_limbs(camera, shipped.frames(r), 3.0);
+    const CentrelineFrame sf = shipped.shaft_frame(shipped.frames(r), 3.0);
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      if (shaft.present[side]) {
+        const Vec3 normal = (shaft.point[side] - sf.position) / shipped.geometry().shaft_radius_mm;
+        EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
+        EXPECT_NEAR(normal.dot(shaft.point[side]), 0.0, 1e-9);
+        EXPECT_NEAR(normal.dot(sf.tangent), 0.0, 1e-9);
+      }
+    }
+  }
+  EXPECT_GT(compared, 100);
+}
+
 TEST(Instrument, NothingBehindTheCamera) {
   const CameraModel cam = vectors_camera();
   const auto model = InstrumentModel::create(InstrumentGeometry{});
