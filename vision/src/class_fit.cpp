@@ -52,13 +52,14 @@ void FeatureExtractor::compute_class_distances() noexcept {
     x1 = std::max(x1, region.x_max);
     y1 = std::max(y1, region.y_max);
   }
+  class_distance_ready_ = true;
+  if (x1 < 0) {
+    distance_box_ = {0, 0, -1, -1};  // no coloured region: an empty box, every distance capped
+    return;
+  }
   const int margin = static_cast<int>(kCapPx) + 2;
   distance_box_ = {std::max(0, x0 - margin), std::max(0, y0 - margin), std::min(width_ - 1, x1 + margin),
                    std::min(height_ - 1, y1 + margin)};
-  class_distance_ready_ = true;
-  if (x1 < 0) {
-    return;  // no coloured region: every distance is capped
-  }
   const int bx0 = distance_box_[0], by0 = distance_box_[1], bx1 = distance_box_[2], by1 = distance_box_[3];
   const auto w = static_cast<std::size_t>(width_);
   for (int c = 0; c < 2; ++c) {

@@ -259,6 +259,23 @@ TEST(Pipeline, ClassImageFitMovesAFarSeedTowardsTheTruth) {
   double cost_px = 0.0;
   const auto status = fx->fit_pose_to_classes(f.camera, f.model, r, cost_px);
   EXPECT_TRUE(!status.ok() || cost_px >= 59.0);
+  // Nor in a small frame after a large one: no distance of the earlier frame
+  // is read (the distance images are not recomputed where nothing is coloured).
+  ASSERT_TRUE(fx->find_regions(f.render_pose(25.0, 30.0, 40.0)).ok());
+  solver::PoseVector first = f.model.geometry().nominal_pose(25.0, solver::deg_to_rad(30.0), solver::deg_to_rad(40.0));
+  ASSERT_TRUE(fx->fit_pose_to_classes(f.camera, f.model, first, cost_px).ok());
+  std::vector<std::uint8_t> small(100U * 80U * 3U, 120U);
+  static_cast<void>(fx->find_regions(ImageView{small.data(), 100, 80, 300U}));  // no region: not under test
+  solver::CameraIntrinsics k;
+  k.width = 100;
+  k.height = 80;
+  k.fx = k.fy = 55.0;  // the PAL camera's field of view, scaled
+  k.cx = 49.5;
+  k.cy = 39.5;
+  const solver::CameraModel small_camera = solver::CameraModel::create(k).value();
+  r = f.model.geometry().nominal_pose(25.0, solver::deg_to_rad(30.0), solver::deg_to_rad(40.0));
+  const auto small_status = fx->fit_pose_to_classes(small_camera, f.model, r, cost_px);
+  EXPECT_TRUE(!small_status.ok() || cost_px >= 59.0) << cost_px;
 }
 
 // When stage 4 gives no pose, the start pose (the encoders') moved onto the
