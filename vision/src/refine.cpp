@@ -517,6 +517,16 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     const double window_mm =
         coarse_it ? config_.refine_coarse_search_mm : (fine_it == 0 ? config_.refine_search_mm : 0.6);
     const double edge_window_px = coarse_it ? config_.refine_coarse_edge_search_px : config_.refine_edge_search_px;
+    // A reading: what the model point is, read along `direction` at `offset_px`
+    // from its prediction `at` (bounded by kMaxReadings: fixed sample counts).
+    const auto push_reading = [&](Reading rd, const solver::Vec2& direction, double offset_px,
+                                  const solver::Vec2& at) noexcept {
+      rd.direction = direction;
+      rd.offset_px = offset_px;
+      readings[static_cast<std::size_t>(n)] = rd;
+      predicted[static_cast<std::size_t>(n)] = at;
+      ++n;
+    };
     // Boundary arcs: read across the arc (its image normal, towards the tip).
     for (int j = 0; j < kNumBoundaries; ++j) {
       const BoundaryColours colours = colours_of(config_, j);
@@ -560,15 +570,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
         }
         double tau = 0.0;
         if (refiner.crossing(p, normal, window_mm * px_per_mm, colours, tau)) {
-          Reading& rd = readings[static_cast<std::size_t>(n)];
-          rd = Reading{};
+          Reading rd;
           rd.arc = true;
           rd.boundary = j;
           rd.angle_rad = a;
-          rd.direction = normal;
-          rd.offset_px = tau;
-          predicted[static_cast<std::size_t>(n)] = p;
-          ++n;
+          push_reading(rd, normal, tau, p);
           ++on_this;
         }
       }
@@ -587,15 +593,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       if (!at || !refiner.edge(point, normal, edge_window_px, e)) {
         return false;
       }
-      Reading& rd = readings[static_cast<std::size_t>(n)];
-      rd = Reading{};
+      Reading rd;
       rd.shaft = shaft;
       rd.s_mm = s;
       rd.side = side;
-      rd.direction = normal;
-      rd.offset_px = e;
-      predicted[static_cast<std::size_t>(n)] = point;
-      ++n;
+      push_reading(rd, normal, e, point);
       return true;
     };
     int silhouette_readings = 0;
