@@ -37,6 +37,9 @@ constexpr double kGridAngleRad = 0.15;
 // no pull.
 constexpr int kMaxCoverage = 64;
 constexpr double kCoverageCapPx = 15.0;
+// The channel's pose known from the shaft: its prior's standard deviations.
+constexpr double kKnownChannelSdMm = 0.5;
+constexpr double kKnownChannelSdRad = 0.03;
 
 int colour_index(PixelClass c) noexcept { return c == PixelClass::Yellow ? 1 : 0; }
 
@@ -135,7 +138,7 @@ double FeatureExtractor::class_distance_px(int colour, double x, double y) const
 
 Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraModel& camera,
                                                           const solver::InstrumentModel& model, solver::PoseVector& r,
-                                                          double& cost_px) noexcept {
+                                                          double& cost_px, bool channel_known) noexcept {
   if (width_ < 2 || height_ < 2 || !r.allFinite()) {
     return Status<VisionError>::failure(VisionError::BadImage);
   }
@@ -146,7 +149,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   const solver::PoseVector start = r;
   constexpr int kParams = solver::kNumParams;
   constexpr int kRows = kMaxSamples + kMaxCoverage + kParams;
-  const double prior_sd[kParams] = {3.0, 3.0, 0.1, 0.1, 5.0, 0.5, 0.5};
+  // With the channel's pose from the shaft (fit_channel_to_shaft), it is
+  // held within about that fit's accuracy.
+  const double channel_mm = channel_known ? kKnownChannelSdMm : 3.0;
+  const double channel_rad = channel_known ? kKnownChannelSdRad : 0.1;
+  const double prior_sd[kParams] = {channel_mm, channel_mm, channel_rad, channel_rad, 5.0, 0.5, 0.5};
   // Steps of about a pixel: the distance image is piecewise linear.
   const double step_h[kParams] = {0.05, 0.05, 0.002, 0.002, 0.05, 0.004, 0.004};
   using Residuals = Eigen::Matrix<double, kRows, 1>;

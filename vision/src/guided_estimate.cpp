@@ -71,6 +71,28 @@ bool better(const GuidedResult& candidate, const GuidedResult& current) noexcept
   return current.rounds_kept == 0 || candidate.fit.rms_px < current.fit.rms_px;
 }
 
+// The rounds from a coarse seed; the result replaces `out` when better
+// (else the extractor's corners are put back). True when it was kept.
+bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
+              const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
+              const solver::Estimate& first, const solver::PoseVector& seed_r, const GuidedOptions& options,
+              GuidedResult& out) noexcept {
+  solver::Estimate seed = first;
+  seed.quality = solver::EstimateQuality::Degraded;
+  seed.r = seed_r;
+  const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
+  const GuidedResult tried = rounds_from(extractor, estimator, camera, model, image, mode, seed, options, true);
+  if (better(tried, out)) {
+    out = tried;
+    return true;
+  }
+  extractor.restore_snapshot(kept);
+  if (out.rounds_kept == 0) {
+    out.fit = tried.fit;  // what the last fit tried saw, for the record
+  }
+  return false;
+}
+
 }  // namespace
 
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
@@ -81,6 +103,21 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   out.estimate = first;
   if (first.quality != solver::EstimateQuality::None) {
     out = rounds_from(extractor, estimator, camera, model, image, mode, first, options, false);
+  }
+  // A valid result whose channel pose the shaft's silhouette places
+  // elsewhere: the rounds again from the shaft's channel pose (the joints
+  // kept), the better one kept. The solve's penalty holds the channel near
+  // its CAD pose, and the image fit's narrow windows cannot move it far;
+  // the base boundary's corners, which are the fitted pose's, follow it.
+  if (options.rounds > 0 && options.shaft_recheck && out.estimate.quality == solver::EstimateQuality::Valid) {
+    solver::PoseVector seed_r = out.estimate.r;
+    ShaftFitSummary shaft;
+    if (extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok() &&
+        (seed_r.head<2>() - out.estimate.r.head<2>()).norm() > options.shaft_recheck_min_mm) {
+      // Kept or not, `out` is then the better of the two.
+      static_cast<void>(try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out));
+      out.shaft_rechecked = true;
+    }
   }
   // The seeds need labelled markers: without them (stage 1 or 2 failed) the
   // fit would read whatever edges lie where the seed puts the instrument.
@@ -108,28 +145,22 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
         continue;
       }
     }
+    // The channel's pose from the shaft first (when it is seen), so that
+    // the class fit need only find the joints.
+    ShaftFitSummary shaft;
+    const bool channel_known =
+        options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
     if (options.class_fit) {
       solver::PoseVector moved = seed_r;
       double class_cost_px = 0.0;  // not used to judge: the image fit's test decides
-      if (extractor.fit_pose_to_classes(camera, model, moved, class_cost_px).ok()) {
+      if (extractor.fit_pose_to_classes(camera, model, moved, class_cost_px, channel_known).ok()) {
         seed_r = moved;
       }
     }
-    solver::Estimate seed = first;
-    seed.quality = solver::EstimateQuality::Degraded;
-    seed.r = seed_r;
     ++seeds_tried;
-    const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
-    GuidedResult tried = rounds_from(extractor, estimator, camera, model, image, mode, seed, options, true);
-    if (better(tried, out)) {
-      tried.from_start = seed_index == 0;
-      tried.from_regions = seed_index == 1;
-      out = tried;
-    } else {
-      extractor.restore_snapshot(kept);
-      if (out.rounds_kept == 0) {
-        out.fit = tried.fit;  // what the last fit tried saw, for the record
-      }
+    if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out)) {
+      out.from_start = seed_index == 0;
+      out.from_regions = seed_index == 1;
     }
   }
   return out;

@@ -704,6 +704,236 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   return ok_status<VisionError>();
 }
 
+namespace {
+
+constexpr int kShaftSamples = 8;          // per side
+constexpr int kShaftIterations = 8;
+// The search beyond the model's cross-section at the first iterations (the
+// last repeated): the channel's play of 1.5 mm / 3 deg (1 sd) moves the
+// shaft by up to about 100 px in a PAL image.
+constexpr double kShaftWindowsPx[] = {120.0, 30.0, 10.0};
+constexpr int kShaftRefineFrom = 2;         // iterations from which each end is moved to the gradient peak
+constexpr double kShaftEdgeRefinePx = 3.0;  // ... searched within +/- this
+constexpr double kShaftNeutralChroma = 12.0;  // a*b* chroma: the shaft below, tissue above
+constexpr double kShaftMaxRmsPx = 1.5;
+constexpr int kShaftMinPerSide = 2;
+
+double chroma_at(const ImageView& image, const solver::Vec2& p, bool& ok) noexcept {
+  Rgb c;
+  ok = sample(image, p.x(), p.y(), c);
+  if (!ok) {
+    return 0.0;
+  }
+  const Lab lab = srgb_to_lab(to_byte(c.r), to_byte(c.g), to_byte(c.b));
+  return std::hypot(lab.a, lab.b);
+}
+
+// The shaft's cross-section along the line from its model limb point a
+// (side 0) to b (side 1), extended by `margin_px` on both sides: the run of
+// neutral pixels whose width is nearest the model's |b - a| (within
+// kShaftWidthTolerance) and, among those, whose centre is nearest; its ends
+// as distances along the line from a (px). Short chromatic gaps (noise) are
+// bridged; a run that reaches the line's end or the image's is no reading.
+constexpr double kShaftWidthTolerance = 0.45;  // relative
+constexpr int kMaxCrossSection = 320;          // samples (1 px)
+bool shaft_cross_section(const ImageView& image, const solver::Vec2& a, const solver::Vec2& b, double margin_px,
+                         double& start_px, double& end_px) noexcept {
+  const double width = (b - a).norm();
+  if (!(width > 2.0)) {
+    return false;
+  }
+  const solver::Vec2 d = (b - a) / width;
+  const int first = -static_cast<int>(std::ceil(margin_px));
+  const int last = std::min(static_cast<int>(std::ceil(width + margin_px)), first + kMaxCrossSection - 1);
+  constexpr int kMaxGap = 2;
+  bool best_found = false;
+  double best_distance = 1e30;
+  int run_start = 0;
+  int run_last = 0;  // last neutral sample of the open run
+  bool in_run = false;
+  bool run_open_at_start = false;
+  const auto close_run = [&](bool open_end) noexcept {
+    if (!in_run || run_open_at_start || open_end) {
+      return;
+    }
+    const double run_width = static_cast<double>(run_last - run_start);
+    if (std::fabs(run_width - width) > kShaftWidthTolerance * width) {
+      return;
+    }
+    const double centre = 0.5 * (run_start + run_last);
+    const double distance = std::fabs(centre - 0.5 * width);
+    if (distance < best_distance) {
+      best_distance = distance;
+      best_found = true;
+      start_px = run_start - 0.5;
+      end_px = run_last + 0.5;
+    }
+  };
+  for (int i = first; i <= last; ++i) {
+    bool ok = false;
+    const double c = chroma_at(image, a + static_cast<double>(i) * d, ok);
+    if (!ok) {
+      close_run(true);  // the run reaches the image's border
+      in_run = false;
+      run_open_at_start = true;  // until a chromatic sample starts a fresh run
+      continue;
+    }
+    if (c < kShaftNeutralChroma) {
+      if (!in_run) {
+        in_run = true;
+        run_start = i;
+        run_open_at_start = run_open_at_start || i == first;
+      }
+      run_last = i;
+    } else {
+      if (in_run && i - run_last > kMaxGap) {
+        close_run(false);
+        in_run = false;
+      }
+      if (!in_run) {
+        run_open_at_start = false;
+      }
+    }
+  }
+  close_run(true);
+  return best_found;
+}
+
+}  // namespace
+
+Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& image, const solver::CameraModel& camera,
+                                                           const solver::InstrumentModel& model, solver::PoseVector& r,
+                                                           ShaftFitSummary& summary) const noexcept {
+  summary = ShaftFitSummary{};
+  if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
+    return Status<VisionError>::failure(VisionError::BadImage);
+  }
+  constexpr int kParams = 4;  // x_ch, y_ch, psi, mu
+  constexpr int kMaxReadings = 2 * kShaftSamples;
+  const double prior_sd[kParams] = {3.0, 3.0, 0.1, 0.1};
+  const double step_h[kParams] = {1e-3, 1e-3, 1e-5, 1e-5};
+  const solver::PoseVector start = r;
+  solver::PoseVector x = r;
+  std::array<double, kMaxReadings> back{};
+  std::array<std::size_t, kMaxReadings> sides{};
+  std::array<solver::Vec2, kMaxReadings> normals{};
+  std::array<solver::Vec2, kMaxReadings> predicted{};
+  std::array<double, kMaxReadings> offsets{};
+  std::array<double, kMaxReadings> work{};
+  double rms = 1e9;
+  int n = 0;
+  for (int it = 0; it < kShaftIterations; ++it) {
+    const double window = kShaftWindowsPx[std::min(it, 2)];
+    const solver::PoseFrames f = model.frames(x);
+    Refiner refiner(image, colors_, config_, camera, model, f);
+    // From 1 mm before the base back to 3 mm after the channel exit (the
+    // shaft near the camera leaves the image or is out of focus).
+    const double first_mm = 1.0;
+    const double last_mm = std::max(first_mm, x[solver::kLambda] - 3.0);
+    n = 0;
+    std::array<int, 2> per_side{};
+    for (int i = 0; i < kShaftSamples; ++i) {
+      const double bk = first_mm + (last_mm - first_mm) * i / (kShaftSamples - 1.0);
+      std::array<solver::Vec2, 2> point{};
+      std::array<solver::Vec2, 2> normal{};
+      if (!shaft_silhouette_at(camera, model, f, bk, 0U, point[0], normal[0]) ||
+          !shaft_silhouette_at(camera, model, f, bk, 1U, point[1], normal[1])) {
+        continue;
+      }
+      double t0 = 0.0;
+      double t1 = 0.0;
+      if (!shaft_cross_section(image, point[0], point[1], window, t0, t1)) {
+        continue;
+      }
+      // Each end's distance from its model point along the line, as a
+      // distance along that side's outward normal (straight edge).
+      const double width = (point[1] - point[0]).norm();
+      const solver::Vec2 d = (point[1] - point[0]) / width;
+      const double along[2] = {t0, t1 - width};
+      for (std::size_t side = 0U; side < 2U; ++side) {
+        const auto k = static_cast<std::size_t>(n++);
+        back[k] = bk;
+        sides[k] = side;
+        normals[k] = normal[side];
+        predicted[k] = point[side];
+        offsets[k] = along[side] * d.dot(normal[side]);
+        if (it >= kShaftRefineFrom) {
+          // From the threshold's crossing to the colour-gradient peak's
+          // centre (the silhouette readings' rule, refine_edge_search_px).
+          double e = 0.0;
+          if (refiner.edge(point[side] + offsets[k] * normal[side], normal[side], kShaftEdgeRefinePx, e)) {
+            offsets[k] += e;
+          }
+        }
+        ++per_side[side];
+      }
+    }
+    summary.iterations = it + 1;
+    summary.readings = n;
+    if (per_side[0] < kShaftMinPerSide || per_side[1] < kShaftMinPerSide) {
+      return Status<VisionError>::failure(VisionError::NoInstrument);
+    }
+    for (int i = 0; i < n; ++i) {
+      work[static_cast<std::size_t>(i)] = std::fabs(offsets[static_cast<std::size_t>(i)]);
+    }
+    const double scale = std::max(1.0, 1.4826 * median_of(work.data(), n));
+    const double c = 3.0 * scale;
+    std::array<solver::PoseFrames, kParams> shifted{};
+    for (int k = 0; k < kParams; ++k) {
+      solver::PoseVector xk = x;
+      xk[k] += step_h[k];
+      shifted[static_cast<std::size_t>(k)] = model.frames(xk);
+    }
+    Eigen::Matrix<double, kParams, kParams> normal_matrix = Eigen::Matrix<double, kParams, kParams>::Zero();
+    Eigen::Matrix<double, kParams, 1> rhs = Eigen::Matrix<double, kParams, 1>::Zero();
+    double sum_w = 0.0;
+    double sum_wr2 = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const auto q = static_cast<std::size_t>(i);
+      const double u = offsets[q] / c;
+      const double w = std::fabs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+      if (!(w > 0.0)) {
+        continue;
+      }
+      Eigen::Matrix<double, kParams, 1> row;
+      bool ok = true;
+      for (int k = 0; k < kParams && ok; ++k) {
+        const solver::CircleLimbs limbs = model.shaft_limbs(camera, shifted[static_cast<std::size_t>(k)], back[q]);
+        ok = limbs.present[sides[q]];
+        row[k] = normals[q].dot(limbs.pixel[sides[q]] - predicted[q]) / step_h[k];
+      }
+      if (!ok || !row.allFinite()) {
+        continue;
+      }
+      normal_matrix += w * row * row.transpose();
+      rhs += w * offsets[q] * row;
+      sum_w += w;
+      sum_wr2 += w * offsets[q] * offsets[q];
+    }
+    rms = sum_w > 0.0 ? std::sqrt(sum_wr2 / sum_w) : 1e9;
+    for (int k = 0; k < kParams; ++k) {
+      const double inv_var = 1.0 / (prior_sd[k] * prior_sd[k]);
+      normal_matrix(k, k) += inv_var;
+      rhs[k] -= inv_var * (x[k] - start[k]);
+    }
+    const Eigen::LDLT<Eigen::Matrix<double, kParams, kParams>> ldlt(normal_matrix);
+    if (ldlt.info() != Eigen::Success) {
+      return Status<VisionError>::failure(VisionError::NoInstrument);
+    }
+    const Eigen::Matrix<double, kParams, 1> delta = ldlt.solve(rhs);
+    if (!delta.allFinite()) {
+      return Status<VisionError>::failure(VisionError::NoInstrument);
+    }
+    x.head<kParams>() += delta;
+  }
+  summary.rms_px = rms;
+  if (!x.allFinite() || !(rms <= kShaftMaxRmsPx)) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  r = x;
+  return ok_status<VisionError>();
+}
+
 Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, const solver::CameraModel& camera,
                                                      const solver::InstrumentModel& model,
                                                      const solver::PoseVector& r) noexcept {

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 #include "tcpest/render/renderer.hpp"
@@ -276,6 +277,95 @@ TEST(Pipeline, ClassImageFitMovesAFarSeedTowardsTheTruth) {
   r = f.model.geometry().nominal_pose(25.0, solver::deg_to_rad(30.0), solver::deg_to_rad(40.0));
   const auto small_status = fx->fit_pose_to_classes(small_camera, f.model, r, cost_px);
   EXPECT_TRUE(!small_status.ok() || cost_px >= 59.0) << cost_px;
+}
+
+// The shaft's silhouette gives the channel's pose: from the CAD pose (the
+// true one moved by a play of about 1.5 sd), x_ch, y_ch, psi and mu come
+// near the truth, and the joints are not touched.
+TEST(Pipeline, ShaftFitFindsTheChannelPoseFromItsCadValues) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  const double joints[3][3] = {{30.0, 0.0, -60.0}, {20.0, 30.0, 40.0}, {35.0, -30.0, -100.0}};
+  for (const auto& q : joints) {
+    solver::PoseVector truth = f.model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
+    truth[solver::kXch] += 1.8;
+    truth[solver::kYch] -= 2.2;
+    truth[solver::kPsi] += solver::deg_to_rad(4.0);
+    truth[solver::kMu] -= solver::deg_to_rad(3.0);
+    const ImageView image = f.render_r(truth);
+    solver::PoseVector r = f.model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
+    const solver::PoseVector start = r;
+    ShaftFitSummary summary;
+    ASSERT_TRUE(fx->fit_channel_to_shaft(image, f.camera, f.model, r, summary).ok()) << q[0] << " " << q[1];
+    EXPECT_LT(summary.rms_px, 1.0);
+    EXPECT_GE(summary.readings, 8);
+    EXPECT_LT(std::fabs(r[solver::kXch] - truth[solver::kXch]), 0.5) << r.transpose();
+    EXPECT_LT(std::fabs(r[solver::kYch] - truth[solver::kYch]), 0.5) << r.transpose();
+    EXPECT_LT(std::fabs(r[solver::kPsi] - truth[solver::kPsi]), 0.03) << r.transpose();
+    EXPECT_LT(std::fabs(r[solver::kMu] - truth[solver::kMu]), 0.03) << r.transpose();
+    EXPECT_EQ(r.tail<3>(), start.tail<3>());  // the joints are the caller's
+  }
+}
+
+// Without a shaft in the image (tissue only), or with absurd input, the
+// fit fails and leaves r as it was.
+TEST(Pipeline, ShaftFitFailsWithoutAShaftAndLeavesThePose) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  std::vector<std::uint8_t> tissue(f.pixels.size());
+  for (std::size_t i = 0U; i < tissue.size(); i += 3U) {
+    tissue[i] = 190U;  // reddish: chromatic everywhere
+    tissue[i + 1U] = 90U;
+    tissue[i + 2U] = 80U;
+  }
+  const ImageView image{tissue.data(), f.camera.width(), f.camera.height(), static_cast<std::size_t>(f.camera.width()) * 3U};
+  solver::PoseVector r = f.model.geometry().nominal_pose(25.0, 0.0, 0.0);
+  const solver::PoseVector start = r;
+  ShaftFitSummary summary;
+  EXPECT_FALSE(fx->fit_channel_to_shaft(image, f.camera, f.model, r, summary).ok());
+  EXPECT_EQ(r, start);
+  solver::PoseVector bad = start;
+  bad[solver::kLambda] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(fx->fit_channel_to_shaft(image, f.camera, f.model, bad, summary).error(), VisionError::BadImage);
+  EXPECT_FALSE(fx->fit_channel_to_shaft(ImageView{}, f.camera, f.model, r, summary).ok());
+  EXPECT_EQ(r, start);
+}
+
+// A valid estimate whose channel is off (the solve's penalty holds it near
+// CAD) is tried again from the shaft's channel pose: the kept estimate's
+// base corners lie nearer their truth than without the check.
+TEST(Pipeline, ShaftRecheckMovesTheChannelTowardsTheShaft) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  solver::PoseEstimator estimator(f.camera, f.model);
+  solver::PoseVector truth = f.model.geometry().nominal_pose(15.0, solver::deg_to_rad(30.0), solver::deg_to_rad(-20.0));
+  truth[solver::kXch] += 2.4;
+  truth[solver::kYch] -= 1.2;
+  truth[solver::kPsi] -= solver::deg_to_rad(2.5);
+  const ImageView image = f.render_r(truth);
+  const solver::PoseVector prior = f.model.geometry().nominal_pose(15.0, solver::deg_to_rad(30.0), solver::deg_to_rad(-20.0));
+  solver::CornerSet expected;
+  f.model.corners(f.camera, truth, expected);
+  double base_error[2] = {0.0, 0.0};
+  for (int with_check = 0; with_check < 2; ++with_check) {
+    ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
+    GuidedOptions options;
+    options.shaft_recheck = with_check == 1;
+    const GuidedResult guided =
+        guided_estimate(*fx, estimator, f.camera, f.model, image, true, solver::SolveMode::Adaptive, prior, options);
+    ASSERT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid);
+    EXPECT_EQ(guided.shaft_rechecked, with_check == 1);
+    const Extraction& e = fx->result();
+    for (std::size_t k = 0U; k < 2U; ++k) {
+      ASSERT_TRUE(e.corners[k].found);
+      base_error[with_check] += std::hypot(e.corners[k].pixel.x - expected.pixel[k].x(), e.corners[k].pixel.y - expected.pixel[k].y());
+    }
+  }
+  EXPECT_LT(base_error[1], base_error[0]) << base_error[0] << " -> " << base_error[1];
+  EXPECT_LT(base_error[1], 2.0 * 1.5);
 }
 
 // When stage 4 gives no pose, the start pose (the encoders') moved onto the

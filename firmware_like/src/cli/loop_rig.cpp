@@ -233,6 +233,7 @@ int LoopRig::build() noexcept {
   vision = vision_pipeline.value().get();
   vision->guided_options().rounds = config.loop.guided_rounds;
   vision->guided_options().fallback_seeds = config.loop.fallback_seeds;
+  vision->guided_options().shaft_recheck = config.loop.shaft_recheck;
   pipeline = std::move(vision_pipeline.value());
   if (source->width() != models.camera.width() || source->height() != models.camera.height()) {
     std::fprintf(stderr, "tcpest %s: the source's frames are %dx%d, the camera calibration is %dx%d\n",

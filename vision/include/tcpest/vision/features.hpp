@@ -227,6 +227,13 @@ struct ImageFitSummary {
   bool converged = false;
 };
 
+// What fit_channel_to_shaft did.
+struct ShaftFitSummary {
+  int iterations = 0;
+  int readings = 0;        // silhouette readings at the last iteration (both sides)
+  double rms_px = 0.0;     // robust RMS of their residuals
+};
+
 // The auto rule of ExtractorConfig::classify_step: step 2 from 4 x 720 x 576
 // pixels on.
 constexpr std::int64_t kAutoStepMinPixels = std::int64_t{4} * 720 * 576;
@@ -265,6 +272,17 @@ class FeatureExtractor {
   Status<VisionError> fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
                                         const solver::InstrumentModel& model, solver::PoseVector& r,
                                         ImageFitSummary& summary, bool coarse_start = false) noexcept;
+  // The channel's pose (x_ch, y_ch, psi, mu of r) from the shaft's
+  // silhouette (ours): the shaft is a straight tube of known radius, so its
+  // two apparent contours fix its axis. Each reading takes, along the
+  // model silhouette's normal, the change from the neutral shaft (inside)
+  // to chromatic tissue (outside) nearest to the model, then robust
+  // Gauss-Newton over the four parameters with a weak prior around `r`,
+  // windows shrinking from shaft_fit_windows_px[0]. `r` is updated only on
+  // success (both contours read, a robust RMS within shaft_fit_max_rms_px).
+  Status<VisionError> fit_channel_to_shaft(const ImageView& image, const solver::CameraModel& camera,
+                                           const solver::InstrumentModel& model, solver::PoseVector& r,
+                                           ShaftFitSummary& summary) const noexcept;
   // A rough pose from stage 2 alone (ours): x_ch, y_ch, lambda, phi, theta
   // moved from `r` so that the model's marker middles project onto the
   // labelled regions' centroids (damped Gauss-Newton, at most 15
@@ -283,7 +301,7 @@ class FeatureExtractor {
   // when too few points project into the image.
   static constexpr int kClassFitIterations = 12;
   Status<VisionError> fit_pose_to_classes(const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                                          solver::PoseVector& r, double& cost_px) noexcept;
+                                          solver::PoseVector& r, double& cost_px, bool channel_known = false) noexcept;
   // Back to earlier corners after refine_corners (a refinement the caller
   // did not keep): stage 4's, or those of an earlier refinement.
   void restore_stage4_corners() noexcept;

@@ -35,9 +35,20 @@ struct GuidedOptions {
   bool start_seed = true;
   bool from_regions = true;
   int fallback_seeds = 2;
-  // Each fallback seed is first moved onto the class image
-  // (FeatureExtractor::fit_pose_to_classes) before the image fit.
+  // Each fallback seed's channel pose is first fitted to the shaft's
+  // silhouette (`shaft_fit`: FeatureExtractor::fit_channel_to_shaft), then
+  // the seed is moved onto the class image (`class_fit`:
+  // FeatureExtractor::fit_pose_to_classes, the channel held when the shaft
+  // fit succeeded) before the image fit.
+  bool shaft_fit = true;
   bool class_fit = true;
+  // A valid result is checked against the shaft: when the shaft's fit moves
+  // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
+  // tried again from that channel pose (coarse start) and the better result
+  // kept (the rule above). One shaft fit per valid frame, and at most one
+  // more set of rounds.
+  bool shaft_recheck = true;
+  double shaft_recheck_min_mm = 0.3;
 };
 constexpr int kMaxGuidedRounds = 4;
 constexpr int kMaxFallbackSeeds = 2;
@@ -48,6 +59,7 @@ struct GuidedResult {
   ImageFitSummary fit{};          // of the last fit tried
   bool from_regions = false;      // the rounds started from pose_from_regions
   bool from_start = false;        // the rounds started from the start pose (start_seed)
+  bool shaft_rechecked = false;   // a valid result was tried again from the shaft's channel pose
 };
 
 // Everything after the first solve (the loop times it as its own step):
