@@ -86,6 +86,15 @@ bool silhouette_from(const solver::CircleLimbs& at, const solver::CircleLimbs& n
   return true;
 }
 
+// True when the tip's end face (the last stripe's, between the grasper's
+// radius and the tube's, facing along the tube) is turned towards the
+// camera: the colour change at the tip boundary is then the grasper's
+// outline on that face, not the boundary's circle.
+bool tip_face_visible(const solver::InstrumentModel& model, const solver::PoseFrames& f) noexcept {
+  const solver::CentrelineFrame end = model.centreline(f, model.geometry().bend_length_mm);
+  return -end.position.dot(end.tangent) > 0.0;  // the camera (origin) in front of the face
+}
+
 // The model's silhouette point of `side` at arc length s and its outward
 // image normal; false when the model gives no limb point there.
 bool silhouette_at(const solver::CameraModel& camera, const solver::InstrumentModel& model,
@@ -961,12 +970,17 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     // (the arc's shape follows the shift). The base boundary's arc is not
     // read (in most views it lies behind the shaft, nearer to the camera and
     // only 0.06 mm thinner, so its colour change is the shaft's outline),
+    // nor the tip boundary's when the tip's end face is turned towards the
+    // camera (the blue-to-grey change is then the grasper's outline on that
+    // face, 0.1-0.3 mm from the circle: docs/vision.md; the image fit still
+    // reads that arc, which measured better than leaving it out there),
     // nor is any arc that shows no clear colour change: such a boundary's
     // corners are the limb points of the pose given (fitted to the image by
     // fit_pose_to_image), reported with refine_predicted_confidence.
     double shift = 0.0;
     double step = 0.0;
-    bool measured = colours.usable && j != 0 && refiner.arc_shift(s_j, colours, config_.refine_search_mm, step);
+    bool measured = colours.usable && j != 0 && !(j == kNumBoundaries - 1 && tip_face_visible(model, frames)) &&
+                    refiner.arc_shift(s_j, colours, config_.refine_search_mm, step);
     if (measured) {
       shift = step;
       measured = refiner.arc_shift(s_j + shift, colours, 0.4, step);

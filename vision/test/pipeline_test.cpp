@@ -368,6 +368,40 @@ TEST(Pipeline, ShaftRecheckMovesTheChannelTowardsTheShaft) {
   EXPECT_LT(base_error[1], 2.0 * 1.5);
 }
 
+// With the tip bent back towards the camera its end face shows (between the
+// grasper's radius and the tube's): the tip boundary's arc is not read
+// there (the change seen is the grasper's outline), its corners are the
+// pose's; in a side view it is read.
+TEST(Pipeline, TipBoundaryIsNotReadWhenTheTipFaceIsTurnedToTheCamera) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  const double joints[2][3] = {{15.0, -30.0, 100.0}, {25.0, 30.0, 40.0}};
+  for (int view = 0; view < 2; ++view) {
+    const auto& q = joints[view];
+    const ImageView image = f.render_pose(q[0], q[1], q[2]);
+    const solver::PoseVector truth = f.truth.instruments[0].r;
+    const solver::PoseFrames frames = f.model.frames(truth);
+    const solver::CentrelineFrame end = f.model.centreline(frames, f.model.geometry().bend_length_mm);
+    const bool face_visible = -end.position.dot(end.tangent) > 0.0;
+    ASSERT_EQ(face_visible, view == 0);  // the two views are what this test is about
+    ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, truth)).ok());
+    ASSERT_TRUE(fx->refine_corners(image, f.camera, f.model, truth).ok());
+    const Extraction& e = fx->result();
+    EXPECT_EQ(e.boundary_measured[kNumBoundaries - 1], view == 1);
+    EXPECT_TRUE(e.boundary_measured[1]);
+    solver::CornerSet expected;
+    f.model.corners(f.camera, truth, expected);
+    for (std::size_t k = 2U * (kNumBoundaries - 1); k < static_cast<std::size_t>(kNumCorners); ++k) {
+      if (expected.present[k] && expected.in_image[k] && e.corners[k].found) {
+        EXPECT_LT(std::hypot(e.corners[k].pixel.x - expected.pixel[k].x(), e.corners[k].pixel.y - expected.pixel[k].y()),
+                  1.5)
+            << "view " << view << " k " << k;
+      }
+    }
+  }
+}
+
 // When stage 4 gives no pose, the start pose (the encoders') moved onto the
 // class image seeds the image fit: the estimate comes, near the truth.
 TEST(Pipeline, StartSeedOnTheClassImageGivesTheEstimateWhenStage4GivesNoPose) {
