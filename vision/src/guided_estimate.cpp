@@ -155,6 +155,16 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
       double class_cost_px = 0.0;  // not used to judge: the image fit's test decides
       if (extractor.fit_pose_to_classes(camera, model, moved, class_cost_px, channel_known).ok()) {
         seed_r = moved;
+        // The seed's shaft may have lain outside the image (a short
+        // insertion at the CAD pose projects it beside the frame): from the
+        // class fit's pose it is looked for again, and the joints fitted once
+        // more with the channel it gives.
+        solver::PoseVector shafted = seed_r;
+        if (options.shaft_fit && !channel_known &&
+            extractor.fit_channel_to_shaft(image, camera, model, shafted, shaft).ok() &&
+            extractor.fit_pose_to_classes(camera, model, shafted, class_cost_px, true).ok()) {
+          seed_r = shafted;
+        }
       }
     }
     ++seeds_tried;
