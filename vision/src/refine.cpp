@@ -1000,9 +1000,14 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
       if (!silhouette_at(camera, model, frames, s_j + shift, side, limb, normal)) {
         continue;
       }
+      // Without enough silhouette beside it (a neighbouring part in front,
+      // the image's border) the corner stays the shifted circle's limb
+      // point, with the confidence of a predicted one.
       double offset = 0.0;
+      bool side_measured = measured;
       if (measured && !refiner.silhouette_offset(s_j + shift, side, j, offset)) {
-        continue;
+        offset = 0.0;
+        side_measured = false;
       }
       const solver::Vec2 corner = limb + offset * normal;
       if (corner.x() < 0.0 || corner.y() < 0.0 || corner.x() > image.width - 1 || corner.y() > image.height - 1) {
@@ -1011,7 +1016,7 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
       Corner& c = e.corners[2U * static_cast<std::size_t>(j) + side];
       c.found = true;
       c.pixel = Point{corner.x(), corner.y()};
-      c.confidence = measured ? 0.9 : config_.refine_predicted_confidence;
+      c.confidence = side_measured ? 0.9 : config_.refine_predicted_confidence;
       ++e.corner_count;
     }
   }
