@@ -726,6 +726,7 @@ constexpr double kShaftEdgeRefinePx = 3.0;  // ... searched within +/- this
 constexpr double kShaftNeutralChroma = 12.0;  // a*b* chroma: the shaft below, tissue above
 constexpr double kShaftMaxRmsPx = 1.5;
 constexpr int kShaftMinPerSide = 2;
+constexpr int kMaxShaftReadings = 2 * kShaftSamples;
 
 double chroma_at(const ImageView& image, const solver::Vec2& p, bool& ok) noexcept {
   Rgb c;
@@ -818,17 +819,16 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
     return Status<VisionError>::failure(VisionError::BadImage);
   }
   constexpr int kParams = 4;  // x_ch, y_ch, psi, mu
-  constexpr int kMaxReadings = 2 * kShaftSamples;
   const double prior_sd[kParams] = {3.0, 3.0, 0.1, 0.1};
   const double step_h[kParams] = {1e-3, 1e-3, 1e-5, 1e-5};
   const solver::PoseVector start = r;
   solver::PoseVector x = r;
-  std::array<double, kMaxReadings> back{};
-  std::array<std::size_t, kMaxReadings> sides{};
-  std::array<solver::Vec2, kMaxReadings> normals{};
-  std::array<solver::Vec2, kMaxReadings> predicted{};
-  std::array<double, kMaxReadings> offsets{};
-  std::array<double, kMaxReadings> work{};
+  std::array<double, kMaxShaftReadings> back{};
+  std::array<std::size_t, kMaxShaftReadings> sides{};
+  std::array<solver::Vec2, kMaxShaftReadings> normals{};
+  std::array<solver::Vec2, kMaxShaftReadings> predicted{};
+  std::array<double, kMaxShaftReadings> offsets{};
+  std::array<double, kMaxShaftReadings> work{};
   double rms = 1e9;
   int n = 0;
   for (int it = 0; it < kShaftIterations; ++it) {
