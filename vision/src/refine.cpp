@@ -739,9 +739,9 @@ double chroma_at(const ImageView& image, const solver::Vec2& p, bool& ok) noexce
 }
 
 // The shaft's cross-section along the line from its model limb point a
-// (side 0) to b (side 1), extended by `margin_px` on both sides: the run of
-// neutral pixels whose width is nearest the model's |b - a| (within
-// kShaftWidthTolerance) and, among those, whose centre is nearest; its ends
+// (side 0) to b (side 1), extended by `margin_px` on both sides: of the runs
+// of neutral pixels whose width is within kShaftWidthTolerance of the
+// model's |b - a|, the one whose centre is nearest the model's; its ends
 // as distances along the line from a (px). Short chromatic gaps (noise) are
 // bridged; a run that reaches the line's end or the image's is no reading.
 constexpr double kShaftWidthTolerance = 0.45;  // relative

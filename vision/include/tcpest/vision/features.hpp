@@ -274,12 +274,13 @@ class FeatureExtractor {
                                         ImageFitSummary& summary, bool coarse_start = false) noexcept;
   // The channel's pose (x_ch, y_ch, psi, mu of r) from the shaft's
   // silhouette (ours): the shaft is a straight tube of known radius, so its
-  // two apparent contours fix its axis. Each reading takes, along the
-  // model silhouette's normal, the change from the neutral shaft (inside)
-  // to chromatic tissue (outside) nearest to the model, then robust
-  // Gauss-Newton over the four parameters with a weak prior around `r`,
-  // windows shrinking from shaft_fit_windows_px[0]. `r` is updated only on
-  // success (both contours read, a robust RMS within shaft_fit_max_rms_px).
+  // two apparent contours fix its axis. At 8 distances before the base, the
+  // model's cross-section of the shaft (extended by 120, then 30, then 10
+  // px) is searched for the run of neutral pixels (the shaft) between
+  // chromatic tissue whose width matches the model's; its two ends are the
+  // contours' readings. Robust Gauss-Newton over the four parameters with
+  // a weak prior around `r`, 8 iterations. `r` is updated only on success
+  // (both contours read, a robust RMS within 1.5 px). docs/vision.md.
   Status<VisionError> fit_channel_to_shaft(const ImageView& image, const solver::CameraModel& camera,
                                            const solver::InstrumentModel& model, solver::PoseVector& r,
                                            ShaftFitSummary& summary) const noexcept;
