@@ -32,10 +32,13 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
     }
     solver::CornerObservation refined;
     corners_to_arrays(extractor.result(), refined.pixel, refined.visible);
-    const solver::Estimate again = estimator.estimate(refined, mode, fitted);
+    solver::Estimate again = estimator.estimate(refined, mode, fitted);
     if (again.quality == solver::EstimateQuality::None) {
       extractor.restore_corners(previous);
       break;
+    }
+    if (again.quality == solver::EstimateQuality::Valid && out.fit.boundaries < options.min_valid_fit_boundaries) {
+      again.quality = solver::EstimateQuality::Degraded;
     }
     out.estimate = again;
     out.rounds_kept = round + 1;
