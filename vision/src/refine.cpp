@@ -19,6 +19,7 @@
 
 #include <Eigen/Dense>
 
+#include "robust_step.hpp"
 #include "sampling.hpp"
 #include "tcpest/vision/features.hpp"
 
@@ -29,6 +30,9 @@ namespace {
 using detail::Rgb;
 using detail::sample;
 using detail::to_byte;
+using detail::median_of;
+using detail::RobustNormalEquations;
+using detail::tukey_cut_px;
 
 constexpr double kDsMm = 1e-3;        // finite difference along the tube
 constexpr int kMaxArcSamples = 32;
@@ -36,11 +40,6 @@ constexpr int kMaxProfile = 96;       // along-tube profile points (1 px apart)
 constexpr int kEdgeOffsets = 8;
 constexpr double kEdgeOffsetsMm[kEdgeOffsets] = {-2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0};
 constexpr int kMaxEdgeProfile = 64;   // across profile points (0.5 px apart)
-
-double median_of(double* v, int n) noexcept {
-  std::sort(v, v + n);
-  return (n % 2 == 1) ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 // How the colour changes across boundary j, base -> tip.
 struct BoundaryColours {
@@ -634,11 +633,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     for (int i = 0; i < n; ++i) {
       work[static_cast<std::size_t>(i)] = std::fabs(readings[static_cast<std::size_t>(i)].offset_px);
     }
-    const double scale = std::max(0.3, 1.4826 * median_of(work.data(), n));
-    const double c = 3.0 * scale;
-    Eigen::Matrix<double, solver::kNumParams, solver::kNumParams> normal_matrix =
-        Eigen::Matrix<double, solver::kNumParams, solver::kNumParams>::Zero();
-    Eigen::Matrix<double, solver::kNumParams, 1> rhs = Eigen::Matrix<double, solver::kNumParams, 1>::Zero();
+    RobustNormalEquations<solver::kNumParams> equations(tukey_cut_px(work.data(), n, 0.3));
     std::array<solver::PoseFrames, solver::kNumParams> shifted{};
     std::array<std::array<solver::CentrelineFrame, kNumBoundaries>, solver::kNumParams> shifted_boundaries{};
     for (int k = 0; k < solver::kNumParams; ++k) {
@@ -650,14 +645,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
         shifted_boundaries[kk][j] = model.centreline(shifted[kk], g.boundaries_mm[j]);
       }
     }
-    double sum_w = 0.0;
-    double sum_wr2 = 0.0;
     int used = 0;
     for (int i = 0; i < n; ++i) {
       const Reading& rd = readings[static_cast<std::size_t>(i)];
       const double v = rd.offset_px;
-      const double u = v / c;
-      const double w = std::fabs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+      const double w = equations.weight(v);
       if (!(w > 0.0)) {
         continue;
       }
@@ -673,23 +665,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
         continue;
       }
       rows[static_cast<std::size_t>(used++)] = row;
-      normal_matrix += w * row * row.transpose();
-      rhs += w * v * row;
-      sum_w += w;
-      sum_wr2 += w * v * v;
+      equations.add(row, v, w);
     }
-    rms = sum_w > 0.0 ? std::sqrt(sum_wr2 / sum_w) : 1e9;
-    for (int k = 0; k < solver::kNumParams; ++k) {
-      const double inv_var = 1.0 / (prior_sd[k] * prior_sd[k]);
-      normal_matrix(k, k) += inv_var;
-      rhs[k] -= inv_var * (x[k] - start[k]);
-    }
-    const Eigen::LDLT<Eigen::Matrix<double, solver::kNumParams, solver::kNumParams>> ldlt(normal_matrix);
-    if (ldlt.info() != Eigen::Success) {
-      return Status<VisionError>::failure(VisionError::NoInstrument);
-    }
-    const Eigen::Matrix<double, solver::kNumParams, 1> delta = ldlt.solve(rhs);
-    if (!delta.allFinite()) {
+    rms = equations.rms_px();
+    Eigen::Matrix<double, solver::kNumParams, 1> delta;
+    if (!equations.solve(prior_sd, x - start, delta)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     x += delta;
@@ -885,22 +865,16 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
     for (int i = 0; i < n; ++i) {
       work[static_cast<std::size_t>(i)] = std::fabs(offsets[static_cast<std::size_t>(i)]);
     }
-    const double scale = std::max(1.0, 1.4826 * median_of(work.data(), n));
-    const double c = 3.0 * scale;
+    RobustNormalEquations<kParams> equations(tukey_cut_px(work.data(), n, 1.0));
     std::array<solver::PoseFrames, kParams> shifted{};
     for (int k = 0; k < kParams; ++k) {
       solver::PoseVector xk = x;
       xk[k] += step_h[k];
       shifted[static_cast<std::size_t>(k)] = model.frames(xk);
     }
-    Eigen::Matrix<double, kParams, kParams> normal_matrix = Eigen::Matrix<double, kParams, kParams>::Zero();
-    Eigen::Matrix<double, kParams, 1> rhs = Eigen::Matrix<double, kParams, 1>::Zero();
-    double sum_w = 0.0;
-    double sum_wr2 = 0.0;
     for (int i = 0; i < n; ++i) {
       const auto q = static_cast<std::size_t>(i);
-      const double u = offsets[q] / c;
-      const double w = std::fabs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+      const double w = equations.weight(offsets[q]);
       if (!(w > 0.0)) {
         continue;
       }
@@ -914,23 +888,11 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
       if (!ok || !row.allFinite()) {
         continue;
       }
-      normal_matrix += w * row * row.transpose();
-      rhs += w * offsets[q] * row;
-      sum_w += w;
-      sum_wr2 += w * offsets[q] * offsets[q];
+      equations.add(row, offsets[q], w);
     }
-    rms = sum_w > 0.0 ? std::sqrt(sum_wr2 / sum_w) : 1e9;
-    for (int k = 0; k < kParams; ++k) {
-      const double inv_var = 1.0 / (prior_sd[k] * prior_sd[k]);
-      normal_matrix(k, k) += inv_var;
-      rhs[k] -= inv_var * (x[k] - start[k]);
-    }
-    const Eigen::LDLT<Eigen::Matrix<double, kParams, kParams>> ldlt(normal_matrix);
-    if (ldlt.info() != Eigen::Success) {
-      return Status<VisionError>::failure(VisionError::NoInstrument);
-    }
-    const Eigen::Matrix<double, kParams, 1> delta = ldlt.solve(rhs);
-    if (!delta.allFinite()) {
+    rms = equations.rms_px();
+    Eigen::Matrix<double, kParams, 1> delta;
+    if (!equations.solve(prior_sd, (x - start).head<kParams>(), delta)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     x.head<kParams>() += delta;
