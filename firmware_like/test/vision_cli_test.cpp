@@ -109,6 +109,8 @@ TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
   const std::string dir = make_dataset("vision_cli_evaluate");
   EXPECT_EQ(run({"evaluate", dir}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--no-prior", "--max", "1", dir}), kExitOk);
+  EXPECT_EQ(run({"evaluate", "--true-prior", "--max", "1", dir}), kExitOk);
+  EXPECT_EQ(run({"evaluate", "--true-prior", "--no-prior", dir}), kExitUsage);
   EXPECT_EQ(run({"evaluate", "--fallback-seeds", "0", "--guided-rounds", "0", dir}), kExitOk);
   const std::string model = dir + "/colors.json";
   ASSERT_EQ(run({"train-colors", "--sidecars", dir, "--out", model}), kExitOk);

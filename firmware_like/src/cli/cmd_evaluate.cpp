@@ -31,6 +31,9 @@ const OptionSpec kSpecs[] = {
     kGuidedRoundsOption,
     kFallbackSeedsOption,
     {"no-prior", nullptr, "ignore the sidecars' encoder priors (generic / temporal priors only)"},
+    {"true-prior", nullptr,
+     "diagnostic: the sidecars' true joints (lambda, phi, theta of r) as the prior, to tell the seed's "
+     "error from the readings'"},
     {"max", "N", "score at most N images"},
     {"tolerance", "PX", "distance under which a corner counts as found (default 1.5)"},
     {"verbose", nullptr, "one line per image"},
@@ -56,7 +59,7 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitUsage;
   }
   if (args.help_requested() || args.positional_count() != 1U) {
-    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--no-prior] "
+    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--no-prior | --true-prior] "
                 "[--max N] [--verbose] DATASET_DIR",
                 "Runs extraction and the solver on every image of a dataset and scores them against the sidecars.",
                 kSpecs, kSpecCount);
@@ -115,6 +118,11 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitFailure;
   }
   const bool verbose = args.flag("verbose");
+  const bool true_prior = args.flag("true-prior");
+  if (true_prior && args.flag("no-prior")) {
+    std::fprintf(stderr, "tcpest evaluate: --true-prior and --no-prior exclude each other\n");
+    return kExitUsage;
+  }
   FILE* csv = nullptr;
   if (args.value("corners-csv") != nullptr) {
     csv = std::fopen(args.value("corners-csv"), "w");
@@ -163,8 +171,17 @@ int cmd_evaluate(int argc, char** argv) {
     if (!sequence) {
       pipeline.reset_sequence();  // independent images
     }
-    const bool use_prior = truth.has_prior && !args.flag("no-prior");
-    const EstimateResult result = pipeline.process(view, use_prior ? truth.prior.data() : nullptr);
+    // The true joints: r's lambda, phi, theta (the channel's pose is not a
+    // prior: the pipeline starts it at the CAD pose either way).
+    const double true_joints[3] = {truth.instrument.r[solver::kLambda], truth.instrument.r[solver::kPhi],
+                                   truth.instrument.r[solver::kTheta]};
+    const double* prior = nullptr;
+    if (true_prior) {
+      prior = truth.instrument.has_r ? true_joints : nullptr;
+    } else if (truth.has_prior && !args.flag("no-prior")) {
+      prior = truth.prior.data();
+    }
+    const EstimateResult result = pipeline.process(view, prior);
     const vision::Extraction& e = pipeline.extractor().result();
     ++frames;
     int frame_visible = 0, frame_ok = 0;
