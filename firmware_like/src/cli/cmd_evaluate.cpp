@@ -75,6 +75,11 @@ int cmd_evaluate(int argc, char** argv) {
     std::fprintf(stderr, "tcpest evaluate: --max needs a non-negative integer\n");
     return kExitUsage;
   }
+  const bool true_prior = args.flag("true-prior");
+  if (true_prior && args.flag("no-prior")) {
+    std::fprintf(stderr, "tcpest evaluate: --true-prior and --no-prior exclude each other\n");
+    return kExitUsage;
+  }
   const std::string dir = args.positional(0U);
   std::vector<std::string> sidecars;
   DIR* d = opendir(dir.c_str());
@@ -118,11 +123,6 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitFailure;
   }
   const bool verbose = args.flag("verbose");
-  const bool true_prior = args.flag("true-prior");
-  if (true_prior && args.flag("no-prior")) {
-    std::fprintf(stderr, "tcpest evaluate: --true-prior and --no-prior exclude each other\n");
-    return kExitUsage;
-  }
   FILE* csv = nullptr;
   if (args.value("corners-csv") != nullptr) {
     csv = std::fopen(args.value("corners-csv"), "w");
