@@ -703,7 +703,15 @@ constexpr int kShaftIterations = 8;
 constexpr double kShaftWindowsPx[] = {120.0, 30.0, 10.0};
 constexpr int kShaftRefineFrom = 2;         // iterations from which each end is moved to the gradient peak
 constexpr double kShaftEdgeRefinePx = 3.0;  // ... searched within +/- this
-constexpr double kShaftNeutralChroma = 12.0;  // a*b* chroma: the shaft below, tissue above
+constexpr double kShaftNeutralChroma = 12.0;  // a*b* chroma: the shaft below, tissue above (clear view)
+// Under haze the limit follows the tissue (shaft_neutral_chroma): this share
+// of its median chroma on a grid of kTissueGridX x kTissueGridY samples, not
+// below the floor (sensor noise on the grey shaft). Measured on the hard set:
+// shares 0.5 and 0.6 gave the same, 0.45 and 0.4 less; floors 2-4 the same.
+constexpr double kShaftNeutralShare = 0.5;
+constexpr double kShaftNeutralFloor = 3.0;
+constexpr int kTissueGridX = 16;
+constexpr int kTissueGridY = 12;
 constexpr double kShaftMaxRmsPx = 1.5;
 constexpr int kShaftMinPerSide = 2;
 constexpr int kMaxShaftReadings = 2 * kShaftSamples;
@@ -718,16 +726,41 @@ double chroma_at(const ImageView& image, const solver::Vec2& p, bool& ok) noexce
   return std::hypot(lab.a, lab.b);
 }
 
+// The chroma below which a pixel counts as the shaft's (neutral): half the
+// median chroma of the frame (mostly tissue) on a coarse grid, at most
+// kShaftNeutralChroma, at least kShaftNeutralFloor. Haze or smoke veils the
+// tissue with a grey that brings its chroma from 20-35 down to 6-15 while the
+// shaft stays at 1-3, so a fixed limit calls the tissue shaft and no run has
+// the shaft's width (docs/vision.md). Clear frames keep the fixed limit.
+double shaft_neutral_chroma(const ImageView& image) noexcept {
+  std::array<double, kTissueGridX * kTissueGridY> chroma{};
+  int n = 0;
+  for (int gy = 0; gy < kTissueGridY; ++gy) {
+    for (int gx = 0; gx < kTissueGridX; ++gx) {
+      const solver::Vec2 p((gx + 0.5) * image.width / kTissueGridX, (gy + 0.5) * image.height / kTissueGridY);
+      bool ok = false;
+      const double c = chroma_at(image, p, ok);
+      if (ok) {
+        chroma[static_cast<std::size_t>(n++)] = c;
+      }
+    }
+  }
+  if (n == 0) {
+    return kShaftNeutralChroma;
+  }
+  return std::min(kShaftNeutralChroma, std::max(kShaftNeutralFloor, kShaftNeutralShare * median_of(chroma.data(), n)));
+}
+
 // The shaft's cross-section along the line from its model limb point a
 // (side 0) to b (side 1), extended by `margin_px` on both sides: of the runs
-// of neutral pixels whose width is within kShaftWidthTolerance of the
+// of neutral pixels (chroma below `neutral_chroma`) whose width is within kShaftWidthTolerance of the
 // model's |b - a|, the one whose centre is nearest the model's; its ends
 // as distances along the line from a (px). Short chromatic gaps (noise) are
 // bridged; a run that reaches the line's end or the image's is no reading.
 constexpr double kShaftWidthTolerance = 0.45;  // relative
 constexpr int kMaxCrossSection = 320;          // samples (1 px)
 bool shaft_cross_section(const ImageView& image, const solver::Vec2& a, const solver::Vec2& b, double margin_px,
-                         double& start_px, double& end_px) noexcept {
+                         double neutral_chroma, double& start_px, double& end_px) noexcept {
   const double width = (b - a).norm();
   if (!(width > 2.0)) {
     return false;
@@ -768,7 +801,7 @@ bool shaft_cross_section(const ImageView& image, const solver::Vec2& a, const so
       run_open_at_start = true;  // until a chromatic sample starts a fresh run
       continue;
     }
-    if (c < kShaftNeutralChroma) {
+    if (c < neutral_chroma) {
       if (!in_run) {
         in_run = true;
         run_start = i;
@@ -803,6 +836,7 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
   const double step_h[kParams] = {1e-3, 1e-3, 1e-5, 1e-5};
   const solver::PoseVector start = r;
   solver::PoseVector x = r;
+  const double neutral_chroma = shaft_neutral_chroma(image);
   std::array<double, kMaxShaftReadings> back{};
   std::array<std::size_t, kMaxShaftReadings> sides{};
   std::array<solver::Vec2, kMaxShaftReadings> normals{};
@@ -831,7 +865,7 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
       }
       double t0 = 0.0;
       double t1 = 0.0;
-      if (!shaft_cross_section(image, point[0], point[1], window, t0, t1)) {
+      if (!shaft_cross_section(image, point[0], point[1], window, neutral_chroma, t0, t1)) {
         continue;
       }
       // Each end's distance from its model point along the line, as a

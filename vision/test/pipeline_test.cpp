@@ -35,9 +35,11 @@ struct Fixture {
   ImageView render_pose(double lambda, double phi_deg, double theta_deg) {
     return render_r(model.geometry().nominal_pose(lambda, solver::deg_to_rad(phi_deg), solver::deg_to_rad(theta_deg)));
   }
-  ImageView render_r(const solver::PoseVector& r) {
+  ImageView render_r(const solver::PoseVector& r, std::uint32_t hard_cases = 0U, std::uint64_t seed = 1U) {
     render::SceneSpec spec;
     spec.r = r;
+    spec.hard_cases = hard_cases;
+    spec.seed = seed;
     const MutableImageView out{pixels.data(), camera.width(), camera.height(),
                                static_cast<std::size_t>(camera.width()) * 3U};
     EXPECT_TRUE(renderer->render(spec, out, truth).ok());
@@ -305,6 +307,33 @@ TEST(Pipeline, ShaftFitFindsTheChannelPoseFromItsCadValues) {
     EXPECT_LT(std::fabs(r[solver::kPsi] - truth[solver::kPsi]), 0.03) << r.transpose();
     EXPECT_LT(std::fabs(r[solver::kMu] - truth[solver::kMu]), 0.03) << r.transpose();
     EXPECT_EQ(r.tail<3>(), start.tail<3>());  // the joints are the caller's
+  }
+}
+
+// Through haze (a grey veil: the tissue's chroma falls from 20-35 to 6-15)
+// the shaft is still found: the limit between shaft and tissue follows the
+// frame's tissue (a fixed limit called the veiled tissue shaft).
+TEST(Pipeline, ShaftFitFindsTheChannelPoseThroughHaze) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  const double joints[3][3] = {{30.0, 0.0, -60.0}, {20.0, 30.0, 40.0}, {35.0, -30.0, -100.0}};
+  std::uint64_t seed = 11U;
+  for (const auto& q : joints) {
+    solver::PoseVector truth = f.model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
+    truth[solver::kXch] += 1.8;
+    truth[solver::kYch] -= 2.2;
+    truth[solver::kPsi] += solver::deg_to_rad(4.0);
+    truth[solver::kMu] -= solver::deg_to_rad(3.0);
+    const ImageView image = f.render_r(truth, render::kHardHaze, seed++);
+    solver::PoseVector r = f.model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
+    ShaftFitSummary summary;
+    ASSERT_TRUE(fx->fit_channel_to_shaft(image, f.camera, f.model, r, summary).ok()) << q[0] << " " << q[1];
+    EXPECT_LT(summary.rms_px, 1.0);
+    EXPECT_LT(std::fabs(r[solver::kXch] - truth[solver::kXch]), 0.5) << r.transpose();
+    EXPECT_LT(std::fabs(r[solver::kYch] - truth[solver::kYch]), 0.5) << r.transpose();
+    EXPECT_LT(std::fabs(r[solver::kPsi] - truth[solver::kPsi]), 0.03) << r.transpose();
+    EXPECT_LT(std::fabs(r[solver::kMu] - truth[solver::kMu]), 0.03) << r.transpose();
   }
 }
 
