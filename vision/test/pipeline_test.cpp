@@ -281,6 +281,17 @@ TEST(Pipeline, ClassImageFitMovesAFarSeedTowardsTheTruth) {
   EXPECT_TRUE(!small_status.ok() || cost_px >= 59.0) << cost_px;
 }
 
+// The pose of joints q (lambda mm, phi deg, theta deg) with the channel moved
+// from its CAD pose by a play of about 1.5 sd (the shaft fit's tests).
+solver::PoseVector with_channel_play(const solver::InstrumentModel& model, const double (&q)[3]) {
+  solver::PoseVector r = model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
+  r[solver::kXch] += 1.8;
+  r[solver::kYch] -= 2.2;
+  r[solver::kPsi] += solver::deg_to_rad(4.0);
+  r[solver::kMu] -= solver::deg_to_rad(3.0);
+  return r;
+}
+
 // The shaft's silhouette gives the channel's pose: from the CAD pose (the
 // true one moved by a play of about 1.5 sd), x_ch, y_ch, psi and mu come
 // near the truth, and the joints are not touched.
@@ -290,11 +301,7 @@ TEST(Pipeline, ShaftFitFindsTheChannelPoseFromItsCadValues) {
   ASSERT_NE(fx, nullptr);
   const double joints[3][3] = {{30.0, 0.0, -60.0}, {20.0, 30.0, 40.0}, {35.0, -30.0, -100.0}};
   for (const auto& q : joints) {
-    solver::PoseVector truth = f.model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
-    truth[solver::kXch] += 1.8;
-    truth[solver::kYch] -= 2.2;
-    truth[solver::kPsi] += solver::deg_to_rad(4.0);
-    truth[solver::kMu] -= solver::deg_to_rad(3.0);
+    const solver::PoseVector truth = with_channel_play(f.model, q);
     const ImageView image = f.render_r(truth);
     solver::PoseVector r = f.model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
     const solver::PoseVector start = r;
@@ -320,11 +327,7 @@ TEST(Pipeline, ShaftFitFindsTheChannelPoseThroughHaze) {
   const double joints[3][3] = {{30.0, 0.0, -60.0}, {20.0, 30.0, 40.0}, {35.0, -30.0, -100.0}};
   std::uint64_t seed = 11U;
   for (const auto& q : joints) {
-    solver::PoseVector truth = f.model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
-    truth[solver::kXch] += 1.8;
-    truth[solver::kYch] -= 2.2;
-    truth[solver::kPsi] += solver::deg_to_rad(4.0);
-    truth[solver::kMu] -= solver::deg_to_rad(3.0);
+    const solver::PoseVector truth = with_channel_play(f.model, q);
     const ImageView image = f.render_r(truth, render::kHardHaze, seed++);
     solver::PoseVector r = f.model.geometry().nominal_pose(q[0], solver::deg_to_rad(q[1]), solver::deg_to_rad(q[2]));
     ShaftFitSummary summary;
