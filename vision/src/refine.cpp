@@ -712,6 +712,7 @@ constexpr double kShaftNeutralShare = 0.5;
 constexpr double kShaftNeutralFloor = 3.0;
 constexpr int kTissueGridX = 16;
 constexpr int kTissueGridY = 12;
+constexpr std::size_t kTissueGridSamples = static_cast<std::size_t>(kTissueGridX) * static_cast<std::size_t>(kTissueGridY);
 constexpr double kShaftMaxRmsPx = 1.5;
 constexpr int kShaftMinPerSide = 2;
 constexpr int kMaxShaftReadings = 2 * kShaftSamples;
@@ -733,7 +734,7 @@ double chroma_at(const ImageView& image, const solver::Vec2& p, bool& ok) noexce
 // shaft stays at 1-3, so a fixed limit calls the tissue shaft and no run has
 // the shaft's width (docs/vision.md). Clear frames keep the fixed limit.
 double shaft_neutral_chroma(const ImageView& image) noexcept {
-  std::array<double, kTissueGridX * kTissueGridY> chroma{};
+  std::array<double, kTissueGridSamples> chroma{};
   int n = 0;
   for (int gy = 0; gy < kTissueGridY; ++gy) {
     for (int gx = 0; gx < kTissueGridX; ++gx) {
