@@ -754,9 +754,9 @@ double shaft_neutral_chroma(const ImageView& image) noexcept {
 
 // The shaft's cross-section along the line from its model limb point a
 // (side 0) to b (side 1), extended by `margin_px` on both sides: of the runs
-// of neutral pixels (chroma below `neutral_chroma`) whose width is within kShaftWidthTolerance of the
-// model's |b - a|, the one whose centre is nearest the model's; its ends
-// as distances along the line from a (px). Short chromatic gaps (noise) are
+// of neutral pixels (chroma below `neutral_chroma`) whose width is within
+// kShaftWidthTolerance of the model's |b - a|, the one whose centre is
+// nearest the model's; its ends as distances along the line from a (px). Short chromatic gaps (noise) are
 // bridged; a run that reaches the line's end or the image's is no reading.
 constexpr double kShaftWidthTolerance = 0.45;  // relative
 constexpr int kMaxCrossSection = 320;          // samples (1 px)
