@@ -26,6 +26,7 @@ constexpr double kMinSamples = 20.0;  // facing samples in the image (summed wei
 constexpr double kFacingMin = 0.0;   // -n . view: a sample's weight rises from 0 here ...
 constexpr double kFacingRamp = 0.25; // ... to 1 this much higher (facing the camera)
 constexpr double kCapPx = 60.0;     // a sample farther than this from its colour counts as this far
+constexpr double kFineCapPx = 15.0; // ... and in the second descent (occluded stripes)
 constexpr double kPriorWeightPx = 3.0;  // residual of one prior standard deviation
 constexpr int kGridPoints = 3;              // per axis of the coarse look around the seed
 constexpr double kGridLambdaMm = 2.5;
@@ -199,6 +200,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   // whatever the view (a tube seen end-on shows only grazing surface).
   std::array<solver::Vec2, kMaxSamples> projected{};
   std::array<int, kMaxSamples> projected_colour{};
+  double cap_px = kCapPx;
   const auto residuals = [&](const solver::PoseVector& at, Residuals& out, double& weight_sum) noexcept {
     out.setZero();
     weight_sum = 0.0;
@@ -215,7 +217,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
         continue;
       }
       const int colour = colour_index(config_.marker_classes[static_cast<std::size_t>(m)]);
-      out[i] = w * class_distance_px(colour, p.x(), p.y());
+      out[i] = w * std::min(class_distance_px(colour, p.x(), p.y()), cap_px);
       weight_sum += camera.in_image(p) ? w : 0.0;
       if (w > 0.5) {
         projected[static_cast<std::size_t>(n_projected)] = p;
@@ -270,55 +272,67 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   if (!have_start) {
     return Status<VisionError>::failure(VisionError::NoInstrument);
   }
-  residuals(x, e, weight_sum);
-  cost = e.squaredNorm();
-  double damping = 1e-2;
-  for (int it = 0; it < kClassFitIterations; ++it) {
-    Eigen::Matrix<double, kRows, kParams> jac;
-    for (int k = 0; k < kParams; ++k) {
-      solver::PoseVector xk = x;
-      xk[k] += step_h[k];
-      Residuals ek;
-      double wk = 0.0;
-      residuals(xk, ek, wk);
-      jac.col(k) = (ek - e) / step_h[k];
-    }
-    const Eigen::Matrix<double, kParams, kParams> jtj = jac.transpose() * jac;
-    const Eigen::Matrix<double, kParams, 1> grad = jac.transpose() * e;
-    bool improved = false;
-    bool converged = false;
-    for (int attempt = 0; attempt < 6 && !improved; ++attempt) {
-      Eigen::Matrix<double, kParams, kParams> normal = jtj;
-      normal.diagonal() *= 1.0 + damping;
-      const Eigen::Matrix<double, kParams, 1> delta = normal.ldlt().solve(-grad);
-      if (!delta.allFinite()) {
-        return Status<VisionError>::failure(VisionError::NoInstrument);
+  // Two descents: the first with distances capped at kCapPx (a wide basin:
+  // a seed a stripe away is still drawn in), the second from its end with
+  // the cap at kFineCapPx, so that stripe samples an occluder (or the
+  // image's border) hides, far from every pixel of their colour, weigh
+  // no more than a near miss and stop pulling the visible stripes onto
+  // the wrong ones (docs/vision.md, "Class-image fit").
+  for (int phase = 0; phase < 2; ++phase) {
+    cap_px = phase == 0 ? kCapPx : kFineCapPx;
+    residuals(x, e, weight_sum);
+    cost = e.squaredNorm();
+    double damping = 1e-2;
+    for (int it = 0; it < kClassFitIterations; ++it) {
+      Eigen::Matrix<double, kRows, kParams> jac;
+      for (int k = 0; k < kParams; ++k) {
+        solver::PoseVector xk = x;
+        xk[k] += step_h[k];
+        Residuals ek;
+        double wk = 0.0;
+        residuals(xk, ek, wk);
+        jac.col(k) = (ek - e) / step_h[k];
       }
-      const solver::PoseVector trial = x + delta;
-      Residuals et;
-      double wt = 0.0;
-      residuals(trial, et, wt);
-      const double trial_cost = et.squaredNorm();
-      if (trial_cost < cost && wt >= kMinSamples) {
-        converged = cost - trial_cost < 1e-3 * cost;
-        x = trial;
-        e = et;
-        cost = trial_cost;
-        weight_sum = wt;
-        damping = std::max(damping * 0.3, 1e-4);
-        improved = true;
-      } else {
-        damping *= 10.0;
+      const Eigen::Matrix<double, kParams, kParams> jtj = jac.transpose() * jac;
+      const Eigen::Matrix<double, kParams, 1> grad = jac.transpose() * e;
+      bool improved = false;
+      bool converged = false;
+      for (int attempt = 0; attempt < 6 && !improved; ++attempt) {
+        Eigen::Matrix<double, kParams, kParams> normal = jtj;
+        normal.diagonal() *= 1.0 + damping;
+        const Eigen::Matrix<double, kParams, 1> delta = normal.ldlt().solve(-grad);
+        if (!delta.allFinite()) {
+          return Status<VisionError>::failure(VisionError::NoInstrument);
+        }
+        const solver::PoseVector trial = x + delta;
+        Residuals et;
+        double wt = 0.0;
+        residuals(trial, et, wt);
+        const double trial_cost = et.squaredNorm();
+        if (trial_cost < cost && wt >= kMinSamples) {
+          converged = cost - trial_cost < 1e-3 * cost;
+          x = trial;
+          e = et;
+          cost = trial_cost;
+          weight_sum = wt;
+          damping = std::max(damping * 0.3, 1e-4);
+          improved = true;
+        } else {
+          damping *= 10.0;
+        }
       }
-    }
-    if (!improved || converged) {
-      break;  // no step lowers the cost (a minimum at this damping), or hardly
+      if (!improved || converged) {
+        break;  // no step lowers the cost (a minimum at this damping), or hardly
+      }
     }
   }
   if (!x.allFinite()) {
     return Status<VisionError>::failure(VisionError::NoInstrument);
   }
-  cost_px = e.head(kMaxSamples).sum() / weight_sum;
+  // The cost reported with the wide cap, whatever the last descent used.
+  cap_px = kCapPx;
+  residuals(x, e, weight_sum);
+  cost_px = e.head(kMaxSamples).sum() / std::max(weight_sum, 1.0);
   r = x;
   return ok_status<VisionError>();
 }
