@@ -37,7 +37,9 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
       extractor.restore_corners(previous);
       break;
     }
-    if (again.quality == solver::EstimateQuality::Valid && out.fit.boundaries < options.min_valid_fit_boundaries) {
+    if (again.quality == solver::EstimateQuality::Valid &&
+        (out.fit.boundaries < options.min_valid_fit_boundaries ||
+         out.fit.silhouette_readings < options.min_valid_fit_silhouette_readings)) {
       again.quality = solver::EstimateQuality::Degraded;
     }
     out.estimate = again;

@@ -21,12 +21,16 @@ struct GuidedOptions {
   // residual, the boundaries whose arc it read, its silhouette readings.
   double max_fit_rms_px = 0.6;
   int min_fit_boundaries = 2;
-  int min_fit_silhouette_readings = 12;
+  int min_fit_silhouette_readings = 6;
   // A fit that read fewer boundaries than this (an occluder or the image's
   // border hiding the rest) gives corners, but at most a Degraded estimate:
   // the unseen part of the tube, and the TCP with it, is held only by the
   // solve's penalty and the joints' start (docs/vision.md).
   int min_valid_fit_boundaries = 3;
+  // Likewise a fit with fewer silhouette readings than this (of the 20 along
+  // the striped section: an occluder or a smear hiding the rest): its
+  // corners, at most a Degraded estimate (docs/vision.md).
+  int min_valid_fit_silhouette_readings = 12;
   // Fallback seeds, when the result is not valid yet (no pose, or a degraded
   // one): the image fit is tried again from the start pose (`start_seed`:
   // the encoders' or the track's) and then from the rough pose of the
