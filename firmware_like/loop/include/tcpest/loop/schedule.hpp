@@ -38,13 +38,16 @@ struct StepSpec {
 constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
     {Step::kAcquire, "acquire", 1500},
     {Step::kClassify, "classify", 1000},
-    {Step::kInterpret, "interpret", 300},
+    // Interpret and solve: p99.9 0.08 and 0.13 ms measured (docs/loop.md);
+    // 0.2 and 0.3 ms leave them 2.3-2.5 times that, and give the time to refine.
+    {Step::kInterpret, "interpret", 200},
     {Step::kBorders, "borders", 500},
     {Step::kCorners, "corners", 700},
-    {Step::kSolve, "solve", 800},
-    // 0.5-1 ms for the model-guided round; up to 3.5 ms on a frame that is
-    // not valid yet and tries one fallback seed (loop.fallback_seeds).
-    {Step::kRefine, "refine", 3500},
+    {Step::kSolve, "solve", 300},
+    // 0.5-1 ms for the model-guided round; 3-4.3 ms on a frame that is not
+    // valid yet and tries one fallback seed (loop.fallback_seeds): shaft
+    // fit, distance images (~2.2 ms), class-image fit, image fit, solve.
+    {Step::kRefine, "refine", 4100},
     {Step::kPublish, "publish", 100},
     {Step::kHousekeeping, "housekeeping", 100},
 }};
