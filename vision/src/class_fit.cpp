@@ -277,7 +277,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   // the cap at kFineCapPx, so that stripe samples an occluder (or the
   // image's border) hides, far from every pixel of their colour, weigh
   // no more than a near miss and stop pulling the visible stripes onto
-  // the wrong ones (docs/vision.md, "Class-image fit").
+  // the wrong ones (docs/vision.md, "Fallback seeds").
   for (int phase = 0; phase < 2; ++phase) {
     cap_px = phase == 0 ? kCapPx : kFineCapPx;
     residuals(x, e, weight_sum);
