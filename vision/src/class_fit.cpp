@@ -66,54 +66,63 @@ void FeatureExtractor::compute_class_distances() noexcept {
                    std::min(height_ - 1, y1 + margin)};
   const int bx0 = distance_box_[0], by0 = distance_box_[1], bx1 = distance_box_[2], by1 = distance_box_[3];
   const auto w = static_cast<std::size_t>(width_);
-  for (int c = 0; c < 2; ++c) {
-    std::uint16_t* d = class_distance_[static_cast<std::size_t>(c)].get();
-    const auto want = static_cast<std::uint8_t>(c == 0 ? PixelClass::Blue : PixelClass::Yellow);
-    // Forward pass (left, up-left, up, up-right), then backward (right,
-    // down-right, down, down-left): the 3-4 chamfer distance.
-    for (int y = by0; y <= by1; ++y) {
-      const std::uint8_t* cls = classes_.get() + static_cast<std::size_t>(y) * w;
-      std::uint16_t* row = d + static_cast<std::size_t>(y) * w;
-      const std::uint16_t* up = y > by0 ? row - w : nullptr;
-      for (int x = bx0; x <= bx1; ++x) {
-        std::uint16_t v = cls[x] == want ? std::uint16_t{0} : kFar;
-        if (v != 0U) {
-          if (x > bx0) {
-            v = std::min(v, static_cast<std::uint16_t>(row[x - 1] + 3U));
-          }
-          if (up != nullptr) {
-            v = std::min(v, static_cast<std::uint16_t>(up[x] + 3U));
-            if (x > bx0) {
-              v = std::min(v, static_cast<std::uint16_t>(up[x - 1] + 4U));
-            }
-            if (x < bx1) {
-              v = std::min(v, static_cast<std::uint16_t>(up[x + 1] + 4U));
-            }
-          }
-        }
-        row[x] = v;
+  // Both colours in the same sweep: the class image is read once, and the
+  // two distance images' dependency chains (each pixel on its left
+  // neighbour) run side by side. Forward pass (left, up-left, up,
+  // up-right), then backward (right, down-right, down, down-left): the
+  // 3-4 chamfer distance.
+  std::uint16_t* const blue = class_distance_[0].get();
+  std::uint16_t* const yellow = class_distance_[1].get();
+  const auto want_blue = static_cast<std::uint8_t>(PixelClass::Blue);
+  const auto want_yellow = static_cast<std::uint8_t>(PixelClass::Yellow);
+  // One pixel's chamfer step from its four already-swept neighbours
+  // (`along` the sweep's row, `n0`-`n2` in the row swept before; nullptr
+  // at the box's edge).
+  const auto relax = [](std::uint16_t v, const std::uint16_t* along, const std::uint16_t* n0,
+                        const std::uint16_t* n1, const std::uint16_t* n2) noexcept {
+    if (v == 0U) {
+      return v;
+    }
+    if (along != nullptr) {
+      v = std::min(v, static_cast<std::uint16_t>(*along + 3U));
+    }
+    if (n1 != nullptr) {
+      v = std::min(v, static_cast<std::uint16_t>(*n1 + 3U));
+    }
+    if (n0 != nullptr) {
+      v = std::min(v, static_cast<std::uint16_t>(*n0 + 4U));
+    }
+    if (n2 != nullptr) {
+      v = std::min(v, static_cast<std::uint16_t>(*n2 + 4U));
+    }
+    return v;
+  };
+  for (int y = by0; y <= by1; ++y) {
+    const std::size_t row = static_cast<std::size_t>(y) * w;
+    const std::uint8_t* cls = classes_.get() + row;
+    const bool has_up = y > by0;
+    for (int x = bx0; x <= bx1; ++x) {
+      const auto at = row + static_cast<std::size_t>(x);
+      const bool left = x > bx0;
+      const bool right = x < bx1;
+      for (std::uint16_t* d : {blue, yellow}) {
+        const std::uint8_t want = d == blue ? want_blue : want_yellow;
+        const std::uint16_t start = cls[x] == want ? std::uint16_t{0} : kFar;
+        d[at] = relax(start, left ? &d[at - 1U] : nullptr, has_up && left ? &d[at - w - 1U] : nullptr,
+                      has_up ? &d[at - w] : nullptr, has_up && right ? &d[at - w + 1U] : nullptr);
       }
     }
-    for (int y = by1; y >= by0; --y) {
-      std::uint16_t* row = d + static_cast<std::size_t>(y) * w;
-      const std::uint16_t* down = y < by1 ? row + w : nullptr;
-      for (int x = bx1; x >= bx0; --x) {
-        std::uint16_t v = row[x];
-        if (v != 0U) {
-          if (x < bx1) {
-            v = std::min(v, static_cast<std::uint16_t>(row[x + 1] + 3U));
-          }
-          if (down != nullptr) {
-            v = std::min(v, static_cast<std::uint16_t>(down[x] + 3U));
-            if (x < bx1) {
-              v = std::min(v, static_cast<std::uint16_t>(down[x + 1] + 4U));
-            }
-            if (x > bx0) {
-              v = std::min(v, static_cast<std::uint16_t>(down[x - 1] + 4U));
-            }
-          }
-        }
-        row[x] = v;
+  }
+  for (int y = by1; y >= by0; --y) {
+    const std::size_t row = static_cast<std::size_t>(y) * w;
+    const bool has_down = y < by1;
+    for (int x = bx1; x >= bx0; --x) {
+      const auto at = row + static_cast<std::size_t>(x);
+      const bool left = x > bx0;
+      const bool right = x < bx1;
+      for (std::uint16_t* d : {blue, yellow}) {
+        d[at] = relax(d[at], right ? &d[at + 1U] : nullptr, has_down && right ? &d[at + w + 1U] : nullptr,
+                      has_down ? &d[at + w] : nullptr, has_down && left ? &d[at + w - 1U] : nullptr);
       }
     }
   }

@@ -46,7 +46,7 @@ constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
     {Step::kSolve, "solve", 300},
     // 0.5-1 ms for the model-guided round; 3-4.3 ms on a frame that is not
     // valid yet and tries one fallback seed (loop.fallback_seeds): shaft
-    // fit, distance images (~2.2 ms), class-image fit, image fit, solve.
+    // fit, distance images (~1.3 ms), class-image fit, image fit, solve.
     {Step::kRefine, "refine", 4100},
     {Step::kPublish, "publish", 100},
     {Step::kHousekeeping, "housekeeping", 100},
