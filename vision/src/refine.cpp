@@ -626,7 +626,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     summary.arc_readings = arc_readings;
     summary.silhouette_readings = silhouette_readings;
     summary.boundaries = boundaries;
-    if ((!coarse_it && boundaries < 2) || silhouette_readings < (coarse_it ? 10 : 6)) {
+    // A fine iteration needs 2 boundaries' arcs, and no silhouette reading:
+    // the arcs and the shaft hold the tube where a smear or an occluder
+    // hides its silhouette (the caller decides what such a fit may give,
+    // GuidedOptions). A coarse one, from a rough seed, needs the silhouette.
+    if ((!coarse_it && boundaries < 2) || (coarse_it && silhouette_readings < 10)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     // Robust scale (MAD) and Tukey weights.

@@ -21,7 +21,7 @@ struct GuidedOptions {
   // residual, the boundaries whose arc it read, its silhouette readings.
   double max_fit_rms_px = 0.6;
   int min_fit_boundaries = 2;
-  int min_fit_silhouette_readings = 6;
+  int min_fit_silhouette_readings = 0;  // none needed: see min_valid_fit_silhouette_readings
   // A fit that read fewer boundaries than this (an occluder or the image's
   // border hiding the rest) gives corners, but at most a Degraded estimate:
   // the unseen part of the tube, and the TCP with it, is held only by the
