@@ -54,6 +54,26 @@ std::unique_ptr<FeatureExtractor> default_extractor() {
   return created.ok() ? std::move(created.value()) : nullptr;
 }
 
+// Every corner the renderer saw is given and lies within tolerance_px of
+// its truth; returns how many were visible.
+int expect_visible_corners_within(const FeatureExtractor& fx, const render::InstrumentTruth& truth,
+                                  double tolerance_px) {
+  int visible = 0;
+  for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
+    if (!truth.visible[k]) {
+      continue;
+    }
+    ++visible;
+    const Corner& c = fx.result().corners[k];
+    EXPECT_TRUE(c.found) << "k " << k;
+    if (c.found) {
+      EXPECT_LT(std::hypot(c.pixel.x - truth.corners[k].x(), c.pixel.y - truth.corners[k].y()), tolerance_px)
+          << "k " << k;
+    }
+  }
+  return visible;
+}
+
 TEST(Pipeline, FindsTheMarkerChainAndCornersOnARenderedFrame) {
   Fixture f;
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
@@ -487,14 +507,9 @@ TEST(Pipeline, AFitThatReadsTwoBoundariesGivesItsCornersAndADegradedEstimate) {
   auto fx = default_extractor();
   ASSERT_NE(fx, nullptr);
   solver::PoseEstimator estimator(f.camera, f.model);
-  render::SceneSpec spec;
-  spec.r << -13.5115322402, 7.92692169894, 0.201610161109, -0.0146321265966, 10.0, -1.0471975512, -0.349065850399;
-  spec.seed = 9775997355840255571ULL;
-  spec.hard_cases = render::kHardOccluder;
-  const MutableImageView out{f.pixels.data(), f.camera.width(), f.camera.height(),
-                             static_cast<std::size_t>(f.camera.width()) * 3U};
-  ASSERT_TRUE(f.renderer->render(spec, out, f.truth).ok());
-  const ImageView image = out.view();
+  solver::PoseVector scene_r;
+  scene_r << -13.5115322402, 7.92692169894, 0.201610161109, -0.0146321265966, 10.0, -1.0471975512, -0.349065850399;
+  const ImageView image = f.render_r(scene_r, render::kHardOccluder, 9775997355840255571ULL);
   const render::InstrumentTruth& truth = f.truth.instruments[0];
   // The encoders: the set's drawn prior for this frame (lambda 1.6 mm short).
   const solver::PoseVector prior = f.model.geometry().nominal_pose(8.40003002611, -1.23824893875, -0.291822300393);
@@ -526,17 +541,7 @@ TEST(Pipeline, AFitThatReadsTwoBoundariesGivesItsCornersAndADegradedEstimate) {
     EXPECT_EQ(guided.estimate.quality,
               rule == 2 ? solver::EstimateQuality::Valid : solver::EstimateQuality::Degraded)
         << "rule " << rule;
-    int visible = 0;
-    for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
-      if (!truth.visible[k]) {
-        continue;
-      }
-      ++visible;
-      const Corner& c = fx->result().corners[k];
-      ASSERT_TRUE(c.found) << "k " << k;
-      EXPECT_LT(std::hypot(c.pixel.x - truth.corners[k].x(), c.pixel.y - truth.corners[k].y()), 1.5) << "k " << k;
-    }
-    EXPECT_GE(visible, 3);
+    EXPECT_GE(expect_visible_corners_within(*fx, truth, 1.5), 3) << "rule " << rule;
   }
 }
 
@@ -551,42 +556,27 @@ TEST(Pipeline, AFitThatReadsNoSilhouetteUnderMotionBlurGivesItsCornersAndADegrad
   auto fx = default_extractor();
   ASSERT_NE(fx, nullptr);
   solver::PoseEstimator estimator(f.camera, f.model);
-  render::SceneSpec spec;
-  spec.r << -13.6612658201, 4.87227907669, 0.217161047601, -0.0841518750474, 30.0, 1.57079632679, -0.349065850399;
-  spec.seed = 11677825386456173408ULL;
-  spec.hard_cases = render::kHardMotionBlur;
-  const MutableImageView out{f.pixels.data(), f.camera.width(), f.camera.height(),
-                             static_cast<std::size_t>(f.camera.width()) * 3U};
-  ASSERT_TRUE(f.renderer->render(spec, out, f.truth).ok());
-  const ImageView image = out.view();
+  solver::PoseVector scene_r;
+  scene_r << -13.6612658201, 4.87227907669, 0.217161047601, -0.0841518750474, 30.0, 1.57079632679, -0.349065850399;
+  const ImageView image = f.render_r(scene_r, render::kHardMotionBlur, 11677825386456173408ULL);
   const render::InstrumentTruth& truth = f.truth.instruments[0];
-  ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, spec.r)).ok());
+  ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, scene_r)).ok());
   // The rounds from the true pose as the first estimate (no seed, no re-check).
   solver::Estimate first;
-  first.r = spec.r;
+  first.r = scene_r;
   first.quality = solver::EstimateQuality::Valid;
   GuidedOptions options;
   options.fallback_seeds = 0;
   options.shaft_recheck = false;
   const GuidedResult guided = guided_rounds(*fx, estimator, f.camera, f.model, image, solver::SolveMode::Adaptive,
-                                            first, spec.r, options);
+                                            first, scene_r, options);
   ASSERT_GT(guided.rounds_kept, 0);
   EXPECT_LT(guided.fit.silhouette_readings, 6);
   EXPECT_GE(guided.fit.boundaries, 2);
   EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Degraded);
   // Every visible corner is given, within 3 px under the smear (8 of these
   // 12 within 1.5 px).
-  int visible = 0;
-  for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
-    if (!truth.visible[k]) {
-      continue;
-    }
-    ++visible;
-    const Corner& c = fx->result().corners[k];
-    ASSERT_TRUE(c.found) << "k " << k;
-    EXPECT_LT(std::hypot(c.pixel.x - truth.corners[k].x(), c.pixel.y - truth.corners[k].y()), 3.0) << "k " << k;
-  }
-  EXPECT_GE(visible, 8);
+  EXPECT_GE(expect_visible_corners_within(*fx, truth, 3.0), 8);
 }
 
 // When stage 4 gives no pose, the start pose (the encoders') moved onto the
