@@ -154,7 +154,7 @@ class Refiner {
         continue;  // the tube seen end-on here
       }
       double tau_px = 0.0;
-      if (crossing(p, d / px_per_mm, window_mm * px_per_mm, colours, tau_px)) {
+      if (crossing(p, d / px_per_mm, window_mm * px_per_mm, colours, 1, tau_px)) {
         shifts[static_cast<std::size_t>(count++)] = tau_px / px_per_mm;
       }
     }
@@ -249,9 +249,11 @@ class Refiner {
   }
 
   // The colour change along `dir` through p nearest to p (px, signed),
-  // between readings that are clearly on each side.
+  // between readings that are clearly on each side: the mean of two
+  // neighbouring samples within `clear_reach` samples of the crossing's pair
+  // (1: the very next pair, a sharp change; more: a smeared one).
   bool crossing(const solver::Vec2& p, const solver::Vec2& dir, double window_px, const BoundaryColours& colours,
-                double& tau_px) const noexcept {
+                int clear_reach, double& tau_px) const noexcept {
     const int half = std::min(std::max(static_cast<int>(std::ceil(window_px)), 3), (kMaxProfile - 1) / 2);
     const int n = 2 * half + 1;
     std::array<double, kMaxProfile> v{};
@@ -264,6 +266,8 @@ class Refiner {
       }
     }
     constexpr double kClear = 0.15;  // |profile| of a reading clearly on one side
+    constexpr int kMaxClearReach = 8;
+    const int reach = std::min(std::max(clear_reach, 1), kMaxClearReach);
     double best = 1e30;
     bool found = false;
     for (int i = 2; i + 1 < n; ++i) {
@@ -272,9 +276,21 @@ class Refiner {
       if (!(a < 0.0 && b >= 0.0)) {
         continue;
       }
-      const double before = 0.5 * (v[static_cast<std::size_t>(i - 2)] + a);
-      const double after = 0.5 * (b + v[static_cast<std::size_t>(i) + 1U]);
-      if (!(before < -kClear && after > kClear)) {
+      bool clear_before = false;
+      bool clear_after = false;
+      for (int r = 1; r <= reach; ++r) {
+        const int before = i - 1 - r;  // the pair (before, before + 1) ahead of the crossing
+        const int after = i + r;       // the pair (after - 1, after) beyond it
+        if (before >= 0) {
+          const auto k = static_cast<std::size_t>(before);
+          clear_before = clear_before || 0.5 * (v[k] + v[k + 1U]) < -kClear;
+        }
+        if (after < n) {
+          const auto k = static_cast<std::size_t>(after);
+          clear_after = clear_after || 0.5 * (v[k - 1U] + v[k]) > kClear;
+        }
+      }
+      if (!(clear_before && clear_after)) {
         continue;
       }
       const double t = static_cast<double>(i - 1 - half) + a / (a - b);
@@ -381,6 +397,7 @@ constexpr double kFitShaftFirstMm = 1.0;
 constexpr double kFitShaftStepMm = 1.5;
 constexpr int kMaxReadings =
     kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples + 2 * kFitShaftSamples;
+constexpr int kMaxSmearedReadings = kNumBoundaries * kFitArcSamples;
 constexpr int kMaxFitIterations = 20;
 constexpr int kCoarseIterations = 3;  // wide-window iterations from a coarse start
 
@@ -517,7 +534,6 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     Refiner refiner(image, colors_, config_, camera, model, f);
     int n = 0;
     int arc_readings = 0;
-    int boundaries = 0;
     // From a coarse start (a pose from the regions) the first iterations
     // search wider windows and may see fewer boundaries.
     const bool coarse_it = coarse_start && it < kCoarseIterations;
@@ -536,6 +552,14 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       ++n;
     };
     // Boundary arcs: read across the arc (its image normal, towards the tip).
+    // A reading whose colour change is clear only a few samples away (a
+    // smear) is set aside, and kept below only if the frame shows the smear.
+    std::array<Reading, kMaxSmearedReadings> smeared{};
+    std::array<solver::Vec2, kMaxSmearedReadings> smeared_at{};
+    std::array<int, kNumBoundaries> sharp_on{};
+    std::array<int, kNumBoundaries> smeared_on{};
+    int smeared_count = 0;
+    const bool read_smear = config_.refine_smear_clear_reach > 1;
     for (int j = 0; j < kNumBoundaries; ++j) {
       const BoundaryColours colours = colours_of(config_, j);
       if (!colours.usable || j == 0) {  // the base arc: behind the shaft in most views (docs/vision.md)
@@ -576,18 +600,42 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
         if (normal.dot(along) < 0.5 * px_per_mm) {
           continue;  // the arc runs along the tube here: a reading across it slides
         }
+        Reading rd;
+        rd.arc = true;
+        rd.boundary = j;
+        rd.angle_rad = a;
         double tau = 0.0;
-        if (refiner.crossing(p, normal, window_mm * px_per_mm, colours, tau)) {
-          Reading rd;
-          rd.arc = true;
-          rd.boundary = j;
-          rd.angle_rad = a;
+        if (refiner.crossing(p, normal, window_mm * px_per_mm, colours, 1, tau)) {
           push_reading(rd, normal, tau, p);
           ++on_this;
+        } else if (read_smear && smeared_count < kMaxSmearedReadings &&
+                   refiner.crossing(p, normal, window_mm * px_per_mm, colours, config_.refine_smear_clear_reach, tau)) {
+          rd.direction = normal;
+          rd.offset_px = tau;
+          smeared[static_cast<std::size_t>(smeared_count)] = rd;
+          smeared_at[static_cast<std::size_t>(smeared_count)] = p;
+          ++smeared_count;
+          ++smeared_on[static_cast<std::size_t>(j)];
         }
       }
+      sharp_on[static_cast<std::size_t>(j)] = on_this;
       arc_readings += on_this;
-      boundaries += on_this >= 3 ? 1 : 0;
+    }
+    // The smear is the frame's (motion blur), not one stripe's: the smeared
+    // readings are kept when they are a large share of many.
+    const int all_arcs = arc_readings + smeared_count;
+    summary.smeared = smeared_count > 0 && all_arcs >= config_.refine_smear_min_arc_readings &&
+                      static_cast<double>(smeared_count) >= config_.refine_smear_share * static_cast<double>(all_arcs);
+    if (summary.smeared) {
+      for (int i = 0; i < smeared_count; ++i) {
+        const Reading& rd = smeared[static_cast<std::size_t>(i)];
+        push_reading(rd, rd.direction, rd.offset_px, smeared_at[static_cast<std::size_t>(i)]);
+      }
+      arc_readings = all_arcs;
+    }
+    int boundaries = 0;
+    for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
+      boundaries += sharp_on[j] + (summary.smeared ? smeared_on[j] : 0) >= 3 ? 1 : 0;
     }
     // Silhouette readings: both sides along the striped section, and the
     // shaft's just before the base (not counted in the acceptance: the

@@ -215,6 +215,17 @@ struct ExtractorConfig {
   double refine_coarse_search_mm = 2.5;     // a coarse start's first iterations: along-tube window, +/-
   double refine_coarse_edge_search_px = 10.0;  // ... and silhouette window, +/-
   bool refine_shaft_readings = true;        // the image fit also reads the shaft's silhouette
+  // Motion blur along the tube smears every boundary's colour change over
+  // 5-14 px, so few arc readings pass the test of clear colours at the
+  // crossing's neighbouring samples. The image fit then also reads a change
+  // that is clear within refine_smear_clear_reach samples (1 px apart) of
+  // its crossing, but keeps those readings only when the frame shows the
+  // smear: they are at least refine_smear_share of the arc readings of the
+  // iteration, and at least refine_smear_min_arc_readings readings in all
+  // (fewer: a pose beside the tube reading stray colour; docs/vision.md).
+  int refine_smear_clear_reach = 3;         // samples, 1..8 (1: no smeared reading)
+  double refine_smear_share = 0.5;
+  int refine_smear_min_arc_readings = 20;
 };
 
 // What fit_pose_to_image did.
@@ -225,6 +236,7 @@ struct ImageFitSummary {
   int boundaries = 0;           // boundaries with arc readings
   double rms_px = 0.0;          // robust RMS of the readings' residuals at the result
   bool converged = false;
+  bool smeared = false;         // the last iteration read the arcs as smeared (refine_smear_*)
 };
 
 // What fit_channel_to_shaft did.
