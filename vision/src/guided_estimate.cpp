@@ -61,12 +61,26 @@ int rank(solver::EstimateQuality q) noexcept {
 }
 
 // A fallback result (always confirmed by an image fit) replaces the current
-// one when it is of a better quality; at the same quality, when the current
-// one was not confirmed by a fit (stage 4's corners alone), or had a higher
-// image-fit residual.
-bool better(const GuidedResult& candidate, const GuidedResult& current) noexcept {
+// one when the image speaks for it clearly, whatever the two qualities
+// (the solve's quality can differ for the channel's penalty alone, eq. 8):
+// the current one was not confirmed by a fit (stage 4's corners alone) and
+// the candidate's fit has a valid estimate's support; or the candidate's
+// fit read at least as much of the image with a residual below
+// prefer_fit_rms_ratio times the current's (docs/vision.md). Otherwise when
+// it is of a better quality; at the same quality, when the current one was
+// not confirmed by a fit, or had a higher image-fit residual.
+bool better(const GuidedResult& candidate, const GuidedResult& current, const GuidedOptions& options) noexcept {
   if (candidate.rounds_kept == 0) {
     return false;
+  }
+  const ImageFitSummary& fit = candidate.fit;
+  if (options.prefer_fit_confirmed && current.rounds_kept == 0 && fit.boundaries >= options.min_valid_fit_boundaries &&
+      fit.silhouette_readings >= options.min_valid_fit_silhouette_readings) {
+    return true;
+  }
+  if (current.rounds_kept > 0 && fit.rms_px < options.prefer_fit_rms_ratio * current.fit.rms_px &&
+      fit.boundaries >= current.fit.boundaries && fit.silhouette_readings >= current.fit.silhouette_readings) {
+    return true;
   }
   const int a = rank(candidate.estimate.quality);
   const int b = rank(current.estimate.quality);
@@ -87,7 +101,7 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
   seed.r = seed_r;
   const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
   const GuidedResult tried = rounds_from(extractor, estimator, camera, model, image, mode, seed, options, true);
-  if (better(tried, out)) {
+  if (better(tried, out, options)) {
     out = tried;
     return true;
   }

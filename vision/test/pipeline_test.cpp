@@ -621,6 +621,106 @@ TEST(Pipeline, ImageFitReadsTheArcsOfASmearedFrame) {
   EXPECT_GE(summary.boundaries, 4);
 }
 
+// Frame 151 of the `hard` set (seed 1: a decoy and noise), rendered without
+// its JPEG step: the channel's exit lies 4.7 mm from its CAD pose, so every
+// solve from the true corners is Degraded (eq. 8's penalty), while a pose
+// with the channel nearer its CAD pose can be solved Valid from wrong ones.
+struct ChannelFarFromCad {
+  Fixture f;
+  solver::PoseVector scene_r;
+  ImageView image;
+  ChannelFarFromCad() {
+    scene_r << -12.7522275032, 10.9131951637, 0.225132371965, 0.117595398297, 25.0, 0.523598775598, -1.0471975512;
+    image = f.render_r(scene_r, render::kHardDecoy | render::kHardNoise, 4033439093468081083ULL);
+  }
+  // Visible corners within 1.5 px of their truth.
+  int corners_found(const FeatureExtractor& fx, int& visible) const {
+    const render::InstrumentTruth& truth = f.truth.instruments[0];
+    int found = 0;
+    visible = 0;
+    for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
+      if (truth.visible[k]) {
+        ++visible;
+        const Corner& c = fx.result().corners[k];
+        found += c.found && std::hypot(c.pixel.x - truth.corners[k].x(), c.pixel.y - truth.corners[k].y()) < 1.5 ? 1 : 0;
+      }
+    }
+    return found;
+  }
+};
+
+// A valid first estimate that the image fit cannot confirm (its fit fails:
+// the channel 3 mm off), and the shaft re-check's result, confirmed by a fit
+// with a valid one's support but Degraded by the penalty: the confirmed one
+// is kept (prefer_fit_confirmed), with its corners; before, the unconfirmed
+// Valid one and stage 4's corners.
+TEST(Pipeline, AResultTheImageFitConfirmsReplacesAValidOneItDoesNot) {
+  ChannelFarFromCad scene;
+  Fixture& f = scene.f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  solver::Estimate first;
+  first.r = scene.scene_r;
+  first.r[solver::kYch] -= 3.0;
+  first.quality = solver::EstimateQuality::Valid;
+  for (int rule = 0; rule < 2; ++rule) {
+    auto fx = default_extractor();
+    ASSERT_NE(fx, nullptr);
+    ASSERT_TRUE(fx->extract(scene.image, model_priors(f.camera, f.model, first.r)).ok());
+    GuidedOptions options;
+    options.prefer_fit_confirmed = rule == 1;
+    options.prefer_fit_rms_ratio = 0.0;
+    options.fallback_seeds = 0;
+    const GuidedResult guided = guided_rounds(*fx, estimator, f.camera, f.model, scene.image,
+                                              solver::SolveMode::Adaptive, first, first.r, options);
+    EXPECT_TRUE(guided.shaft_rechecked);
+    int visible = 0;
+    const int found = scene.corners_found(*fx, visible);
+    if (rule == 0) {
+      EXPECT_EQ(guided.rounds_kept, 0);
+      EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid);
+      EXPECT_LT(found * 10, visible * 8);
+    } else {
+      EXPECT_GT(guided.rounds_kept, 0);
+      EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Degraded);
+      EXPECT_EQ(found, visible);
+    }
+  }
+}
+
+// From the encoders' pose the first rounds end Valid, with a fit whose
+// residual is 0.48 px; the shaft re-check's fit reads as many boundaries and
+// silhouette points at 0.15 px, and is Degraded by the penalty. The better
+// fit is kept (prefer_fit_rms_ratio), with its corners; before, the Valid
+// result and corners more than 1.5 px off.
+TEST(Pipeline, AMuchBetterImageFitReplacesAValidResult) {
+  ChannelFarFromCad scene;
+  Fixture& f = scene.f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const solver::PoseVector prior = f.model.geometry().nominal_pose(26.3753177416, 0.626737916891, -0.919908722183);
+  for (int rule = 0; rule < 2; ++rule) {
+    auto fx = default_extractor();
+    ASSERT_NE(fx, nullptr);
+    ASSERT_TRUE(fx->extract(scene.image, model_priors(f.camera, f.model, prior)).ok());
+    GuidedOptions options;
+    options.prefer_fit_rms_ratio = rule == 0 ? 0.0 : GuidedOptions{}.prefer_fit_rms_ratio;
+    const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, scene.image, true,
+                                                solver::SolveMode::Adaptive, prior, options);
+    ASSERT_GT(guided.rounds_kept, 0);
+    int visible = 0;
+    const int found = scene.corners_found(*fx, visible);
+    if (rule == 0) {
+      EXPECT_TRUE(guided.shaft_rechecked);
+      EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid);
+      EXPECT_GT(guided.fit.rms_px, 0.4);
+      EXPECT_LT(found * 10, visible * 8);
+    } else {
+      EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Degraded);
+      EXPECT_LT(guided.fit.rms_px, 0.2);
+      EXPECT_EQ(found, visible);
+    }
+  }
+}
+
 // When stage 4 gives no pose, the start pose (the encoders') moved onto the
 // class image seeds the image fit: the estimate comes, near the truth.
 TEST(Pipeline, StartSeedOnTheClassImageGivesTheEstimateWhenStage4GivesNoPose) {

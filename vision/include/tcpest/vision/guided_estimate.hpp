@@ -36,11 +36,18 @@ struct GuidedOptions {
   // the encoders' or the track's) and then from the rough pose of the
   // labelled regions (`from_regions`: pose_from_regions), each from a coarse
   // start; a result is kept only if its fit passes the test above and the
-  // re-solve gives a pose, and replaces the current one when better (valid
-  // over degraded; at the same quality, a fit-confirmed one over stage 4's,
-  // then the lower fit residual). Bounded: at most `fallback_seeds` (0..2)
+  // re-solve gives a pose, and replaces the current one when better: first
+  // when the image speaks for it clearly, whatever the qualities (the
+  // current one not confirmed by a fit, the candidate's fit with the
+  // support of a valid one; or its fit read at least as many boundaries and
+  // silhouette points with a residual below prefer_fit_rms_ratio times the
+  // current's); else valid over degraded; at the same quality, a
+  // fit-confirmed one over stage 4's, then the lower fit residual
+  // (docs/vision.md). Bounded: at most `fallback_seeds` (0..2)
   // seeds per frame, only on frames not yet valid (each about 1-3 ms at PAL,
   // docs/vision.md).
+  bool prefer_fit_confirmed = true;   // false: and the first rule neither
+  double prefer_fit_rms_ratio = 0.7;  // 0: never over a better quality
   bool start_seed = true;
   bool from_regions = true;
   int fallback_seeds = 2;
