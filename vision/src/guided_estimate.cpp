@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <limits>
 
 namespace tcpest {
 namespace vision {
@@ -91,17 +93,22 @@ bool better(const GuidedResult& candidate, const GuidedResult& current, const Gu
 }
 
 // The rounds from a coarse seed; the result replaces `out` when better
-// (else the extractor's corners are put back). True when it was kept.
+// and, with a finite `near_lambda_mm`, when its insertion lies nearer to
+// that than out's (else the extractor's corners are put back). True when
+// it was kept.
 bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
               const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
               const solver::Estimate& first, const solver::PoseVector& seed_r, const GuidedOptions& options,
-              GuidedResult& out) noexcept {
+              GuidedResult& out, double near_lambda_mm = std::numeric_limits<double>::quiet_NaN()) noexcept {
   solver::Estimate seed = first;
   seed.quality = solver::EstimateQuality::Degraded;
   seed.r = seed_r;
   const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
   const GuidedResult tried = rounds_from(extractor, estimator, camera, model, image, mode, seed, options, true);
-  if (better(tried, out, options)) {
+  const bool nearer = std::isnan(near_lambda_mm) ||
+                      std::fabs(tried.estimate.r[solver::kLambda] - near_lambda_mm) <
+                          std::fabs(out.estimate.r[solver::kLambda] - near_lambda_mm);
+  if (nearer && better(tried, out, options)) {
     out = tried;
     return true;
   }
@@ -112,39 +119,12 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
   return false;
 }
 
-}  // namespace
-
-GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
-                           const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                           const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
-                           const solver::PoseVector& start, const GuidedOptions& options) noexcept {
-  GuidedResult out;
-  out.estimate = first;
-  if (first.quality != solver::EstimateQuality::None) {
-    out = rounds_from(extractor, estimator, camera, model, image, mode, first, options, false);
-  }
-  // A valid result whose channel pose the shaft's silhouette places
-  // elsewhere: the rounds again from the shaft's channel pose (the joints
-  // kept), the better one kept. The solve's penalty holds the channel near
-  // its CAD pose, and the image fit's narrow windows cannot move it far;
-  // the base boundary's corners, which are the fitted pose's, follow it.
-  if (options.rounds > 0 && options.shaft_recheck && out.estimate.quality == solver::EstimateQuality::Valid) {
-    solver::PoseVector seed_r = out.estimate.r;
-    ShaftFitSummary shaft;
-    if (extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok() &&
-        (seed_r.head<2>() - out.estimate.r.head<2>()).norm() > options.shaft_recheck_min_mm) {
-      // Kept or not, `out` is then the better of the two.
-      static_cast<void>(try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out));
-      out.shaft_rechecked = true;
-    }
-  }
-  // The seeds need labelled markers: without them (stage 1 or 2 failed) the
-  // fit would read whatever edges lie where the seed puts the instrument.
-  if (options.rounds <= 0 || out.estimate.quality == solver::EstimateQuality::Valid ||
-      extractor.result().interpretation.found_count < kMinSeedMarkers) {
-    return out;
-  }
-  // Not valid yet: the fit from other seeds, each moved onto the class image
+// The fallback seeds (GuidedOptions), each kept in `out` when better.
+void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
+                        const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                        const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
+                        const solver::PoseVector& start, const GuidedOptions& options, GuidedResult& out) noexcept {
+  // The fit from other seeds, each moved onto the class image
   // first (class_fit) and fitted from a coarse start. Seed 0: `start` (the
   // encoders' or the track's pose; start_seed), measured the more useful of
   // the two (docs/vision.md); seed 1: the rough pose of the labelled regions
@@ -192,6 +172,74 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
       out.from_regions = seed_index == 1;
     }
   }
+}
+
+// Two stripes along the tube the colours repeat (blue, yellow, blue): with
+// an end of the tube hidden or smeared, a fit can hold the stripes two
+// along from the true ones, the insertion off by 7.4 mm (hard frames 9, 14,
+// 27). When the result's insertion lies farther from the start's (the
+// encoders', +/- 3 mm) than alias_lambda_tolerance_mm, the rounds are tried
+// from the pose two stripes back towards it; that result is kept only if
+// it is better (the rule above) and nearer to the start. True when kept.
+bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
+               const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
+               const solver::Estimate& first, const solver::PoseVector& start, const GuidedOptions& options,
+               GuidedResult& out) noexcept {
+  if (!options.alias_check || options.rounds <= 0 || out.rounds_kept == 0 || !start.allFinite()) {
+    return false;
+  }
+  const double off_mm = out.estimate.r[solver::kLambda] - start[solver::kLambda];
+  if (!(std::fabs(off_mm) > options.alias_lambda_tolerance_mm)) {
+    return false;
+  }
+  const auto& boundaries = model.geometry().boundaries_mm;
+  const double period_mm = boundaries[2] - boundaries[0];  // the colour pattern's period
+  solver::PoseVector seed_r = out.estimate.r;
+  seed_r[solver::kLambda] -= std::copysign(period_mm, off_mm);
+  if (!(seed_r[solver::kLambda] > 0.0)) {
+    return false;
+  }
+  const bool kept = try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
+                             start[solver::kLambda]);
+  out.alias_checked = true;
+  out.from_alias = kept;
+  return kept;
+}
+
+}  // namespace
+
+GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
+                           const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                           const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
+                           const solver::PoseVector& start, const GuidedOptions& options) noexcept {
+  GuidedResult out;
+  out.estimate = first;
+  if (first.quality != solver::EstimateQuality::None) {
+    out = rounds_from(extractor, estimator, camera, model, image, mode, first, options, false);
+  }
+  // A valid result whose channel pose the shaft's silhouette places
+  // elsewhere: the rounds again from the shaft's channel pose (the joints
+  // kept), the better one kept. The solve's penalty holds the channel near
+  // its CAD pose, and the image fit's narrow windows cannot move it far;
+  // the base boundary's corners, which are the fitted pose's, follow it.
+  if (options.rounds > 0 && options.shaft_recheck && out.estimate.quality == solver::EstimateQuality::Valid) {
+    solver::PoseVector seed_r = out.estimate.r;
+    ShaftFitSummary shaft;
+    if (extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok() &&
+        (seed_r.head<2>() - out.estimate.r.head<2>()).norm() > options.shaft_recheck_min_mm) {
+      // Kept or not, `out` is then the better of the two.
+      static_cast<void>(try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out));
+      out.shaft_rechecked = true;
+    }
+  }
+  // Not valid yet: the fallback seeds. They need labelled markers: without
+  // them (stage 1 or 2 failed) the fit would read whatever edges lie where
+  // the seed puts the instrument.
+  if (options.rounds > 0 && out.estimate.quality != solver::EstimateQuality::Valid &&
+      extractor.result().interpretation.found_count >= kMinSeedMarkers) {
+    try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out);
+  }
+  static_cast<void>(try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out));
   return out;
 }
 

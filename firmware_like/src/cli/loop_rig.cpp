@@ -234,6 +234,7 @@ int LoopRig::build() noexcept {
   vision->guided_options().rounds = config.loop.guided_rounds;
   vision->guided_options().fallback_seeds = config.loop.fallback_seeds;
   vision->guided_options().shaft_recheck = config.loop.shaft_recheck;
+  vision->guided_options().alias_check = config.loop.alias_check;
   pipeline = std::move(vision_pipeline.value());
   if (source->width() != models.camera.width() || source->height() != models.camera.height()) {
     std::fprintf(stderr, "tcpest %s: the source's frames are %dx%d, the camera calibration is %dx%d\n",

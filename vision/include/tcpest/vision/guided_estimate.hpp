@@ -65,6 +65,14 @@ struct GuidedOptions {
   // more set of rounds.
   bool shaft_recheck = true;
   double shaft_recheck_min_mm = 0.3;
+  // Two stripes along the tube the colours repeat: a fit-confirmed result
+  // whose insertion lies more than `alias_lambda_tolerance_mm` from the
+  // start's (the encoders' accuracy is +/- 3 mm, model.md) is tried again
+  // from the pose two stripes (7.4 mm) back towards the start, and that
+  // result kept when better (the rule above) and nearer to the start. At
+  // most one more set of rounds per frame (docs/vision.md).
+  bool alias_check = true;
+  double alias_lambda_tolerance_mm = 3.0;
 };
 constexpr int kMaxGuidedRounds = 4;
 constexpr int kMaxFallbackSeeds = 2;
@@ -76,12 +84,14 @@ struct GuidedResult {
   bool from_regions = false;      // the rounds started from pose_from_regions
   bool from_start = false;        // the rounds started from the start pose (start_seed)
   bool shaft_rechecked = false;   // a valid result was tried again from the shaft's channel pose
+  bool alias_checked = false;     // the result was tried again two stripes along (alias_check)
+  bool from_alias = false;        // ... and that result was kept
 };
 
 // Everything after the first solve (the loop times it as its own step):
 // the rounds from `first` when it has a pose, then, while the result is not
-// valid, the fallback seeds (the regions' rough pose, `start`). `first` may
-// have no pose. On return the extractor's corners are those of the kept
+// valid, the fallback seeds (the regions' rough pose, `start`), then the
+// alias check against `start`'s insertion. `first` may have no pose. On return the extractor's corners are those of the kept
 // estimate (stage 4's if no round was kept).
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                            const solver::CameraModel& camera, const solver::InstrumentModel& model,

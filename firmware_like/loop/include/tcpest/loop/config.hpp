@@ -42,6 +42,7 @@ struct LoopSettings {
   int guided_rounds = 1;               // model-guided corner rounds after the first solve (0..4; 0: stage 4's corners)
   int fallback_seeds = 1;              // image fits from other seeds on a frame not yet valid (0..2; vision::GuidedOptions)
   bool shaft_recheck = false;          // a valid frame tried again from the shaft's channel pose (vision::GuidedOptions)
+  bool alias_check = false;            // a result 3 mm off the encoders' insertion tried two stripes back (vision::GuidedOptions)
   int camera_timeout_ms = 200;         // a live camera silent this long counts as not ready
   int camera_lost_after = 5;           // consecutive not-ready cycles before the camera is lost
   int retry_ms = 1000;                 // reopen attempts for a lost camera or bus
