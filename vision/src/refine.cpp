@@ -41,6 +41,9 @@ constexpr int kEdgeOffsets = 8;
 constexpr double kEdgeOffsetsMm[kEdgeOffsets] = {-2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0};
 constexpr int kMaxEdgeProfile = 64;   // across profile points (0.5 px apart)
 
+// What a colour-change reading found (Refiner::crossing).
+enum class Crossing : std::uint8_t { kNone, kSharp, kSmeared };
+
 // How the colour changes across boundary j, base -> tip.
 struct BoundaryColours {
   bool usable = false;
@@ -154,7 +157,7 @@ class Refiner {
         continue;  // the tube seen end-on here
       }
       double tau_px = 0.0;
-      if (crossing(p, d / px_per_mm, window_mm * px_per_mm, colours, 1, tau_px)) {
+      if (crossing(p, d / px_per_mm, window_mm * px_per_mm, colours, 1, tau_px) == Crossing::kSharp) {
         shifts[static_cast<std::size_t>(count++)] = tau_px / px_per_mm;
       }
     }
@@ -250,10 +253,12 @@ class Refiner {
 
   // The colour change along `dir` through p nearest to p (px, signed),
   // between readings that are clearly on each side: the mean of two
-  // neighbouring samples within `clear_reach` samples of the crossing's pair
-  // (1: the very next pair, a sharp change; more: a smeared one).
-  bool crossing(const solver::Vec2& p, const solver::Vec2& dir, double window_px, const BoundaryColours& colours,
-                int clear_reach, double& tau_px) const noexcept {
+  // neighbouring samples. A sharp change is clear at the very next pair on
+  // each side; a smeared one only within `clear_reach` pairs (1: sharp
+  // changes only). The nearest sharp change if there is one, else the
+  // nearest smeared one.
+  Crossing crossing(const solver::Vec2& p, const solver::Vec2& dir, double window_px, const BoundaryColours& colours,
+                    int clear_reach, double& tau_px) const noexcept {
     const int half = std::min(std::max(static_cast<int>(std::ceil(window_px)), 3), (kMaxProfile - 1) / 2);
     const int n = 2 * half + 1;
     std::array<double, kMaxProfile> v{};
@@ -262,14 +267,16 @@ class Refiner {
       bool ok = false;
       v[static_cast<std::size_t>(i)] = colours.want * score(p.x() + t * dir.x(), p.y() + t * dir.y(), colours.margin, ok);
       if (!ok) {
-        return false;
+        return Crossing::kNone;
       }
     }
     constexpr double kClear = 0.15;  // |profile| of a reading clearly on one side
     constexpr int kMaxClearReach = 8;
     const int reach = std::min(std::max(clear_reach, 1), kMaxClearReach);
-    double best = 1e30;
-    bool found = false;
+    double best_sharp = 0.0;
+    double best_smeared = 0.0;
+    bool found_sharp = false;
+    bool found_smeared = false;
     for (int i = 2; i + 1 < n; ++i) {
       const double a = v[static_cast<std::size_t>(i - 1)];
       const double b = v[static_cast<std::size_t>(i)];
@@ -278,6 +285,7 @@ class Refiner {
       }
       bool clear_before = false;
       bool clear_after = false;
+      bool sharp = false;
       for (int r = 1; r <= reach; ++r) {
         const int before = i - 1 - r;  // the pair (before, before + 1) ahead of the crossing
         const int after = i + r;       // the pair (after - 1, after) beyond it
@@ -289,18 +297,21 @@ class Refiner {
           const auto k = static_cast<std::size_t>(after);
           clear_after = clear_after || 0.5 * (v[k - 1U] + v[k]) > kClear;
         }
+        sharp = sharp || (r == 1 && clear_before && clear_after);
       }
       if (!(clear_before && clear_after)) {
         continue;
       }
       const double t = static_cast<double>(i - 1 - half) + a / (a - b);
-      if (std::fabs(t) < std::fabs(best)) {
+      double& best = sharp ? best_sharp : best_smeared;
+      bool& found = sharp ? found_sharp : found_smeared;
+      if (!found || std::fabs(t) < std::fabs(best)) {
         best = t;
         found = true;
       }
     }
-    tau_px = best;
-    return found;
+    tau_px = found_sharp ? best_sharp : best_smeared;
+    return found_sharp ? Crossing::kSharp : (found_smeared ? Crossing::kSmeared : Crossing::kNone);
   }
 
   // The colour-gradient maximum along `normal` through p (px from p,
@@ -559,7 +570,6 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     std::array<int, kNumBoundaries> sharp_on{};
     std::array<int, kNumBoundaries> smeared_on{};
     int smeared_count = 0;
-    const bool read_smear = config_.refine_smear_clear_reach > 1;
     for (int j = 0; j < kNumBoundaries; ++j) {
       const BoundaryColours colours = colours_of(config_, j);
       if (!colours.usable || j == 0) {  // the base arc: behind the shaft in most views (docs/vision.md)
@@ -605,11 +615,12 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
         rd.boundary = j;
         rd.angle_rad = a;
         double tau = 0.0;
-        if (refiner.crossing(p, normal, window_mm * px_per_mm, colours, 1, tau)) {
+        const Crossing read =
+            refiner.crossing(p, normal, window_mm * px_per_mm, colours, config_.refine_smear_clear_reach, tau);
+        if (read == Crossing::kSharp) {
           push_reading(rd, normal, tau, p);
           ++on_this;
-        } else if (read_smear && smeared_count < kMaxSmearedReadings &&
-                   refiner.crossing(p, normal, window_mm * px_per_mm, colours, config_.refine_smear_clear_reach, tau)) {
+        } else if (read == Crossing::kSmeared && smeared_count < kMaxSmearedReadings) {
           rd.direction = normal;
           rd.offset_px = tau;
           smeared[static_cast<std::size_t>(smeared_count)] = rd;
