@@ -46,8 +46,8 @@ struct GuidedOptions {
   // (docs/vision.md). Bounded: at most `fallback_seeds` (0..2)
   // seeds per frame, only on frames not yet valid (each about 1-3 ms at PAL,
   // docs/vision.md).
-  bool prefer_fit_confirmed = true;   // false: and the first rule neither
-  double prefer_fit_rms_ratio = 0.7;  // 0: never over a better quality
+  bool prefer_fit_confirmed = true;   // the first of those rules (false: off)
+  double prefer_fit_rms_ratio = 0.7;  // the second (0: off)
   bool start_seed = true;
   bool from_regions = true;
   int fallback_seeds = 2;
@@ -91,8 +91,9 @@ struct GuidedResult {
 // Everything after the first solve (the loop times it as its own step):
 // the rounds from `first` when it has a pose, then, while the result is not
 // valid, the fallback seeds (the regions' rough pose, `start`), then the
-// alias check against `start`'s insertion. `first` may have no pose. On return the extractor's corners are those of the kept
-// estimate (stage 4's if no round was kept).
+// alias check against `start`'s insertion. `first` may have no pose. On
+// return the extractor's corners are those of the kept estimate (stage 4's
+// if no round was kept).
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                            const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
