@@ -92,6 +92,21 @@ int expect_visible_corners_within(const FeatureExtractor& fx, const render::Inst
   return visible;
 }
 
+// Visible corners given within 1.5 px of their truth (the evaluation's
+// criterion); `visible` gets how many the renderer saw.
+int corners_found(const FeatureExtractor& fx, const render::InstrumentTruth& truth, int& visible) {
+  int found = 0;
+  visible = 0;
+  for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
+    if (truth.visible[k]) {
+      ++visible;
+      const Corner& c = fx.result().corners[k];
+      found += c.found && std::hypot(c.pixel.x - truth.corners[k].x(), c.pixel.y - truth.corners[k].y()) < 1.5 ? 1 : 0;
+    }
+  }
+  return found;
+}
+
 TEST(Pipeline, FindsTheMarkerChainAndCornersOnARenderedFrame) {
   Fixture f;
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
@@ -651,20 +666,6 @@ struct ChannelFarFromCad {
     scene_r << -12.7522275032, 10.9131951637, 0.225132371965, 0.117595398297, 25.0, 0.523598775598, -1.0471975512;
     image = f.render_r(scene_r, render::kHardDecoy | render::kHardNoise, 4033439093468081083ULL);
   }
-  // Visible corners within 1.5 px of their truth.
-  int corners_found(const FeatureExtractor& fx, int& visible) const {
-    const render::InstrumentTruth& truth = f.truth.instruments[0];
-    int found = 0;
-    visible = 0;
-    for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
-      if (truth.visible[k]) {
-        ++visible;
-        const Corner& c = fx.result().corners[k];
-        found += c.found && std::hypot(c.pixel.x - truth.corners[k].x(), c.pixel.y - truth.corners[k].y()) < 1.5 ? 1 : 0;
-      }
-    }
-    return found;
-  }
 };
 
 // A valid first estimate that the image fit cannot confirm (its fit fails:
@@ -692,7 +693,7 @@ TEST(Pipeline, AResultTheImageFitConfirmsReplacesAValidOneItDoesNot) {
                                               solver::SolveMode::Adaptive, first, first.r, options);
     EXPECT_TRUE(guided.shaft_rechecked);
     int visible = 0;
-    const int found = scene.corners_found(*fx, visible);
+    const int found = corners_found(*fx, f.truth.instruments[0], visible);
     if (rule == 0) {
       EXPECT_EQ(guided.rounds_kept, 0);
       EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid);
@@ -725,7 +726,7 @@ TEST(Pipeline, AMuchBetterImageFitReplacesAValidResult) {
                                                 solver::SolveMode::Adaptive, prior, options);
     ASSERT_GT(guided.rounds_kept, 0);
     int visible = 0;
-    const int found = scene.corners_found(*fx, visible);
+    const int found = corners_found(*fx, f.truth.instruments[0], visible);
     if (rule == 0) {
       EXPECT_TRUE(guided.shaft_rechecked);
       EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid);
@@ -766,14 +767,7 @@ TEST(Pipeline, AResultTwoStripesFromTheEncodersIsTriedAgainTwoStripesBack) {
     EXPECT_EQ(guided.alias_checked, rule == 1);
     EXPECT_EQ(guided.from_alias, rule == 1);
     int visible = 0;
-    int found = 0;
-    for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
-      if (truth.visible[k]) {
-        ++visible;
-        const Corner& c = fx->result().corners[k];
-        found += c.found && std::hypot(c.pixel.x - truth.corners[k].x(), c.pixel.y - truth.corners[k].y()) < 1.5 ? 1 : 0;
-      }
-    }
+    const int found = corners_found(*fx, truth, visible);
     const double off_mm = guided.estimate.r[solver::kLambda] - prior[solver::kLambda];
     if (rule == 0) {
       EXPECT_GT(std::fabs(off_mm), 5.0);
