@@ -123,6 +123,25 @@ TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
   EXPECT_EQ(run({"evaluate", "--colors", model, dir}), kExitOk);
 }
 
+// evaluate's line of frame success per hard case: a frame counts under each
+// of its cases; no line for a set without hard cases; a short buffer keeps
+// what fits.
+TEST(VisionCommands, EvaluateTalliesFrameSuccessPerHardCase) {
+  HardCaseTally tally;
+  char line[512];
+  tally.add(0U, true);
+  format_hard_case_tally(tally, line, sizeof line);
+  EXPECT_STREQ(line, "");
+  tally.add(render::kHardOccluder | render::kHardHaze, false);
+  tally.add(render::kHardOccluder, true);
+  format_hard_case_tally(tally, line, sizeof line);
+  EXPECT_STREQ(line, "frame success by hard case: occluder 50.0 % of 2, haze 0.0 % of 1, none 100.0 % of 1");
+  char small[24];
+  format_hard_case_tally(tally, small, sizeof small);
+  EXPECT_EQ(std::strlen(small), sizeof small - 1U);
+  EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
+}
+
 TEST(VisionCommands, EstimateJsonLineHasEveryMember) {
   EstimateResult result;
   vision::Extraction extraction;

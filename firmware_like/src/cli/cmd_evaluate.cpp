@@ -135,6 +135,7 @@ int cmd_evaluate(int argc, char** argv) {
   std::vector<std::uint8_t> pixels;
   long visible = 0, found_ok = 0, found_total = 0, wrong = 0, mislabelled = 0;
   int frames = 0, frames_with_visible = 0, successes = 0, unreadable = 0, valid_estimates = 0;
+  HardCaseTally by_case;  // frame success per hard case
   std::vector<double> errors, tcp_errors, stage[4], stages_total, solve_times;
   double tcp_sq[3] = {0.0, 0.0, 0.0};
   bool sequence = false;
@@ -225,9 +226,9 @@ int cmd_evaluate(int argc, char** argv) {
     found_ok += frame_ok;
     if (frame_visible > 0) {
       ++frames_with_visible;
-      if (frame_ok * 10 >= frame_visible * 8) {
-        ++successes;
-      }
+      const bool success = frame_ok * 10 >= frame_visible * 8;
+      successes += success ? 1 : 0;
+      by_case.add(truth.hard_cases, success);
     }
     for (int s = 0; s < 4; ++s) {
       stage[s].push_back(result.times.stage_us[s]);
@@ -289,6 +290,11 @@ int cmd_evaluate(int argc, char** argv) {
               tolerance_px, share(wrong), found_total, share(mislabelled), share(wrong - mislabelled));
   std::printf("frame success (>= 80 %% of visible corners found and labelled): %.1f %% of %d frames\n",
               frames_with_visible > 0 ? 100.0 * successes / frames_with_visible : 0.0, frames_with_visible);
+  char case_line[512];
+  format_hard_case_tally(by_case, case_line, sizeof case_line);
+  if (case_line[0] != '\0') {
+    std::printf("%s\n", case_line);
+  }
   std::printf("valid estimates: %d; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n", valid_estimates,
               median_of(tcp_errors), std::sqrt(tcp_sq[0] / n_tcp), std::sqrt(tcp_sq[1] / n_tcp),
               std::sqrt(tcp_sq[2] / n_tcp));

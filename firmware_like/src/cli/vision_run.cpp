@@ -392,5 +392,54 @@ void format_estimate_json(const char* image, const EstimateResult& result, const
                         result.summary.rms_px, result.summary.iterations, result.total_us));
 }
 
+void HardCaseTally::add(std::uint32_t hard_cases, bool success) noexcept {
+  if ((hard_cases & render::kAllHardCases) == 0U) {
+    ++clear_frames;
+    clear_successes += success ? 1 : 0;
+    return;
+  }
+  for (int bit = 0; bit < render::kNumHardCases; ++bit) {
+    if ((hard_cases & (1U << static_cast<unsigned>(bit))) != 0U) {
+      ++frames[static_cast<std::size_t>(bit)];
+      successes[static_cast<std::size_t>(bit)] += success ? 1 : 0;
+    }
+  }
+}
+
+void format_hard_case_tally(const HardCaseTally& tally, char* out, std::size_t capacity) noexcept {
+  if (capacity == 0U) {
+    return;
+  }
+  out[0] = '\0';
+  std::size_t used = 0U;
+  bool any = false;
+  // Appends one "name x % of n" item; a full buffer keeps what fitted.
+  const auto item = [&](const char* name, int n, int ok) noexcept {
+    if (n <= 0 || used >= capacity) {
+      return;
+    }
+    const int written = std::snprintf(out + used, capacity - used, "%s%s %.1f %% of %d", any ? ", " : "", name,
+                                      100.0 * ok / n, n);
+    if (written > 0) {
+      used = std::min(capacity - 1U, used + static_cast<std::size_t>(written));
+    }
+    any = true;
+  };
+  bool hard = false;
+  for (const int n : tally.frames) {
+    hard = hard || n > 0;
+  }
+  if (!hard) {
+    return;
+  }
+  const int head = std::snprintf(out, capacity, "frame success by hard case: ");
+  used = head > 0 ? std::min(capacity - 1U, static_cast<std::size_t>(head)) : 0U;
+  for (int bit = 0; bit < render::kNumHardCases; ++bit) {
+    const auto b = static_cast<std::size_t>(bit);
+    item(render::hard_case_name(bit), tally.frames[b], tally.successes[b]);
+  }
+  item("none", tally.clear_frames, tally.clear_successes);
+}
+
 }  // namespace cli
 }  // namespace tcpest

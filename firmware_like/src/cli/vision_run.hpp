@@ -4,6 +4,7 @@
 // the priors of a sequence.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -11,6 +12,7 @@
 
 #include "cli/setup.hpp"
 #include "tcpest/hal/camera/jpeg_decoder.hpp"
+#include "tcpest/render/renderer.hpp"
 #include "tcpest/solver/pose_estimator.hpp"
 #include "tcpest/vision/features.hpp"
 #include "tcpest/vision/guided_estimate.hpp"
@@ -104,6 +106,20 @@ bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeli
 // The JSON line of `tcpest estimate --json` (no newline).
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,
                           char* out, std::size_t capacity) noexcept;
+
+// `tcpest evaluate`'s frame success per hard case: a frame counts under
+// each case it carries (the sidecar's hard_cases), or under "none".
+struct HardCaseTally {
+  std::array<int, render::kNumHardCases> frames{};
+  std::array<int, render::kNumHardCases> successes{};
+  int clear_frames = 0;     // frames without any hard case
+  int clear_successes = 0;
+  void add(std::uint32_t hard_cases, bool success) noexcept;
+};
+// "frame success by hard case: reflection 64.0 % of 75, ..., none 90.0 % of
+// 10" (no newline; the cases without frames left out); an empty string when
+// no frame carried a hard case.
+void format_hard_case_tally(const HardCaseTally& tally, char* out, std::size_t capacity) noexcept;
 
 }  // namespace cli
 }  // namespace tcpest
