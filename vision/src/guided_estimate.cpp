@@ -92,19 +92,21 @@ bool better(const GuidedResult& candidate, const GuidedResult& current, const Gu
   return current.rounds_kept == 0 || candidate.fit.rms_px < current.fit.rms_px;
 }
 
-// The rounds from a coarse seed; the result replaces `out` when better
-// and, with a finite `near_lambda_mm`, when its insertion lies nearer to
-// that than out's (else the extractor's corners are put back). True when
-// it was kept.
+// The rounds from a seed (a coarse start unless told otherwise); the
+// result replaces `out` when better and, with a finite `near_lambda_mm`,
+// when its insertion lies nearer to that than out's (else the extractor's
+// corners are put back). True when it was kept.
 bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
               const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
               const solver::Estimate& first, const solver::PoseVector& seed_r, const GuidedOptions& options,
-              GuidedResult& out, double near_lambda_mm = std::numeric_limits<double>::quiet_NaN()) noexcept {
+              GuidedResult& out, double near_lambda_mm = std::numeric_limits<double>::quiet_NaN(),
+              bool coarse_start = true) noexcept {
   solver::Estimate seed = first;
   seed.quality = solver::EstimateQuality::Degraded;
   seed.r = seed_r;
   const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
-  const GuidedResult tried = rounds_from(extractor, estimator, camera, model, image, mode, seed, options, true);
+  const GuidedResult tried =
+      rounds_from(extractor, estimator, camera, model, image, mode, seed, options, coarse_start);
   const bool nearer = std::isnan(near_lambda_mm) ||
                       std::fabs(tried.estimate.r[solver::kLambda] - near_lambda_mm) <
                           std::fabs(out.estimate.r[solver::kLambda] - near_lambda_mm);
@@ -180,7 +182,11 @@ void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
 // 27). When the result's insertion lies farther from the start's (the
 // encoders', +/- 3 mm) than alias_lambda_tolerance_mm, the rounds are tried
 // from the pose two stripes back towards it; that result is kept only if
-// it is better (the rule above) and nearer to the start. True when kept.
+// it is better (the rule above) and nearer to the start. From a fine start
+// first (alias_fine_start): that seed has the result's shape, and the wide
+// windows of a coarse start let the fit slide back onto the stripes it
+// came from (hard frame 27); then from a coarse start when the fine one was
+// not kept (lab frame 14 needs it). True when kept.
 bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
                const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
                const solver::Estimate& first, const solver::PoseVector& start, const GuidedOptions& options,
@@ -199,8 +205,11 @@ bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, co
   if (!(seed_r[solver::kLambda] > 0.0)) {
     return false;
   }
-  const bool kept = try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
-                             start[solver::kLambda]);
+  const double near_mm = start[solver::kLambda];
+  const bool kept =
+      (options.alias_fine_start &&
+       try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, near_mm, false)) ||
+      try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, near_mm, true);
   out.alias_checked = true;
   out.from_alias = kept;
   return kept;

@@ -70,9 +70,14 @@ struct GuidedOptions {
   // start's (the encoders' accuracy is +/- 3 mm, model.md) is tried again
   // from the pose two stripes (7.4 mm) back towards the start, and that
   // result kept when better (the rule above) and nearer to the start. At
-  // most one more set of rounds per frame (docs/vision.md).
+  // most two more sets of rounds per frame (docs/vision.md).
   bool alias_check = true;
   double alias_lambda_tolerance_mm = 3.0;
+  // The alias seed keeps the result's shape, so it is tried first from a
+  // fine start, whose narrow windows hold the stripes where the period
+  // put them, and from a coarse start only when that was not kept (false:
+  // the coarse start alone).
+  bool alias_fine_start = true;
 };
 constexpr int kMaxGuidedRounds = 4;
 constexpr int kMaxFallbackSeeds = 2;
