@@ -107,6 +107,30 @@ int corners_found(const FeatureExtractor& fx, const render::InstrumentTruth& tru
   return found;
 }
 
+// The guided estimate of the frame rendered last, from `prior` with
+// `options`, on a new extractor (stage 4 from the same prior), and how many
+// of its visible corners it found (corners_found).
+struct GuidedRun {
+  std::unique_ptr<FeatureExtractor> fx;
+  GuidedResult guided;
+  int visible = 0;
+  int found = 0;
+};
+GuidedRun guided_run(Fixture& f, solver::PoseEstimator& estimator, const ImageView& image,
+                     const solver::PoseVector& prior, const GuidedOptions& options) {
+  GuidedRun run;
+  run.fx = default_extractor();
+  if (run.fx == nullptr) {
+    ADD_FAILURE() << "no extractor";
+    return run;
+  }
+  const bool stage4_ok = run.fx->extract(image, model_priors(f.camera, f.model, prior)).ok();
+  run.guided = guided_estimate(*run.fx, estimator, f.camera, f.model, image, stage4_ok, solver::SolveMode::Adaptive,
+                               prior, options);
+  run.found = corners_found(*run.fx, f.truth.instruments[0], run.visible);
+  return run;
+}
+
 TEST(Pipeline, FindsTheMarkerChainAndCornersOnARenderedFrame) {
   Fixture f;
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
@@ -753,29 +777,22 @@ TEST(Pipeline, AResultTwoStripesFromTheEncodersIsTriedAgainTwoStripesBack) {
   scene_r << -15.3447582969, 10.1204875737, 0.066481328094, -0.0246812879931, 10.0, -0.523598775598, -0.349065850399;
   static_cast<void>(f.render_r(scene_r, 0U, 3726968971190200847ULL));
   const ImageView image = f.jpeg_round_trip(92);
-  const render::InstrumentTruth& truth = f.truth.instruments[0];
   const solver::PoseVector prior = f.model.geometry().nominal_pose(10.1946135965, -0.543796416338, -0.462404854662);
   for (int rule = 0; rule < 2; ++rule) {
-    auto fx = default_extractor();
-    ASSERT_NE(fx, nullptr);
-    const bool stage4_ok = fx->extract(image, model_priors(f.camera, f.model, prior)).ok();
     GuidedOptions options;
     options.alias_check = rule == 1;
-    const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, stage4_ok,
-                                                solver::SolveMode::Adaptive, prior, options);
-    ASSERT_GT(guided.rounds_kept, 0);
-    EXPECT_EQ(guided.alias_checked, rule == 1);
-    EXPECT_EQ(guided.from_alias, rule == 1);
-    int visible = 0;
-    const int found = corners_found(*fx, truth, visible);
-    const double off_mm = guided.estimate.r[solver::kLambda] - prior[solver::kLambda];
+    const GuidedRun run = guided_run(f, estimator, image, prior, options);
+    ASSERT_GT(run.guided.rounds_kept, 0);
+    EXPECT_EQ(run.guided.alias_checked, rule == 1);
+    EXPECT_EQ(run.guided.from_alias, rule == 1);
+    const double off_mm = run.guided.estimate.r[solver::kLambda] - prior[solver::kLambda];
     if (rule == 0) {
       EXPECT_GT(std::fabs(off_mm), 5.0);
-      EXPECT_EQ(found, 0);
+      EXPECT_EQ(run.found, 0);
     } else {
       EXPECT_LT(std::fabs(off_mm), 3.0);
-      EXPECT_GE(guided.fit.boundaries, 4);
-      EXPECT_GE(found * 10, visible * 8);
+      EXPECT_GE(run.guided.fit.boundaries, 4);
+      EXPECT_GE(run.found * 10, run.visible * 8);
     }
   }
 }
@@ -794,28 +811,21 @@ TEST(Pipeline, TheAliasSeedIsTriedFromAFineStartFirst) {
   static_cast<void>(f.render_r(scene_r, render::kHardReflection | render::kHardDecoy | render::kHardNoise,
                                10479341298246218245ULL));
   const ImageView image = f.jpeg_round_trip(92);
-  const render::InstrumentTruth& truth = f.truth.instruments[0];
   const solver::PoseVector prior = f.model.geometry().nominal_pose(11.9832485889, 0.400301562059, 0.338810010605);
   for (int rule = 0; rule < 2; ++rule) {
-    auto fx = default_extractor();
-    ASSERT_NE(fx, nullptr);
-    const bool stage4_ok = fx->extract(image, model_priors(f.camera, f.model, prior)).ok();
     GuidedOptions options;
     options.alias_fine_start = rule == 1;
-    const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, stage4_ok,
-                                                solver::SolveMode::Adaptive, prior, options);
-    ASSERT_GT(guided.rounds_kept, 0);
-    EXPECT_TRUE(guided.alias_checked);
-    EXPECT_EQ(guided.from_alias, rule == 1);
-    int visible = 0;
-    const int found = corners_found(*fx, truth, visible);
-    const double off_mm = guided.estimate.r[solver::kLambda] - scene_r[solver::kLambda];
+    const GuidedRun run = guided_run(f, estimator, image, prior, options);
+    ASSERT_GT(run.guided.rounds_kept, 0);
+    EXPECT_TRUE(run.guided.alias_checked);
+    EXPECT_EQ(run.guided.from_alias, rule == 1);
+    const double off_mm = run.guided.estimate.r[solver::kLambda] - scene_r[solver::kLambda];
     if (rule == 0) {
       EXPECT_GT(std::fabs(off_mm), 5.0);
-      EXPECT_EQ(found, 0);
+      EXPECT_EQ(run.found, 0);
     } else {
       EXPECT_LT(std::fabs(off_mm), 1.0);
-      EXPECT_EQ(found, visible);
+      EXPECT_EQ(run.found, run.visible);
     }
   }
 }
