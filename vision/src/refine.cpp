@@ -40,6 +40,14 @@ constexpr int kMaxProfile = 96;       // along-tube profile points (1 px apart)
 constexpr int kEdgeOffsets = 8;
 constexpr double kEdgeOffsetsMm[kEdgeOffsets] = {-2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0};
 constexpr int kMaxEdgeProfile = 64;   // across profile points (0.5 px apart)
+// The base's rim (Refiner::ridge): a ridge stands out against the samples
+// kRimSidePx away (the rim is 1-3 px wide); the window reaches kRimReachMm
+// along the tube, at least kRimMinReachPx, at most kRimMaxReachPx.
+constexpr int kRimSidePx = 3;
+constexpr double kRimReachMm = 0.3;
+constexpr double kRimMinReachPx = 6.0;
+constexpr int kRimMaxReachPx = 40;
+constexpr int kRimMaxProfile = 2 * (kRimMaxReachPx + kRimSidePx) + 1;
 
 // What a colour-change reading found (Refiner::crossing).
 enum class Crossing : std::uint8_t { kNone, kSharp, kSmeared };
@@ -95,6 +103,14 @@ bool silhouette_from(const solver::CircleLimbs& at, const solver::CircleLimbs& n
 bool tip_face_visible(const solver::InstrumentModel& model, const solver::PoseFrames& f) noexcept {
   const solver::CentrelineFrame end = model.centreline(f, model.geometry().bend_length_mm);
   return -end.position.dot(end.tangent) > 0.0;  // the camera (origin) in front of the face
+}
+
+// True when the base's end face (the first stripe's, between the shaft's
+// radius and the tube's, facing back along the tube) is turned towards the
+// camera: the camera behind the plane at s = 0.
+bool base_face_visible(const solver::InstrumentModel& model, const solver::PoseFrames& f) noexcept {
+  const solver::CentrelineFrame base = model.centreline(f, 0.0);
+  return base.position.dot(base.tangent) > 0.0;
 }
 
 // The model's silhouette point of `side` at arc length s and its outward
@@ -170,6 +186,61 @@ class Refiner {
       dev[static_cast<std::size_t>(i)] = std::fabs(shifts[static_cast<std::size_t>(i)] - mid);
     }
     if (median_of(dev.data(), count) > config_.refine_max_spread_mm) {
+      return false;
+    }
+    shift_mm = mid;
+    return true;
+  }
+
+  // Shift (mm along the tube) of the base's rim (its end face, seen as a
+  // thin bright ring: ExtractorConfig::refine_base_rim) from the model's,
+  // read on the ring of `radius` at s = 0 over the visible arc: the median
+  // of the arc points' readings; false when too few see it or they spread.
+  bool rim_shift(double radius, double& shift_mm) noexcept {
+    const solver::CentrelineFrame cf = model_.centreline(frames_, 0.0);
+    const solver::CentrelineFrame cf2 = model_.centreline(frames_, kDsMm);
+    double base = 0.0;
+    double limb_half = 0.0;
+    if (!solver::circle_limb_angles(cf, model_.geometry().radius_mm, base, limb_half)) {
+      return false;
+    }
+    const double half = solver::kPi - limb_half;  // half the visible arc (facing the camera)
+    const int n = std::min(std::max(config_.refine_arc_samples, 3), kMaxArcSamples);
+    std::array<double, kMaxArcSamples> shifts{};
+    int count = 0;
+    for (int i = 0; i < n; ++i) {
+      const double u = -config_.refine_arc_span + 2.0 * config_.refine_arc_span * i / static_cast<double>(n - 1);
+      const double a = base + solver::kPi + u * half;
+      const double ca = std::cos(a);
+      const double sa = std::sin(a);
+      solver::Vec2 p;
+      solver::Vec2 p2;
+      if (!camera_.project(cf.position + radius * (ca * cf.normal + sa * cf.binormal), p) ||
+          !camera_.project(cf2.position + radius * (ca * cf2.normal + sa * cf2.binormal), p2)) {
+        continue;
+      }
+      const solver::Vec2 d = (p2 - p) / kDsMm;  // px per mm along the tube
+      const double px_per_mm = d.norm();
+      if (!(px_per_mm > 0.5)) {
+        continue;  // the tube seen end-on here
+      }
+      // The window: the pose fitted to the image puts the base within a few
+      // pixels, or 0.3 mm at a large scale.
+      const double reach_px = std::max(kRimMinReachPx, kRimReachMm * px_per_mm);
+      double tau_px = 0.0;
+      if (ridge(p, d / px_per_mm, reach_px, tau_px)) {
+        shifts[static_cast<std::size_t>(count++)] = tau_px / px_per_mm;
+      }
+    }
+    if (count < 3 || count < config_.refine_min_arc_share * n) {
+      return false;
+    }
+    const double mid = median_of(shifts.data(), count);
+    std::array<double, kMaxArcSamples> dev{};
+    for (int i = 0; i < count; ++i) {
+      dev[static_cast<std::size_t>(i)] = std::fabs(shifts[static_cast<std::size_t>(i)] - mid);
+    }
+    if (median_of(dev.data(), count) > config_.refine_base_rim_max_spread_mm) {
       return false;
     }
     shift_mm = mid;
@@ -312,6 +383,45 @@ class Refiner {
     }
     tau_px = found_sharp ? best_sharp : best_smeared;
     return found_sharp ? Crossing::kSharp : (found_smeared ? Crossing::kSmeared : Crossing::kNone);
+  }
+
+  // The lightness ridge along `dir` through p nearest to p (px, signed,
+  // sub-pixel), within reach_px: a local maximum standing
+  // refine_base_rim_contrast above the samples kRimSidePx on either side.
+  bool ridge(const solver::Vec2& p, const solver::Vec2& dir, double reach_px, double& tau_px) const noexcept {
+    const int reach = std::min(static_cast<int>(std::ceil(reach_px)), kRimMaxReachPx);
+    const int n = 2 * (reach + kRimSidePx) + 1;
+    std::array<double, kRimMaxProfile> v{};
+    for (int i = 0; i < n; ++i) {
+      const double t = static_cast<double>(i - reach - kRimSidePx);
+      Rgb px;
+      if (!sample(image_, p.x() + t * dir.x(), p.y() + t * dir.y(), px)) {
+        return false;
+      }
+      v[static_cast<std::size_t>(i)] = (0.299 * px.r + 0.587 * px.g + 0.114 * px.b) / 255.0;  // Rec. 601 luma
+    }
+    int best = -1;
+    for (int i = kRimSidePx; i < n - kRimSidePx; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      const double c = v[k];
+      if (c < v[k - 1U] || c < v[k + 1U] ||
+          c - std::max(v[k - static_cast<std::size_t>(kRimSidePx)], v[k + static_cast<std::size_t>(kRimSidePx)]) <
+              config_.refine_base_rim_contrast) {
+        continue;
+      }
+      if (best < 0 || std::abs(i - reach - kRimSidePx) < std::abs(best - reach - kRimSidePx)) {
+        best = i;
+      }
+    }
+    if (best < 0) {
+      return false;
+    }
+    // The parabola's vertex through the maximum and its two neighbours.
+    const auto k = static_cast<std::size_t>(best);
+    const double curvature = v[k - 1U] - 2.0 * v[k] + v[k + 1U];
+    const double vertex = std::fabs(curvature) > 1e-12 ? 0.5 * (v[k - 1U] - v[k + 1U]) / curvature : 0.0;
+    tau_px = static_cast<double>(best - reach - kRimSidePx) + std::max(-0.5, std::min(0.5, vertex));
+    return true;
   }
 
   // The colour-gradient maximum along `normal` through p (px from p,
@@ -1029,8 +1139,9 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     // Two passes: the wide search, then a narrow one around its result
     // (the arc's shape follows the shift). The base boundary's arc is not
     // read (in most views it lies behind the shaft, nearer to the camera and
-    // only 0.06 mm thinner, so its colour change is the shaft's outline),
-    // nor the tip boundary's when the tip's end face is turned towards the
+    // only 0.06 mm thinner, so its colour change is the shaft's outline; its
+    // end face's rim is read instead, below), nor the tip boundary's when
+    // the tip's end face is turned towards the
     // camera (the blue-to-grey change is then the grasper's outline on that
     // face, 0.1-0.3 mm from the circle: docs/vision.md; the image fit still
     // reads that arc, which measured better than leaving it out there),
@@ -1050,6 +1161,16 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     if (!measured) {
       shift = 0.0;
     }
+    // The base's position along the tube from its end face's rim, when that
+    // face is turned towards the camera; its corners are then the limb
+    // points of the shifted circle (the silhouette beside them is the
+    // shaft's outline as much as the tube's, so no offset across).
+    const bool rim_only = j == 0;
+    if (rim_only && config_.refine_base_rim && base_face_visible(model, frames)) {
+      const double rim_radius = g.shaft_radius_mm + config_.refine_base_rim_share * (g.radius_mm - g.shaft_radius_mm);
+      measured = refiner.rim_shift(rim_radius, step);
+      shift = measured ? step : 0.0;
+    }
     e.boundary_measured[static_cast<std::size_t>(j)] = measured;
     e.boundary_shift_mm[static_cast<std::size_t>(j)] = shift;
     for (std::size_t side = 0U; side < 2U; ++side) {
@@ -1064,8 +1185,8 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
       // the image's border) the corner stays the shifted circle's limb
       // point, with the confidence of a predicted one.
       double offset = 0.0;
-      bool side_measured = measured;
-      if (measured && !refiner.silhouette_offset(s_j + shift, side, j, offset)) {
+      bool side_measured = measured && !rim_only;
+      if (side_measured && !refiner.silhouette_offset(s_j + shift, side, j, offset)) {
         offset = 0.0;
         side_measured = false;
       }

@@ -226,6 +226,21 @@ struct ExtractorConfig {
   int refine_smear_clear_reach = 3;         // samples, 1..8 (1: no smeared reading)
   double refine_smear_share = 0.5;
   int refine_smear_min_arc_readings = 20;
+  // The base boundary's arc shows no usable colour change (the shaft's
+  // outline), but the first stripe's end face, the ring between the
+  // shaft's radius and the tube's at s = 0, faces the camera when the
+  // camera is behind it and shows as a thin bright rim. refine_corners
+  // reads the base's position along the tube on that rim: the lightness
+  // ridge nearest to the model's, at refine_base_rim_share of the way from
+  // the shaft's radius to the tube's (where the ring is seen past the
+  // shaft), standing refine_base_rim_contrast (lightness, 0..1) above the
+  // samples 3 px on either side; the median over the arc points, when
+  // refine_min_arc_share of them see it with a MAD within
+  // refine_base_rim_max_spread_mm (docs/vision.md).
+  bool refine_base_rim = true;
+  double refine_base_rim_share = 0.6;
+  double refine_base_rim_contrast = 0.05;
+  double refine_base_rim_max_spread_mm = 0.05;
 };
 
 // What fit_pose_to_image did.
