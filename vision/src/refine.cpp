@@ -143,12 +143,41 @@ class Refiner {
   // Median shift (mm along the tube) that puts the visible arc of the
   // circle at s on the colour change; false when too few arc points see it.
   bool arc_shift(double s_mm, const BoundaryColours& colours, double window_mm, double& shift_mm) noexcept {
+    return median_arc_shift(
+        s_mm, model_.geometry().radius_mm, config_.refine_max_spread_mm,
+        [&](const solver::Vec2& p, const solver::Vec2& dir, double px_per_mm, double& tau_px) noexcept {
+          return crossing(p, dir, window_mm * px_per_mm, colours, 1, tau_px) == Crossing::kSharp;
+        },
+        shift_mm);
+  }
+
+  // Shift (mm along the tube) of the base's rim (its end face, seen as a
+  // thin bright ring: ExtractorConfig::refine_base_rim) from the model's,
+  // read on the ring of `radius` at s = 0; false when too few arc points
+  // see it or they spread.
+  bool rim_shift(double radius, double& shift_mm) noexcept {
+    return median_arc_shift(
+        0.0, radius, config_.refine_base_rim_max_spread_mm,
+        [&](const solver::Vec2& p, const solver::Vec2& dir, double px_per_mm, double& tau_px) noexcept {
+          // The pose fitted to the image puts the base within a few pixels,
+          // or 0.3 mm at a large scale.
+          return ridge(p, dir, std::max(kRimMinReachPx, kRimReachMm * px_per_mm), tau_px);
+        },
+        shift_mm);
+  }
+
+  // The median over the visible arc of the tube's circle at s (the points
+  // taken on the ring of `radius` there) of what `read(p, dir, px_per_mm,
+  // tau_px)` finds along the tube (dir, unit) from each point p, as a shift
+  // in mm; false when fewer than 3 or refine_min_arc_share of the points
+  // read, or their MAD exceeds max_spread_mm.
+  template <typename Read>
+  bool median_arc_shift(double s_mm, double radius, double max_spread_mm, Read read, double& shift_mm) noexcept {
     const solver::CentrelineFrame cf = model_.centreline(frames_, s_mm);
     const solver::CentrelineFrame cf2 = model_.centreline(frames_, s_mm + kDsMm);
-    const double radius = model_.geometry().radius_mm;
     double base = 0.0;
     double limb_half = 0.0;
-    if (!solver::circle_limb_angles(cf, radius, base, limb_half)) {
+    if (!solver::circle_limb_angles(cf, model_.geometry().radius_mm, base, limb_half)) {
       return false;
     }
     const double half = solver::kPi - limb_half;  // half the visible arc (facing the camera)
@@ -173,7 +202,7 @@ class Refiner {
         continue;  // the tube seen end-on here
       }
       double tau_px = 0.0;
-      if (crossing(p, d / px_per_mm, window_mm * px_per_mm, colours, 1, tau_px) == Crossing::kSharp) {
+      if (read(p, solver::Vec2(d / px_per_mm), px_per_mm, tau_px)) {
         shifts[static_cast<std::size_t>(count++)] = tau_px / px_per_mm;
       }
     }
@@ -185,62 +214,7 @@ class Refiner {
     for (int i = 0; i < count; ++i) {
       dev[static_cast<std::size_t>(i)] = std::fabs(shifts[static_cast<std::size_t>(i)] - mid);
     }
-    if (median_of(dev.data(), count) > config_.refine_max_spread_mm) {
-      return false;
-    }
-    shift_mm = mid;
-    return true;
-  }
-
-  // Shift (mm along the tube) of the base's rim (its end face, seen as a
-  // thin bright ring: ExtractorConfig::refine_base_rim) from the model's,
-  // read on the ring of `radius` at s = 0 over the visible arc: the median
-  // of the arc points' readings; false when too few see it or they spread.
-  bool rim_shift(double radius, double& shift_mm) noexcept {
-    const solver::CentrelineFrame cf = model_.centreline(frames_, 0.0);
-    const solver::CentrelineFrame cf2 = model_.centreline(frames_, kDsMm);
-    double base = 0.0;
-    double limb_half = 0.0;
-    if (!solver::circle_limb_angles(cf, model_.geometry().radius_mm, base, limb_half)) {
-      return false;
-    }
-    const double half = solver::kPi - limb_half;  // half the visible arc (facing the camera)
-    const int n = std::min(std::max(config_.refine_arc_samples, 3), kMaxArcSamples);
-    std::array<double, kMaxArcSamples> shifts{};
-    int count = 0;
-    for (int i = 0; i < n; ++i) {
-      const double u = -config_.refine_arc_span + 2.0 * config_.refine_arc_span * i / static_cast<double>(n - 1);
-      const double a = base + solver::kPi + u * half;
-      const double ca = std::cos(a);
-      const double sa = std::sin(a);
-      solver::Vec2 p;
-      solver::Vec2 p2;
-      if (!camera_.project(cf.position + radius * (ca * cf.normal + sa * cf.binormal), p) ||
-          !camera_.project(cf2.position + radius * (ca * cf2.normal + sa * cf2.binormal), p2)) {
-        continue;
-      }
-      const solver::Vec2 d = (p2 - p) / kDsMm;  // px per mm along the tube
-      const double px_per_mm = d.norm();
-      if (!(px_per_mm > 0.5)) {
-        continue;  // the tube seen end-on here
-      }
-      // The window: the pose fitted to the image puts the base within a few
-      // pixels, or 0.3 mm at a large scale.
-      const double reach_px = std::max(kRimMinReachPx, kRimReachMm * px_per_mm);
-      double tau_px = 0.0;
-      if (ridge(p, d / px_per_mm, reach_px, tau_px)) {
-        shifts[static_cast<std::size_t>(count++)] = tau_px / px_per_mm;
-      }
-    }
-    if (count < 3 || count < config_.refine_min_arc_share * n) {
-      return false;
-    }
-    const double mid = median_of(shifts.data(), count);
-    std::array<double, kMaxArcSamples> dev{};
-    for (int i = 0; i < count; ++i) {
-      dev[static_cast<std::size_t>(i)] = std::fabs(shifts[static_cast<std::size_t>(i)] - mid);
-    }
-    if (median_of(dev.data(), count) > config_.refine_base_rim_max_spread_mm) {
+    if (median_of(dev.data(), count) > max_spread_mm) {
       return false;
     }
     shift_mm = mid;
