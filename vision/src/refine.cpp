@@ -49,6 +49,15 @@ constexpr double kRimMinReachPx = 6.0;
 constexpr int kRimMaxReachPx = 40;
 constexpr int kRimMaxProfile = 2 * (kRimMaxReachPx + kRimSidePx) + 1;
 
+// ceil(v) as an int within [lo, hi]: clamped before the cast (a window
+// from a projection next to the camera can be huge, or NaN: lo).
+int ceil_within(double v, int lo, int hi) noexcept {
+  if (!(v > static_cast<double>(lo))) {
+    return lo;
+  }
+  return v >= static_cast<double>(hi) ? hi : static_cast<int>(std::ceil(v));
+}
+
 // What a colour-change reading found (Refiner::crossing).
 enum class Crossing : std::uint8_t { kNone, kSharp, kSmeared };
 
@@ -304,7 +313,7 @@ class Refiner {
   // nearest smeared one.
   Crossing crossing(const solver::Vec2& p, const solver::Vec2& dir, double window_px, const BoundaryColours& colours,
                     int clear_reach, double& tau_px) const noexcept {
-    const int half = std::min(std::max(static_cast<int>(std::ceil(window_px)), 3), (kMaxProfile - 1) / 2);
+    const int half = ceil_within(window_px, 3, (kMaxProfile - 1) / 2);
     const int n = 2 * half + 1;
     std::array<double, kMaxProfile> v{};
     for (int i = 0; i < n; ++i) {
@@ -363,7 +372,7 @@ class Refiner {
   // sub-pixel), within reach_px: a local maximum standing
   // refine_base_rim_contrast above the samples kRimSidePx on either side.
   bool ridge(const solver::Vec2& p, const solver::Vec2& dir, double reach_px, double& tau_px) const noexcept {
-    const int reach = std::min(static_cast<int>(std::ceil(reach_px)), kRimMaxReachPx);
+    const int reach = ceil_within(reach_px, 0, kRimMaxReachPx);
     const int n = 2 * (reach + kRimSidePx) + 1;
     std::array<double, kRimMaxProfile> v{};
     for (int i = 0; i < n; ++i) {
@@ -402,7 +411,7 @@ class Refiner {
   // outwards positive), moved by the shading correction of stage 3.
   bool edge(const solver::Vec2& p, const solver::Vec2& normal, double window_px, double& offset_px) const noexcept {
     constexpr double kStep = 0.5;
-    const int half = std::min(static_cast<int>(std::ceil(window_px / kStep)) + 1,
+    const int half = std::min(ceil_within(window_px / kStep, 0, (kMaxEdgeProfile - 1) / 2) + 1,
                               (kMaxEdgeProfile - 1) / 2);
     const int n = 2 * half + 1;
     std::array<Rgb, kMaxEdgeProfile> c{};
@@ -914,8 +923,8 @@ bool shaft_cross_section(const ImageView& image, const solver::Vec2& a, const so
     return false;
   }
   const solver::Vec2 d = (b - a) / width;
-  const int first = -static_cast<int>(std::ceil(margin_px));
-  const int last = std::min(static_cast<int>(std::ceil(width + margin_px)), first + kMaxCrossSection - 1);
+  const int first = -ceil_within(margin_px, 0, kMaxCrossSection);
+  const int last = std::min(ceil_within(width + margin_px, 0, kMaxCrossSection), first + kMaxCrossSection - 1);
   constexpr int kMaxGap = 2;
   bool best_found = false;
   double best_distance = 1e30;
