@@ -1124,9 +1124,9 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     // read (in most views it lies behind the shaft, nearer to the camera and
     // only 0.06 mm thinner, so its colour change is the shaft's outline; its
     // end face's rim is read instead, below), nor the tip boundary's when
-    // the tip's end face is turned towards the
-    // camera (the blue-to-grey change is then the grasper's outline on that
-    // face, 0.1-0.3 mm from the circle: docs/vision.md; the image fit still
+    // the tip's end face is turned towards the camera (the blue-to-grey
+    // change is then the grasper's outline on that face, 0.1-0.3 mm from
+    // the circle: docs/vision.md; the image fit still
     // reads that arc, which measured better than leaving it out there),
     // nor is any arc that shows no clear colour change: such a boundary's
     // corners are the limb points of the pose given (fitted to the image by
@@ -1148,8 +1148,8 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     // face is turned towards the camera; its corners are then the limb
     // points of the shifted circle (the silhouette beside them is the
     // shaft's outline as much as the tube's, so no offset across).
-    const bool rim_only = j == 0;
-    if (rim_only && config_.refine_base_rim && base_face_visible(model, frames)) {
+    const bool base = j == 0;
+    if (base && config_.refine_base_rim && base_face_visible(model, frames)) {
       const double rim_radius = g.shaft_radius_mm + config_.refine_base_rim_share * (g.radius_mm - g.shaft_radius_mm);
       measured = refiner.rim_shift(rim_radius, step);
       shift = measured ? step : 0.0;
@@ -1168,7 +1168,7 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
       // the image's border) the corner stays the shifted circle's limb
       // point, with the confidence of a predicted one.
       double offset = 0.0;
-      bool side_measured = measured && !rim_only;
+      bool side_measured = measured && !base;
       if (side_measured && !refiner.silhouette_offset(s_j + shift, side, j, offset)) {
         offset = 0.0;
         side_measured = false;
