@@ -1126,8 +1126,8 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     // end face's rim is read instead, below), nor the tip boundary's when
     // the tip's end face is turned towards the camera (the blue-to-grey
     // change is then the grasper's outline on that face, 0.1-0.3 mm from
-    // the circle: docs/vision.md; the image fit still
-    // reads that arc, which measured better than leaving it out there),
+    // the circle: docs/vision.md; the image fit still reads that arc,
+    // which measured better than leaving it out there),
     // nor is any arc that shows no clear colour change: such a boundary's
     // corners are the limb points of the pose given (fitted to the image by
     // fit_pose_to_image), reported with refine_predicted_confidence.

@@ -109,8 +109,8 @@ int corners_found(const FeatureExtractor& fx, const render::InstrumentTruth& tru
 }
 
 // The guided estimate of the frame rendered last, from `prior` with
-// `options`, on a new extractor with `config` (stage 4 from the same prior), and how many
-// of its visible corners it found (corners_found).
+// `options`, on a new extractor with `config` (stage 4 from the same
+// prior), and how many of its visible corners it found (corners_found).
 struct GuidedRun {
   std::unique_ptr<FeatureExtractor> fx;
   GuidedResult guided;
