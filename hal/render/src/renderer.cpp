@@ -1303,6 +1303,8 @@ Status<RenderError> Renderer::ground_truth(const SceneSpec& scene, GroundTruth& 
   }
   m.make_layout(scene, truth);
   m.compute_truth(scene, truth);
+  truth.motion_blur_dx_px = m.layout.motion_blur ? m.layout.blur_dx : 0.0;
+  truth.motion_blur_dy_px = m.layout.motion_blur ? m.layout.blur_dy : 0.0;
   return ok_status<RenderError>();
 }
 

@@ -98,6 +98,11 @@ struct GroundTruth {
   std::uint32_t hard_cases = 0U;
   double tissue_depth_mm = 0.0;  // the depth actually used
   std::uint64_t seed = 0U;
+  // The motion blur's full streak (px, image; kHardMotionBlur, zero
+  // without): the image is the mean over the streak centred on the
+  // truth's (mid-exposure) image. Not written to the sidecar.
+  double motion_blur_dx_px = 0.0;
+  double motion_blur_dy_px = 0.0;
 };
 
 // What the centre of each pixel shows in the last render (Renderer::labels):
