@@ -41,7 +41,7 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
     }
     if (again.quality == solver::EstimateQuality::Valid &&
         (out.fit.boundaries < options.min_valid_fit_boundaries ||
-         out.fit.silhouette_readings < options.min_valid_fit_silhouette_readings)) {
+         out.fit.plain_silhouette_readings < options.min_valid_fit_silhouette_readings)) {
       again.quality = solver::EstimateQuality::Degraded;
     }
     out.estimate = again;

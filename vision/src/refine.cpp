@@ -49,6 +49,32 @@ constexpr double kRimMinReachPx = 6.0;
 constexpr int kRimMaxReachPx = 40;
 constexpr int kRimMaxProfile = 2 * (kRimMaxReachPx + kRimSidePx) + 1;
 
+// Motion blur's streak from the boundary arcs (read_streak, docs/vision.md
+// "The smear from the arcs"). Each stripe boundary is a sharp colour change
+// between surfaces shaded alike, so the width of its change along an arc
+// point's image normal n is the streak's length along n: w^2 = (b . n)^2 +
+// kStreakSharpWidthPx^2 (the width of a sharp change: JPEG chroma and
+// optics). The normals turn along a visible arc, so the arcs of the four
+// stripe boundaries give b b^T by linear least squares.
+constexpr int kStreakArcPoints = 16;         // per boundary, over kStreakArcSpan of the visible half arc
+constexpr double kStreakArcSpan = 0.9;
+constexpr int kStreakReachPx = 22;           // profile along the normal, +/- (a 14 px streak's change fits)
+constexpr int kStreakProfile = 2 * kStreakReachPx + 3;
+constexpr int kStreakPeakSearchPx = 6;       // the change's peak within +/- this of the model's arc
+constexpr double kStreakMinPeak = 0.01;      // linear-light contrast per px below which no width is read
+constexpr double kStreakLobeShare = 0.1;     // the peak's main lobe: contiguous samples above this share
+constexpr double kStreakSharpWidthPx = 5.8;  // measured on the sharp hard frames (docs/vision.md)
+constexpr int kMaxStreakWidths = (kNumBoundaries - 2) * kStreakArcPoints;
+constexpr int kMinStreakWidths = 8;
+// The silhouette's reading under a streak (Refiner::edge_across): the outer
+// end of the gradient plateau, where it falls below kOuterEndShare of its
+// peak, moved in by half the smear across (docs/vision.md).
+constexpr double kOuterEndShare = 0.3;
+constexpr double kOuterEndMarginPx = 2.0;  // the profile runs this far past window + smear / 2
+constexpr int kMaxOuterEndProfile = 161;   // 0.5 px apart: +/- 40 px
+
+const detail::LinearLight kLinearLight;  // start-up: the 256-entry decoding table
+
 // ceil(v) as an int within [lo, hi]: clamped before the cast (a window
 // from a projection next to the camera can be huge, or NaN: lo).
 int ceil_within(double v, int lo, int hi) noexcept {
@@ -148,6 +174,10 @@ class Refiner {
   Refiner(const ImageView& image, const ColorModel& colors, const ExtractorConfig& config,
           const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& frames)
       noexcept : image_(image), colors_(colors), config_(config), camera_(camera), model_(model), frames_(frames) {}
+
+  // The motion-blur streak (px, image; zero: none) under which the
+  // silhouette is read by edge_across.
+  void use_streak(const solver::Vec2& streak_px) noexcept { streak_px_ = streak_px; }
 
   // Median shift (mm along the tube) that puts the visible arc of the
   // circle at s on the colour change; false when too few arc points see it.
@@ -467,6 +497,75 @@ class Refiner {
     return true;
   }
 
+  // The silhouette's reading under the streak: where the smear across the
+  // normal, |streak . normal|, reaches refine_streak_across_px, the outer
+  // end of the gradient's plateau (outer_end); else edge(). A smear of 5 px
+  // (the default) and more flattens the gradient's peak into a plateau as wide as the
+  // smear, whose centre the tube's shading pulls inwards and whose ends
+  // often lie beyond edge()'s window (docs/vision.md).
+  bool edge_across(const solver::Vec2& p, const solver::Vec2& normal, double window_px, double& offset_px,
+                   bool& outer_end) const noexcept {
+    const double across_px = std::fabs(streak_px_.dot(normal));
+    outer_end = across_px > 0.0 && across_px >= config_.refine_streak_across_px;
+    return outer_end ? edge_outer_end(p, normal, window_px, across_px, offset_px)
+                     : edge(p, normal, window_px, offset_px);
+  }
+
+  // The outer end of the linear-light colour gradient's plateau along
+  // `normal` through p (where it falls below kOuterEndShare of its peak on
+  // the tissue's side, which the tube's shading does not reach), moved in
+  // by half the smear across: the silhouette at mid-exposure, px from p,
+  // outwards positive. The peak is looked for within window_px + half the
+  // smear; false when the plateau runs to the profile's end or the result
+  // lies beyond window_px.
+  bool edge_outer_end(const solver::Vec2& p, const solver::Vec2& normal, double window_px, double across_px,
+                      double& offset_px) const noexcept {
+    constexpr double kStep = 0.5;
+    const double peak_reach_px = window_px + 0.5 * across_px;
+    const int half = ceil_within((peak_reach_px + kOuterEndMarginPx) / kStep, 2, (kMaxOuterEndProfile - 1) / 2);
+    const int n = 2 * half + 1;
+    std::array<std::array<double, 3>, kMaxOuterEndProfile> c{};
+    for (int i = 0; i < n; ++i) {
+      const double t = kStep * static_cast<double>(i - half);
+      Rgb q;
+      if (!sample(image_, p.x() + t * normal.x(), p.y() + t * normal.y(), q)) {
+        return false;
+      }
+      c[static_cast<std::size_t>(i)] = {kLinearLight(q.r), kLinearLight(q.g), kLinearLight(q.b)};
+    }
+    std::array<double, kMaxOuterEndProfile> g{};
+    int best = -1;
+    for (int i = 1; i + 1 < n; ++i) {
+      const auto& a = c[static_cast<std::size_t>(i - 1)];
+      const auto& b = c[static_cast<std::size_t>(i) + 1U];
+      const double dr = a[0] - b[0];
+      const double dg = a[1] - b[1];
+      const double db = a[2] - b[2];
+      const auto k = static_cast<std::size_t>(i);
+      g[k] = std::sqrt(dr * dr + dg * dg + db * db);
+      if (std::fabs(kStep * static_cast<double>(i - half)) <= peak_reach_px &&
+          (best < 0 || g[k] > g[static_cast<std::size_t>(best)])) {
+        best = i;
+      }
+    }
+    if (best < 0 || !(g[static_cast<std::size_t>(best)] > 0.0)) {
+      return false;
+    }
+    const double level = kOuterEndShare * g[static_cast<std::size_t>(best)];
+    int i = best;
+    while (i + 2 < n && g[static_cast<std::size_t>(i) + 1U] >= level) {
+      ++i;
+    }
+    if (i + 2 >= n) {
+      return false;  // the plateau runs to the profile's end
+    }
+    const double above = g[static_cast<std::size_t>(i)];
+    const double below = g[static_cast<std::size_t>(i) + 1U];
+    const double end = static_cast<double>(i) + (above - level) / (above - below);
+    offset_px = kStep * (end - static_cast<double>(half)) - 0.5 * across_px;
+    return std::fabs(offset_px) <= window_px;
+  }
+
  private:
   const ImageView& image_;
   const ColorModel& colors_;
@@ -474,6 +573,7 @@ class Refiner {
   const solver::CameraModel& camera_;
   const solver::InstrumentModel& model_;
   const solver::PoseFrames& frames_;
+  solver::Vec2 streak_px_ = solver::Vec2::Zero();
 };
 
 
@@ -520,6 +620,166 @@ bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& m
       reading.shaft ? model.shaft_limbs(camera, f, reading.s_mm) : model.limbs(camera, f, reading.s_mm);
   pixel = limbs.pixel[reading.side];
   return limbs.present[reading.side];
+}
+
+// The squared width (px^2) of the colour change across the arc point p
+// along the unit image normal n: the linear-light blue minus the mean of red and green
+// over +/- kStreakReachPx, its derivative's peak within kStreakPeakSearchPx
+// of p and that peak's main lobe (the contiguous samples above
+// kStreakLobeShare of it); the width of a box of the lobe's variance,
+// sqrt(12 var). False when the change is faint, the lobe reaches the
+// profile's end or a sample lies outside the image.
+bool change_width(const ImageView& image, const solver::Vec2& p, const solver::Vec2& n, double& width_sq_px2) noexcept {
+  std::array<double, kStreakProfile> f{};
+  for (int k = 0; k < kStreakProfile; ++k) {
+    const double t = static_cast<double>(k - kStreakReachPx - 1);
+    Rgb q;
+    if (!sample(image, p.x() + t * n.x(), p.y() + t * n.y(), q)) {
+      return false;
+    }
+    f[static_cast<std::size_t>(k)] = kLinearLight(q.b) - 0.5 * (kLinearLight(q.r) + kLinearLight(q.g));
+  }
+  constexpr int kSlopes = 2 * kStreakReachPx + 1;
+  std::array<double, kSlopes> d{};  // d[k]: the slope at t = k - kStreakReachPx
+  for (int k = 0; k < kSlopes; ++k) {
+    d[static_cast<std::size_t>(k)] = 0.5 * (f[static_cast<std::size_t>(k) + 2U] - f[static_cast<std::size_t>(k)]);
+  }
+  int peak = kStreakReachPx;
+  for (int k = kStreakReachPx - kStreakPeakSearchPx; k <= kStreakReachPx + kStreakPeakSearchPx; ++k) {
+    if (std::fabs(d[static_cast<std::size_t>(k)]) > std::fabs(d[static_cast<std::size_t>(peak)])) {
+      peak = k;
+    }
+  }
+  const double sign = d[static_cast<std::size_t>(peak)] > 0.0 ? 1.0 : -1.0;
+  const double top = sign * d[static_cast<std::size_t>(peak)];
+  if (!(top >= kStreakMinPeak)) {
+    return false;
+  }
+  const double floor_slope = kStreakLobeShare * top;
+  int lo = peak;
+  int hi = peak;
+  while (lo > 0 && sign * d[static_cast<std::size_t>(lo) - 1U] >= floor_slope) {
+    --lo;
+  }
+  while (hi < kSlopes - 1 && sign * d[static_cast<std::size_t>(hi) + 1U] >= floor_slope) {
+    ++hi;
+  }
+  if (lo == 0 || hi == kSlopes - 1) {
+    return false;
+  }
+  double sum = 0.0;
+  double first = 0.0;
+  for (int k = lo; k <= hi; ++k) {
+    const double w = sign * d[static_cast<std::size_t>(k)];
+    sum += w;
+    first += w * static_cast<double>(k);
+  }
+  const double mean = first / sum;
+  double second = 0.0;
+  for (int k = lo; k <= hi; ++k) {
+    const double off = static_cast<double>(k) - mean;
+    second += sign * d[static_cast<std::size_t>(k)] * off * off;
+  }
+  width_sq_px2 = 12.0 * second / sum;
+  return true;
+}
+
+// The motion-blur streak (px, image; its sign is arbitrary) read on the
+// stripe boundaries' visible arcs at the frames f: at kStreakArcPoints of
+// each arc the change's width w along the arc's image normal n, then
+// M = b b^T from w^2 - kStreakSharpWidthPx^2 = n^T M n by linear least
+// squares, once more without the widths far off the first fit (a vessel or
+// a highlight beside the arc); the streak is M's main axis. False with
+// fewer than kMinStreakWidths widths or a singular fit.
+bool read_streak(const ImageView& image, const ExtractorConfig& config, const solver::CameraModel& camera,
+                 const solver::InstrumentModel& model, const solver::PoseFrames& f, solver::Vec2& streak_px) noexcept {
+  const auto& g = model.geometry();
+  std::array<Eigen::Vector3d, kMaxStreakWidths> rows{};  // (nx^2, 2 nx ny, ny^2)
+  std::array<double, kMaxStreakWidths> excess{};         // w^2 - sharp width^2
+  int count = 0;
+  for (int j = 1; j < kNumBoundaries - 1; ++j) {
+    if (!colours_of(config, j).usable) {
+      continue;
+    }
+    const solver::CentrelineFrame cf = model.centreline(f, g.boundaries_mm[static_cast<std::size_t>(j)]);
+    double base = 0.0;
+    double limb_half = 0.0;
+    if (!solver::circle_limb_angles(cf, g.radius_mm, base, limb_half)) {
+      continue;
+    }
+    const double half = solver::kPi - limb_half;
+    for (int i = 0; i < kStreakArcPoints && count < kMaxStreakWidths; ++i) {
+      const double u = -kStreakArcSpan + 2.0 * kStreakArcSpan * i / (kStreakArcPoints - 1.0);
+      const double a = base + solver::kPi + u * half;
+      const auto point_at = [&](double angle) noexcept {
+        return solver::Vec3(cf.position + g.radius_mm * (std::cos(angle) * cf.normal + std::sin(angle) * cf.binormal));
+      };
+      solver::Vec2 p;
+      solver::Vec2 p_a;
+      if (!camera.project(point_at(a), p) || !camera.project(point_at(a + 1e-4), p_a)) {
+        continue;
+      }
+      const solver::Vec2 tangent = p_a - p;
+      if (!(tangent.norm() > 0.0)) {
+        continue;
+      }
+      const solver::Vec2 n = solver::Vec2(-tangent.y(), tangent.x()).normalized();
+      double width_sq = 0.0;
+      if (!change_width(image, p, n, width_sq)) {
+        continue;
+      }
+      const auto k = static_cast<std::size_t>(count++);
+      rows[k] = Eigen::Vector3d(n.x() * n.x(), 2.0 * n.x() * n.y(), n.y() * n.y());
+      excess[k] = width_sq - kStreakSharpWidthPx * kStreakSharpWidthPx;
+    }
+  }
+  if (count < kMinStreakWidths) {
+    return false;
+  }
+  std::array<bool, kMaxStreakWidths> keep{};
+  keep.fill(true);
+  std::array<double, kMaxStreakWidths> residual{};
+  std::array<double, kMaxStreakWidths> work{};
+  Eigen::Vector3d m = Eigen::Vector3d::Zero();  // M's entries (m00, m01, m11)
+  for (int pass = 0; pass < 2; ++pass) {
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    for (int i = 0; i < count; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      if (keep[k]) {
+        normal += rows[k] * rows[k].transpose();
+        rhs += rows[k] * excess[k];
+      }
+    }
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(normal);
+    if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-9)) {
+      return false;  // the normals do not turn enough (a straight arc)
+    }
+    m = ldlt.solve(rhs);
+    if (!m.allFinite()) {
+      return false;
+    }
+    if (pass == 0) {
+      for (int i = 0; i < count; ++i) {
+        const auto k = static_cast<std::size_t>(i);
+        residual[k] = std::fabs(rows[k].dot(m) - excess[k]);
+        work[k] = residual[k];
+      }
+      const double cut = 2.5 * median_of(work.data(), count) + 1.0;  // px^2
+      for (int i = 0; i < count; ++i) {
+        keep[static_cast<std::size_t>(i)] = residual[static_cast<std::size_t>(i)] <= cut;
+      }
+    }
+  }
+  Eigen::Matrix2d bb;
+  bb << m(0), m(1), m(1), m(2);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(bb);
+  if (eigen.info() != Eigen::Success) {
+    return false;
+  }
+  const double length_px = std::sqrt(std::max(0.0, eigen.eigenvalues()(1)));  // ascending: (1) is the largest
+  streak_px = length_px * eigen.eigenvectors().col(1);
+  return streak_px.allFinite();
 }
 
 }  // namespace
@@ -611,6 +871,19 @@ Status<VisionError> FeatureExtractor::pose_from_regions(const solver::CameraMode
   return ok_status<VisionError>();
 }
 
+Status<VisionError> FeatureExtractor::read_motion_streak(const ImageView& image, const solver::CameraModel& camera,
+                                                         const solver::InstrumentModel& model,
+                                                         const solver::PoseVector& r,
+                                                         solver::Vec2& streak_px) const noexcept {
+  if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
+    return Status<VisionError>::failure(VisionError::BadImage);
+  }
+  if (!read_streak(image, config_, camera, model, model.frames(r), streak_px)) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  return ok_status<VisionError>();
+}
+
 Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
                                                         const solver::InstrumentModel& model, solver::PoseVector& r,
                                                         ImageFitSummary& summary, bool coarse_start) noexcept {
@@ -633,6 +906,10 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   double rms = 0.0;
   const int iterations =
       std::min(std::max(config_.refine_fit_iterations, 1) + (coarse_start ? kCoarseIterations : 0), kMaxFitIterations);
+  // The motion-blur streak, read once, at the first iteration whose arcs
+  // read as smeared (a sharp frame never pays for it).
+  bool streak_tried = false;
+  solver::Vec2 streak_px = solver::Vec2::Zero();
   for (int it = 0; it < iterations; ++it) {
     const solver::PoseFrames f = model.frames(x);
     Refiner refiner(image, colors_, config_, camera, model, f);
@@ -741,18 +1018,36 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
       boundaries += sharp_on[j] + (summary.smeared ? smeared_on[j] : 0) >= 3 ? 1 : 0;
     }
+    // Under a streak of refine_streak_min_px and more, the silhouette is
+    // read at its plateau's outer end where the smear across it is large
+    // (Refiner::edge_across). Only in iterations whose arcs read as
+    // smeared: a pose beside the tube reads widths from stray colour.
+    if (summary.smeared && config_.refine_streak && !streak_tried) {
+      streak_tried = true;
+      if (!read_streak(image, config_, camera, model, f, streak_px) ||
+          !(streak_px.norm() >= config_.refine_streak_min_px)) {
+        streak_px = solver::Vec2::Zero();
+      }
+    }
+    summary.streak_px = summary.smeared ? streak_px : solver::Vec2::Zero();
+    refiner.use_streak(summary.streak_px);
     // Silhouette readings: both sides along the striped section, and the
     // shaft's just before the base (not counted in the acceptance: the
     // striped section must be seen for itself).
+    int plain_readings = 0;
     const auto read_silhouette = [&](bool shaft, double s, std::size_t side) noexcept {
       solver::Vec2 point;
       solver::Vec2 normal;
       const bool at = shaft ? shaft_silhouette_at(camera, model, f, s, side, point, normal) && camera.in_image(point)
                             : silhouette_at(camera, model, f, s, side, point, normal);
       double e = 0.0;
-      if (!at || !refiner.edge(point, normal, edge_window_px, e)) {
+      bool outer_end = false;
+      if (!at || !refiner.edge_across(point, normal, edge_window_px, e, outer_end)) {
         return false;
       }
+      // What the peak's centre would give, for the validity rule (GuidedOptions).
+      double peak_e = 0.0;
+      plain_readings += !shaft && (!outer_end || refiner.edge(point, normal, edge_window_px, peak_e)) ? 1 : 0;
       Reading rd;
       rd.shaft = shaft;
       rd.s_mm = s;
@@ -777,6 +1072,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     summary.iterations = it + 1;
     summary.arc_readings = arc_readings;
     summary.silhouette_readings = silhouette_readings;
+    summary.plain_silhouette_readings = plain_readings;
     summary.boundaries = boundaries;
     // A fine iteration needs 2 boundaries' arcs, and no silhouette reading:
     // the arcs and the shaft hold the tube where a smear or an occluder

@@ -1,6 +1,7 @@
 // Sub-pixel colour sampling shared by the vision stages (private header).
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -45,6 +46,28 @@ inline bool sample(const ImageView& image, double x, double y, Rgb& out) noexcep
   out.b = w00 * a[2] + w10 * a[5] + w01 * b[2] + w11 * b[5];
   return true;
 }
+
+// sRGB code values (0-255, interpolated samples allowed) to linear light
+// (0-1): the decoding curve of the 256 codes, linear between them. Built
+// once with its owner (start-up); a lookup per sample in the loop.
+class LinearLight {
+ public:
+  LinearLight() noexcept {
+    for (std::size_t i = 0U; i < table_.size(); ++i) {
+      const double c = static_cast<double>(i) / 255.0;
+      table_[i] = c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);  // IEC 61966-2-1
+    }
+  }
+  double operator()(double code) const noexcept {
+    const double v = code > 0.0 ? (code < 255.0 ? code : 255.0) : 0.0;  // NaN: 0
+    const auto i = static_cast<std::size_t>(v >= 254.0 ? 254.0 : v);
+    const double f = v - static_cast<double>(i);
+    return table_[i] + f * (table_[i + 1U] - table_[i]);
+  }
+
+ private:
+  std::array<double, 256> table_{};
+};
 
 inline std::uint8_t to_byte(double v) noexcept {
   const double c = v < 0.0 ? 0.0 : (v > 255.0 ? 255.0 : v);

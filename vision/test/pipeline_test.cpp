@@ -684,6 +684,116 @@ TEST(Pipeline, ImageFitReadsTheArcsOfASmearedFrame) {
   EXPECT_GE(summary.boundaries, 4);
 }
 
+// The angle (deg, 0..90) between a streak read and the renderer's, whose
+// sign is arbitrary.
+double streak_angle_deg(const solver::Vec2& read, const render::GroundTruth& truth) {
+  const solver::Vec2 t(truth.motion_blur_dx_px, truth.motion_blur_dy_px);
+  return solver::rad_to_deg(std::acos(std::min(1.0, std::fabs(read.dot(t)) / (read.norm() * t.norm()))));
+}
+
+// The streak of a motion-blurred frame is read from the stripe boundaries'
+// colour-change widths around their arcs (read_motion_streak): within a few
+// degrees and a pixel of the renderer's on frames 23 (decoy and motion
+// blur), 136 (haze and motion blur) and 172 (haze and motion blur) of the
+// `hard` set, read at the true pose, with and without the set's JPEG step
+// (quality 92). A sharp frame reads a streak shorter than the gate under
+// which the image fit ignores it (refine_streak_min_px).
+TEST(Pipeline, TheMotionStreakIsReadFromTheArcs) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  struct Scene {
+    std::array<double, solver::kNumParams> r;
+    std::uint32_t hard_cases;
+    std::uint64_t seed;
+  };
+  const std::array<Scene, 3> scenes{{
+      {{-10.5808060334, 8.91888074241, 0.17935942438, 0.0333778439871, 10.0, 0.0, 1.74532925199},
+       render::kHardDecoy | render::kHardMotionBlur, 6688904659736107710ULL},
+      {{-12.4799331622, 8.69459297894, 0.143887794782, 0.103773153829, 25.0, -1.0471975512, 1.0471975512},
+       render::kHardHaze | render::kHardMotionBlur, 9665399092365174048ULL},
+      {{-11.9217147302, 6.22135064114, 0.201781846192, 0.10080007102, 30.0, -1.57079632679, 1.0471975512},
+       render::kHardHaze | render::kHardMotionBlur, 4339211336384856995ULL},
+  }};
+  for (const Scene& scene : scenes) {
+    const solver::PoseVector scene_r = Eigen::Map<const solver::PoseVector>(scene.r.data());
+    for (bool jpeg : {false, true}) {
+      ImageView image = f.render_r(scene_r, scene.hard_cases, scene.seed);
+      if (jpeg) {
+        image = f.jpeg_round_trip(92);
+      }
+      const double true_length_px = std::hypot(f.truth.motion_blur_dx_px, f.truth.motion_blur_dy_px);
+      ASSERT_GT(true_length_px, 5.0);
+      solver::Vec2 streak = solver::Vec2::Zero();
+      ASSERT_TRUE(fx->read_motion_streak(image, f.camera, f.model, scene_r, streak).ok());
+      EXPECT_LT(streak_angle_deg(streak, f.truth), 5.0) << "seed " << scene.seed << " jpeg " << jpeg;
+      EXPECT_NEAR(streak.norm(), true_length_px, 1.5) << "seed " << scene.seed << " jpeg " << jpeg;
+    }
+  }
+  for (const auto& pose : {std::array<double, 3>{25.0, 30.0, 45.0}, std::array<double, 3>{12.0, -60.0, 20.0},
+                           std::array<double, 3>{35.0, 90.0, -40.0}}) {
+    const solver::PoseVector sharp_r =
+        f.model.geometry().nominal_pose(pose[0], solver::deg_to_rad(pose[1]), solver::deg_to_rad(pose[2]));
+    static_cast<void>(f.render_r(sharp_r));  // the frame goes through the JPEG step below
+    const ImageView sharp = f.jpeg_round_trip(92);
+    solver::Vec2 streak = solver::Vec2::Zero();
+    ASSERT_TRUE(fx->read_motion_streak(sharp, f.camera, f.model, sharp_r, streak).ok()) << "lambda " << pose[0];
+    EXPECT_LT(streak.norm(), ExtractorConfig{}.refine_streak_min_px) << "lambda " << pose[0];
+  }
+  // Bad input is an error, not a reading.
+  solver::Vec2 streak = solver::Vec2::Zero();
+  EXPECT_FALSE(fx->read_motion_streak(ImageView{}, f.camera, f.model, f.model.geometry().nominal_pose(20.0, 0.0, 0.0),
+                                      streak).ok());
+}
+
+// Under a streak of 12 px the silhouette's gradient is a plateau as wide as
+// the smear across it, beyond the reading's window: from the true pose of
+// frame 23 of the `hard` set (a decoy and motion blur; rendered without its
+// JPEG step) the image fit that reads the peak's centre drifts and gives 1
+// of the 11 visible corners within 1.5 px. Reading the plateau's outer end
+// moved in by half the smear (refine_streak_*), it gives at least 9
+// (80 %). The fit's validity count is the peak's readings (9 here, fewer
+// than the 12 a valid estimate needs), so the estimate stays Degraded.
+TEST(Pipeline, UnderAStreakTheImageFitReadsTheSilhouetteAtItsOuterEnd) {
+  Fixture f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  solver::PoseVector scene_r;
+  scene_r << -10.5808060334, 8.91888074241, 0.17935942438, 0.0333778439871, 10.0, 0.0, 1.74532925199;
+  const ImageView image = f.render_r(scene_r, render::kHardDecoy | render::kHardMotionBlur, 6688904659736107710ULL);
+  const render::InstrumentTruth& truth = f.truth.instruments[0];
+  for (bool streak_rule : {false, true}) {
+    ExtractorConfig config;
+    config.refine_streak = streak_rule;
+    auto fx = default_extractor(config);
+    ASSERT_NE(fx, nullptr);
+    ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, scene_r)).ok());
+    solver::Estimate first;
+    first.r = scene_r;
+    first.quality = solver::EstimateQuality::Valid;
+    GuidedOptions options;
+    options.fallback_seeds = 0;
+    options.shaft_recheck = false;
+    options.alias_check = false;
+    const GuidedResult guided = guided_rounds(*fx, estimator, f.camera, f.model, image, solver::SolveMode::Adaptive,
+                                              first, scene_r, options);
+    ASSERT_GT(guided.rounds_kept, 0) << "rule " << streak_rule;
+    EXPECT_TRUE(guided.fit.smeared);
+    int visible = 0;
+    const int found = corners_found(*fx, truth, visible);
+    EXPECT_EQ(visible, 11);
+    if (!streak_rule) {
+      EXPECT_EQ(guided.fit.streak_px.norm(), 0.0);
+      EXPECT_LE(found, 3);
+      continue;
+    }
+    EXPECT_LT(streak_angle_deg(guided.fit.streak_px, f.truth), 5.0);
+    EXPECT_GE(found, 9);
+    EXPECT_GT(guided.fit.silhouette_readings, guided.fit.plain_silhouette_readings);
+    EXPECT_LT(guided.fit.plain_silhouette_readings, GuidedOptions{}.min_valid_fit_silhouette_readings);
+    EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Degraded);
+  }
+}
+
 // Frame 151 of the `hard` set (seed 1: a decoy and noise), rendered without
 // its JPEG step: the channel's exit lies 4.7 mm from its CAD pose, so every
 // solve from the true corners is Degraded (eq. 8's penalty), while a pose

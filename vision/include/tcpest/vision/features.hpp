@@ -226,6 +226,16 @@ struct ExtractorConfig {
   int refine_smear_clear_reach = 3;         // samples, 1..8 (1: no smeared reading)
   double refine_smear_share = 0.5;
   int refine_smear_min_arc_readings = 20;
+  // In the iterations whose arcs read as smeared, the streak itself is read
+  // from the stripe boundaries' colour-change widths around their arcs
+  // (ImageFitSummary::streak_px). When it is refine_streak_min_px long or
+  // longer, the silhouette readings whose smear across (|streak . normal|)
+  // is refine_streak_across_px or more take the outer end of the
+  // gradient's plateau, moved in by half that smear, instead of the peak's
+  // centre, in the image fit (not in refine_corners; docs/vision.md).
+  bool refine_streak = true;
+  double refine_streak_min_px = 6.0;
+  double refine_streak_across_px = 5.0;
   // The base boundary's arc shows no usable colour change (the shaft's
   // outline), but the first stripe's end face, the ring between the
   // shaft's radius and the tube's at s = 0, faces the camera when the
@@ -252,6 +262,12 @@ struct ImageFitSummary {
   double rms_px = 0.0;          // robust RMS of the readings' residuals at the result
   bool converged = false;
   bool smeared = false;         // the last iteration read the arcs as smeared (refine_smear_*)
+  // The motion-blur streak (px, image; sign arbitrary) under which the last
+  // iteration read the silhouette (refine_streak_*); zero when none.
+  solver::Vec2 streak_px = solver::Vec2::Zero();
+  // Of silhouette_readings, those the gradient peak's centre gives (all of
+  // them without a streak): what the validity rule counts (GuidedOptions).
+  int plain_silhouette_readings = 0;
 };
 
 // What fit_channel_to_shaft did.
@@ -288,6 +304,9 @@ class FeatureExtractor {
   // the image, and its limb points are put on the silhouette measured next
   // to them. Replaces result().corners (stage 4's are kept in
   // stage4_corners); fails with NoInstrument when no boundary is measured.
+  // The silhouette offsets are read at the gradient peak's centre even on
+  // a frame the image fit read under a streak (ImageFitSummary::streak_px):
+  // measured the same frames, two more corners found (docs/vision.md).
   Status<VisionError> refine_corners(const ImageView& image, const solver::CameraModel& camera,
                                      const solver::InstrumentModel& model, const solver::PoseVector& r) noexcept;
   // Fits the pose r to the image itself (ours): the visible arc of every
@@ -299,6 +318,16 @@ class FeatureExtractor {
   Status<VisionError> fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
                                         const solver::InstrumentModel& model, solver::PoseVector& r,
                                         ImageFitSummary& summary, bool coarse_start = false) noexcept;
+  // The motion-blur streak at the pose r (ours; px, image, its sign
+  // arbitrary): each stripe boundary is a sharp colour change between
+  // surfaces shaded alike, so along an arc point's image normal n its
+  // change is as wide as the streak along n (with the width of a sharp
+  // change, 5.8 px); the arcs' turning normals give the streak. The image
+  // fit reads it so (ImageFitSummary::streak_px). Fails with NoInstrument
+  // when too few arc points read a width (docs/vision.md).
+  Status<VisionError> read_motion_streak(const ImageView& image, const solver::CameraModel& camera,
+                                         const solver::InstrumentModel& model, const solver::PoseVector& r,
+                                         solver::Vec2& streak_px) const noexcept;
   // The channel's pose (x_ch, y_ch, psi, mu of r) from the shaft's
   // silhouette (ours): the shaft is a straight tube of known radius, so its
   // two apparent contours fix its axis. At 8 distances before the base, the

@@ -29,7 +29,11 @@ struct GuidedOptions {
   int min_valid_fit_boundaries = 3;
   // Likewise a fit with fewer silhouette readings than this (of the 20 along
   // the striped section: an occluder or a smear hiding the rest): its
-  // corners, at most a Degraded estimate (docs/vision.md).
+  // corners, at most a Degraded estimate (docs/vision.md). Counted are the
+  // readings at the gradient peak's centre (plain_silhouette_readings): those
+  // at the plateau's outer end under a streak (refine_streak_*) move the fit
+  // but do not make it valid; counted, they turned 12 more blurred hard
+  // frames valid, some with most corners off.
   int min_valid_fit_silhouette_readings = 12;
   // Fallback seeds, when the result is not valid yet (no pose, or a degraded
   // one): the image fit is tried again from the start pose (`start_seed`:
