@@ -174,6 +174,13 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
     static_cast<void>(f.render_pose(p[0], p[1], p[2]));
     frames.push_back(f.pixels);
   }
+  // A motion-blurred frame (hard frame 23) whose image fit from its true
+  // pose reads the streak and the silhouette's outer ends.
+  solver::PoseVector blurred_r;
+  blurred_r << -10.5808060334, 8.91888074241, 0.17935942438, 0.0333778439871, 10.0, 0.0, 1.74532925199;
+  static_cast<void>(f.render_r(blurred_r, render::kHardDecoy | render::kHardMotionBlur, 6688904659736107710ULL));
+  const std::vector<std::uint8_t> blurred = f.pixels;
+  int streaked = 0;
   auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
   ASSERT_TRUE(created.ok());
   auto fx = std::move(created.value());
@@ -214,9 +221,18 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
       region_seeded += guided.from_regions ? 1 : 0;
       start_seeded += guided.from_start ? 1 : 0;
       guided_rounds += guided.rounds_kept;
+      if (i % 10 == 0) {
+        const ImageView smeared{blurred.data(), f.camera.width(), f.camera.height(),
+                                static_cast<std::size_t>(f.camera.width()) * 3U};
+        solver::PoseVector fitted = blurred_r;
+        ImageFitSummary fit;
+        static_cast<void>(fx->fit_pose_to_image(smeared, f.camera, f.model, fitted, fit));  // outcome not under test
+        streaked += fit.silhouette_readings > fit.plain_silhouette_readings ? 1 : 0;
+      }
     }
     EXPECT_EQ(scope.count(), 0U);
   }
+  EXPECT_GT(streaked, 0);  // the streak and the outer-end readings were counted
   EXPECT_GT(extracted, 0);
   EXPECT_GT(guided_rounds, 0);  // the refinement ran, so its path was counted
   EXPECT_GT(region_seeded, 0);  // idem for the region pose
