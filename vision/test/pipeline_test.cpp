@@ -93,6 +93,23 @@ int expect_visible_corners_within(const FeatureExtractor& fx, const render::Inst
   return visible;
 }
 
+// Stages 1-4 with priors from the true pose, then the guided rounds from
+// the true pose as the first estimate (no fallback seed, no shaft re-check,
+// no alias check): what the image fit and the refinement make of a frame
+// when the pose is not in question.
+GuidedResult rounds_from_truth(FeatureExtractor& fx, solver::PoseEstimator& estimator, const Fixture& f,
+                               const ImageView& image, const solver::PoseVector& true_r) {
+  EXPECT_TRUE(fx.extract(image, model_priors(f.camera, f.model, true_r)).ok());
+  solver::Estimate first;
+  first.r = true_r;
+  first.quality = solver::EstimateQuality::Valid;
+  GuidedOptions options;
+  options.fallback_seeds = 0;
+  options.shaft_recheck = false;
+  options.alias_check = false;
+  return guided_rounds(fx, estimator, f.camera, f.model, image, solver::SolveMode::Adaptive, first, true_r, options);
+}
+
 // Visible corners given within 1.5 px of their truth (the evaluation's
 // criterion); `visible` gets how many the renderer saw.
 int corners_found(const FeatureExtractor& fx, const render::InstrumentTruth& truth, int& visible) {
@@ -639,16 +656,7 @@ TEST(Pipeline, AFitThatReadsNoSilhouetteUnderMotionBlurGivesItsCornersAndADegrad
   scene_r << -13.6612658201, 4.87227907669, 0.217161047601, -0.0841518750474, 30.0, 1.57079632679, -0.349065850399;
   const ImageView image = f.render_r(scene_r, render::kHardMotionBlur, 11677825386456173408ULL);
   const render::InstrumentTruth& truth = f.truth.instruments[0];
-  ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, scene_r)).ok());
-  // The rounds from the true pose as the first estimate (no seed, no re-check).
-  solver::Estimate first;
-  first.r = scene_r;
-  first.quality = solver::EstimateQuality::Valid;
-  GuidedOptions options;
-  options.fallback_seeds = 0;
-  options.shaft_recheck = false;
-  const GuidedResult guided = guided_rounds(*fx, estimator, f.camera, f.model, image, solver::SolveMode::Adaptive,
-                                            first, scene_r, options);
+  const GuidedResult guided = rounds_from_truth(*fx, estimator, f, image, scene_r);
   ASSERT_GT(guided.rounds_kept, 0);
   EXPECT_LT(guided.fit.silhouette_readings, 6);
   EXPECT_GE(guided.fit.boundaries, 2);
@@ -782,16 +790,7 @@ TEST(Pipeline, UnderAStreakTheImageFitReadsTheSilhouetteAtItsOuterEnd) {
     config.refine_streak = streak_rule;
     auto fx = default_extractor(config);
     ASSERT_NE(fx, nullptr);
-    ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, scene_r)).ok());
-    solver::Estimate first;
-    first.r = scene_r;
-    first.quality = solver::EstimateQuality::Valid;
-    GuidedOptions options;
-    options.fallback_seeds = 0;
-    options.shaft_recheck = false;
-    options.alias_check = false;
-    const GuidedResult guided = guided_rounds(*fx, estimator, f.camera, f.model, image, solver::SolveMode::Adaptive,
-                                              first, scene_r, options);
+    const GuidedResult guided = rounds_from_truth(*fx, estimator, f, image, scene_r);
     ASSERT_GT(guided.rounds_kept, 0) << "rule " << streak_rule;
     EXPECT_TRUE(guided.fit.smeared);
     int visible = 0;
