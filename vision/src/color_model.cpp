@@ -5,22 +5,12 @@
 #include <cstring>
 #include <cstdio>
 
+#include "sampling.hpp"
 #include "tcpest/common/json.hpp"
 
 namespace tcpest {
 namespace vision {
 namespace {
-
-// sRGB transfer curve, one entry per 8-bit value (built on first use).
-struct LinearTable {
-  std::array<double, 256> value{};
-  LinearTable() noexcept {
-    for (std::size_t i = 0U; i < value.size(); ++i) {
-      const double c = static_cast<double>(i) / 255.0;
-      value[i] = (c <= 0.04045) ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
-    }
-  }
-};
 
 // Cube root of t in (kDelta^3, ~1.1]: a first guess from the exponent bits
 // (within ~4 %), then two Halley steps (cubic convergence: relative error
@@ -60,10 +50,10 @@ double clamp_score(double v) noexcept {
 }  // namespace
 
 Lab srgb_to_lab(std::uint8_t red, std::uint8_t green, std::uint8_t blue) noexcept {
-  static const LinearTable kLinear;
-  const double r = kLinear.value[red];
-  const double g = kLinear.value[green];
-  const double b = kLinear.value[blue];
+  const detail::LinearLight& linear = detail::linear_light();
+  const double r = linear.of_code(red);
+  const double g = linear.of_code(green);
+  const double b = linear.of_code(blue);
   // sRGB primaries, D65 white (IEC 61966-2-1).
   const double x = 0.4124564 * r + 0.3575761 * g + 0.1804375 * b;
   const double y = 0.2126729 * r + 0.7151522 * g + 0.0721750 * b;

@@ -73,8 +73,6 @@ constexpr double kOuterEndShare = 0.3;
 constexpr double kOuterEndMarginPx = 2.0;  // the profile runs this far past window + smear / 2
 constexpr int kMaxOuterEndProfile = 161;   // 0.5 px apart: +/- 40 px
 
-const detail::LinearLight kLinearLight;  // start-up: the 256-entry decoding table
-
 // ceil(v) as an int within [lo, hi]: clamped before the cast (a window
 // from a projection next to the camera can be huge, or NaN: lo).
 int ceil_within(double v, int lo, int hi) noexcept {
@@ -524,6 +522,7 @@ class Refiner {
     const double peak_reach_px = window_px + 0.5 * across_px;
     const int half = ceil_within((peak_reach_px + kOuterEndMarginPx) / kStep, 2, (kMaxOuterEndProfile - 1) / 2);
     const int n = 2 * half + 1;
+    const detail::LinearLight& linear = detail::linear_light();
     std::array<std::array<double, 3>, kMaxOuterEndProfile> c{};
     for (int i = 0; i < n; ++i) {
       const double t = kStep * static_cast<double>(i - half);
@@ -531,7 +530,7 @@ class Refiner {
       if (!sample(image_, p.x() + t * normal.x(), p.y() + t * normal.y(), q)) {
         return false;
       }
-      c[static_cast<std::size_t>(i)] = {kLinearLight(q.r), kLinearLight(q.g), kLinearLight(q.b)};
+      c[static_cast<std::size_t>(i)] = {linear(q.r), linear(q.g), linear(q.b)};
     }
     std::array<double, kMaxOuterEndProfile> g{};
     int best = -1;
@@ -630,6 +629,7 @@ bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& m
 // sqrt(12 var). False when the change is faint, the lobe reaches the
 // profile's end or a sample lies outside the image.
 bool change_width(const ImageView& image, const solver::Vec2& p, const solver::Vec2& n, double& width_sq_px2) noexcept {
+  const detail::LinearLight& linear = detail::linear_light();
   std::array<double, kStreakProfile> f{};
   for (int k = 0; k < kStreakProfile; ++k) {
     const double t = static_cast<double>(k - kStreakReachPx - 1);
@@ -637,7 +637,7 @@ bool change_width(const ImageView& image, const solver::Vec2& p, const solver::V
     if (!sample(image, p.x() + t * n.x(), p.y() + t * n.y(), q)) {
       return false;
     }
-    f[static_cast<std::size_t>(k)] = kLinearLight(q.b) - 0.5 * (kLinearLight(q.r) + kLinearLight(q.g));
+    f[static_cast<std::size_t>(k)] = linear(q.b) - 0.5 * (linear(q.r) + linear(q.g));
   }
   constexpr int kSlopes = 2 * kStreakReachPx + 1;
   std::array<double, kSlopes> d{};  // d[k]: the slope at t = k - kStreakReachPx

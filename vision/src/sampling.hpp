@@ -47,9 +47,10 @@ inline bool sample(const ImageView& image, double x, double y, Rgb& out) noexcep
   return true;
 }
 
-// sRGB code values (0-255, interpolated samples allowed) to linear light
-// (0-1): the decoding curve of the 256 codes, linear between them. Built
-// once with its owner (start-up); a lookup per sample in the loop.
+// sRGB code values (0-255) to linear light (0-1): the decoding curve of
+// the 256 codes (IEC 61966-2-1); interpolated samples linear between them.
+// One table for the unit (linear_light()): the colour model's L*a*b* and
+// the model-guided readings.
 class LinearLight {
  public:
   LinearLight() noexcept {
@@ -64,10 +65,18 @@ class LinearLight {
     const double f = v - static_cast<double>(i);
     return table_[i] + f * (table_[i + 1U] - table_[i]);
   }
+  double of_code(std::uint8_t code) const noexcept { return table_[code]; }  // exact
 
  private:
   std::array<double, 256> table_{};
 };
+
+// The unit's table, built on first use: FeatureExtractor::create builds the
+// classifier's lookup table through srgb_to_lab, so at start-up.
+inline const LinearLight& linear_light() noexcept {
+  static const LinearLight table;
+  return table;
+}
 
 inline std::uint8_t to_byte(double v) noexcept {
   const double c = v < 0.0 ? 0.0 : (v > 255.0 ? 255.0 : v);
