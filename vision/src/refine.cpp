@@ -1077,8 +1077,12 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     // A fine iteration needs 2 boundaries' arcs, and no silhouette reading:
     // the arcs and the shaft hold the tube where a smear or an occluder
     // hides its silhouette (the caller decides what such a fit may give,
-    // GuidedOptions). A coarse one, from a rough seed, needs the silhouette.
-    if ((!coarse_it && boundaries < 2) || (coarse_it && silhouette_readings < 10)) {
+    // GuidedOptions); or 1 boundary's arcs with the silhouette well read
+    // (refine_one_boundary_min_silhouette: an occluder hiding the others).
+    // A coarse one, from a rough seed, needs the silhouette.
+    const bool arcs_hold = boundaries >= 2 ||
+                           (boundaries == 1 && plain_readings >= config_.refine_one_boundary_min_silhouette);
+    if ((!coarse_it && !arcs_hold) || (coarse_it && silhouette_readings < 10)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     // Robust scale (MAD) and Tukey weights.

@@ -641,6 +641,57 @@ TEST(Pipeline, AFitThatReadsTwoBoundariesGivesItsCornersAndADegradedEstimate) {
   }
 }
 
+// An occluder hides all but one boundary of the tube; its outline is still
+// seen. From the true pose the image fit reads that boundary's arcs and
+// the silhouette at more than 8 points, and so goes on with one boundary
+// (refine_one_boundary_min_silhouette): every visible corner is found, and
+// the estimate is at most Degraded. Asking 2 boundaries of every fine
+// iteration (the rule before), the fit stops at its first iteration and
+// nothing is kept. The scenes are frames 75 and 160 of the `hard` set
+// (seed 1, occluder only), rendered without its JPEG step.
+TEST(Pipeline, AFitThatReadsOneBoundaryAndTheSilhouetteGivesItsCornersAndADegradedEstimate) {
+  Fixture f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  struct Scene {
+    double r[7];
+    std::uint64_t seed;
+  };
+  const Scene scenes[] = {
+      {{-13.6066931689, 6.07778933063, 0.156617265369, 0.0314871682727, 15.0, 1.0471975512, 0.349065850399},
+       16324110429123556114ULL},
+      {{-12.7158947274, 7.07755367484, 0.121167754684, -0.0852257247892, 25.0, 1.0471975512, 1.0471975512},
+       11491084574015254213ULL},
+  };
+  for (const Scene& scene : scenes) {
+    solver::PoseVector scene_r;
+    for (int k = 0; k < 7; ++k) {
+      scene_r[k] = scene.r[k];
+    }
+    const ImageView image = f.render_r(scene_r, render::kHardOccluder, scene.seed);
+    const render::InstrumentTruth& truth = f.truth.instruments[0];
+    for (const bool one_boundary : {true, false}) {
+      ExtractorConfig config;
+      if (!one_boundary) {
+        config.refine_one_boundary_min_silhouette = 21;  // more than the 20 points read: never
+      }
+      auto fx = default_extractor(config);
+      ASSERT_NE(fx, nullptr);
+      const GuidedResult guided = rounds_from_truth(*fx, estimator, f, image, scene_r);
+      if (!one_boundary) {
+        EXPECT_EQ(guided.rounds_kept, 0) << "seed " << scene.seed;
+        continue;
+      }
+      ASSERT_GT(guided.rounds_kept, 0) << "seed " << scene.seed;
+      EXPECT_EQ(guided.fit.boundaries, 1) << "seed " << scene.seed;
+      EXPECT_GE(guided.fit.plain_silhouette_readings, config.refine_one_boundary_min_silhouette);
+      EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Degraded) << "seed " << scene.seed;
+      int visible = 0;
+      EXPECT_EQ(corners_found(*fx, truth, visible), visible) << "seed " << scene.seed;
+      EXPECT_GE(visible, 3);
+    }
+  }
+}
+
 // Motion blur smears the tube's silhouette over more than the reading's
 // window, so the image fit reads few silhouette points or none, but the
 // boundaries' arcs and the shaft still hold the tube: the fit is trusted

@@ -215,6 +215,13 @@ struct ExtractorConfig {
   double refine_coarse_search_mm = 2.5;     // a coarse start's first iterations: along-tube window, +/-
   double refine_coarse_edge_search_px = 10.0;  // ... and silhouette window, +/-
   bool refine_shaft_readings = true;        // the image fit also reads the shaft's silhouette
+  // A fine iteration of the image fit needs the arcs of 2 boundaries (they
+  // hold the tube along its length), or of 1 when the silhouette is read at
+  // this many points (of the 20 along the striped section, at the gradient
+  // peak's centre): an occluder hiding all but one boundary of a tube whose
+  // outline is still seen (docs/vision.md, "Occluders"). Such a fit gives at
+  // most a Degraded estimate (GuidedOptions::min_valid_fit_boundaries).
+  int refine_one_boundary_min_silhouette = 8;
   // Motion blur along the tube smears every boundary's colour change over
   // 5-14 px, so few arc readings pass the test of clear colours at the
   // crossing's neighbouring samples. The image fit then also reads a change

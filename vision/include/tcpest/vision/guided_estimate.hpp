@@ -20,7 +20,7 @@ struct GuidedOptions {
   // The image fit is trusted only with this much support: its robust RMS
   // residual, the boundaries whose arc it read, its silhouette readings.
   double max_fit_rms_px = 0.6;
-  int min_fit_boundaries = 2;
+  int min_fit_boundaries = 1;  // the fit's own rule asks 2, or 1 with the silhouette (refine_one_boundary_*)
   int min_fit_silhouette_readings = 0;  // none needed: see min_valid_fit_silhouette_readings
   // A fit that read fewer boundaries than this (an occluder or the image's
   // border hiding the rest) gives corners, but at most a Degraded estimate:
