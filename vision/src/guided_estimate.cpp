@@ -121,6 +121,27 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
   return false;
 }
 
+// The start seed without the class fit (GuidedOptions::start_unmoved):
+// kept in `out` when better and its fit read no fewer boundaries than
+// out's. True when kept.
+bool try_unmoved_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
+                      const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                      const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
+                      const solver::PoseVector& seed_r, const GuidedOptions& options, GuidedResult& out) noexcept {
+  const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
+  GuidedResult tried = out;
+  if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, tried) &&
+      (out.rounds_kept == 0 || tried.fit.boundaries >= out.fit.boundaries)) {
+    out = tried;
+    return true;
+  }
+  extractor.restore_snapshot(kept);
+  if (out.rounds_kept == 0) {
+    out.fit = tried.fit;  // what the last fit tried saw, for the record
+  }
+  return false;
+}
+
 // The fallback seeds (GuidedOptions), each kept in `out` when better.
 void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                         const solver::CameraModel& camera, const solver::InstrumentModel& model,
@@ -129,8 +150,9 @@ void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
   // The fit from other seeds, each moved onto the class image
   // first (class_fit) and fitted from a coarse start. Seed 0: `start` (the
   // encoders' or the track's pose; start_seed), measured the more useful of
-  // the two (docs/vision.md); seed 1: the rough pose of the labelled regions
-  // (from_regions), when seed 0 did not give a valid estimate.
+  // the two (docs/vision.md), then, when not valid, the same start without
+  // its class fit (start_unmoved); seed 1: the rough pose of the labelled
+  // regions (from_regions), when seed 0 did not give a valid estimate.
   int seeds_tried = 0;
   for (int seed_index = 0; seed_index < 2; ++seed_index) {
     if (out.estimate.quality == solver::EstimateQuality::Valid || seeds_tried >= options.fallback_seeds) {
@@ -151,6 +173,7 @@ void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
     ShaftFitSummary shaft;
     const bool channel_known =
         options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
+    const solver::PoseVector unmoved = seed_r;
     if (options.class_fit) {
       solver::PoseVector moved = seed_r;
       double class_cost_px = 0.0;  // not used to judge: the image fit's test decides
@@ -172,6 +195,14 @@ void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
     if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out)) {
       out.from_start = seed_index == 0;
       out.from_regions = seed_index == 1;
+    }
+    if (seed_index == 0 && options.class_fit && options.start_unmoved &&
+        out.estimate.quality != solver::EstimateQuality::Valid && seeds_tried < options.fallback_seeds) {
+      ++seeds_tried;
+      if (try_unmoved_seed(extractor, estimator, camera, model, image, mode, first, unmoved, options, out)) {
+        out.from_start = true;
+        out.from_regions = false;
+      }
     }
   }
 }

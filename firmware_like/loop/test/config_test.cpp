@@ -77,7 +77,7 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
   s = parse("loop:\n  classify_step: 3\n", config);
   ASSERT_FALSE(s.ok());
   EXPECT_STREQ(s.error().field, "loop.classify_step");
-  s = parse("loop:\n  fallback_seeds: 3\n", config);
+  s = parse("loop:\n  fallback_seeds: 4\n", config);
   ASSERT_FALSE(s.ok());
   EXPECT_STREQ(s.error().field, "loop.fallback_seeds");
   ASSERT_TRUE(parse("loop:\n  classify_step: auto\n", config).ok());

@@ -20,7 +20,7 @@ constexpr OptionSpec kGuidedRoundsOption{"guided-rounds", "N",
                                          "corners, the paper's pipeline)"};
 constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
                                           "image fits from other seeds (the prior's pose, the regions' pose) on a frame "
-                                          "not yet valid, 0..2 (default 2; the loop's loop.fallback_seeds: 1)"};
+                                          "not yet valid, 0..3 (default 3; the loop's loop.fallback_seeds: 1)"};
 
 struct ModelSetup {
   solver::CameraModel camera;

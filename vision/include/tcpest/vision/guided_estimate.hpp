@@ -47,14 +47,14 @@ struct GuidedOptions {
   // silhouette points with a residual below prefer_fit_rms_ratio times the
   // current's); else valid over degraded; at the same quality, a
   // fit-confirmed one over stage 4's, then the lower fit residual
-  // (docs/vision.md). Bounded: at most `fallback_seeds` (0..2)
+  // (docs/vision.md). Bounded: at most `fallback_seeds` (0..3)
   // seeds per frame, only on frames not yet valid (each about 1-3 ms at PAL,
   // docs/vision.md).
   bool prefer_fit_confirmed = true;   // the first of those rules (false: off)
   double prefer_fit_rms_ratio = 0.7;  // the second (0: off)
   bool start_seed = true;
   bool from_regions = true;
-  int fallback_seeds = 2;
+  int fallback_seeds = 3;
   // Each fallback seed's channel pose is first fitted to the shaft's
   // silhouette (`shaft_fit`: FeatureExtractor::fit_channel_to_shaft), then
   // the seed is moved onto the class image (`class_fit`:
@@ -62,6 +62,16 @@ struct GuidedOptions {
   // fit succeeded) before the image fit.
   bool shaft_fit = true;
   bool class_fit = true;
+  // The class fit can also move a good start away: the samples of stripes
+  // an occluder hides, far from every pixel of their colour, pull the
+  // visible ones along the tube. So when the start seed's result is not
+  // valid, the start (its channel from the shaft) is also tried as it is,
+  // without the class fit (`start_unmoved`). It counts as one of the
+  // `fallback_seeds`, tried second (the loop's 1 leaves it out; with 2
+  // the regions' seed is not tried), and its result is kept only if better (the rule above) and its fit read no
+  // fewer boundaries than the current result's: the class fit's seed may
+  // have read a smeared tube more fully (docs/vision.md, "Occluders").
+  bool start_unmoved = true;
   // A valid result is checked against the shaft: when the shaft's fit moves
   // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
   // tried again from that channel pose (coarse start) and the better result
@@ -84,7 +94,7 @@ struct GuidedOptions {
   bool alias_fine_start = true;
 };
 constexpr int kMaxGuidedRounds = 4;
-constexpr int kMaxFallbackSeeds = 2;
+constexpr int kMaxFallbackSeeds = 3;
 
 struct GuidedResult {
   solver::Estimate estimate{};
