@@ -107,7 +107,14 @@ TEST(VisionCommands, EstimateGoesOnAfterABadImageAndWritesOverlays) {
 
 TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
   const std::string dir = make_dataset("vision_cli_evaluate");
+  testing::internal::CaptureStdout();
   EXPECT_EQ(run({"evaluate", dir}), kExitOk);
+  const std::string summary = testing::internal::GetCapturedStdout();
+  // The summary reports the valid estimates and, apart, the degraded ones
+  // (the robot receives those too, flagged).
+  EXPECT_NE(summary.find("valid estimates: "), std::string::npos) << summary;
+  EXPECT_NE(summary.find("degraded estimates: "), std::string::npos) << summary;
+  EXPECT_NE(summary.find("over 5 mm: "), std::string::npos) << summary;
   EXPECT_EQ(run({"evaluate", "--no-prior", "--max", "1", dir}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--true-prior", "--max", "1", dir}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--true-prior", "--no-prior", dir}), kExitUsage);

@@ -41,6 +41,16 @@ const OptionSpec kSpecs[] = {
 };
 constexpr std::size_t kSpecCount = sizeof kSpecs / sizeof kSpecs[0];
 
+// The value below which `share` (0..1) of v lies (sorts v; 0 when empty).
+double quantile_of(std::vector<double>& v, double share) noexcept {
+  if (v.empty()) {
+    return 0.0;
+  }
+  std::sort(v.begin(), v.end());
+  const auto last = static_cast<double>(v.size() - 1U);
+  return v[static_cast<std::size_t>(std::lround(share * last))];
+}
+
 double median_of(std::vector<double>& v) noexcept {
   if (v.empty()) {
     return 0.0;
@@ -48,6 +58,10 @@ double median_of(std::vector<double>& v) noexcept {
   std::sort(v.begin(), v.end());
   return v[v.size() / 2U];
 }
+
+// The robot receives a degraded estimate flagged but still uses it (the
+// protocol's status 1): how far off those are is part of the result.
+constexpr double kDegradedFarMm = 5.0;
 
 }  // namespace
 
@@ -136,7 +150,7 @@ int cmd_evaluate(int argc, char** argv) {
   long visible = 0, found_ok = 0, found_total = 0, wrong = 0, mislabelled = 0;
   int frames = 0, frames_with_visible = 0, successes = 0, unreadable = 0, valid_estimates = 0;
   HardCaseTally by_case;  // frame success per hard case
-  std::vector<double> errors, tcp_errors, stage[4], stages_total, solve_times;
+  std::vector<double> errors, tcp_errors, degraded_tcp_errors, stage[4], stages_total, solve_times;
   double tcp_sq[3] = {0.0, 0.0, 0.0};
   bool sequence = false;
   for (const std::string& name : sidecars) {
@@ -246,6 +260,10 @@ int cmd_evaluate(int argc, char** argv) {
         tcp_sq[c] += diff[c] * diff[c];
       }
     }
+    if (result.status == EstimateStatus::Degraded && truth.instrument.has_tcp) {
+      tcp_err = (result.tcp - truth.instrument.tcp).norm();
+      degraded_tcp_errors.push_back(tcp_err);
+    }
     if (csv != nullptr) {
       solver::CornerSet model;
       if (result.status != EstimateStatus::None) {
@@ -298,6 +316,14 @@ int cmd_evaluate(int argc, char** argv) {
   std::printf("valid estimates: %d; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n", valid_estimates,
               median_of(tcp_errors), std::sqrt(tcp_sq[0] / n_tcp), std::sqrt(tcp_sq[1] / n_tcp),
               std::sqrt(tcp_sq[2] / n_tcp));
+  long degraded_far = 0;
+  for (const double e_mm : degraded_tcp_errors) {
+    degraded_far += e_mm > kDegradedFarMm ? 1 : 0;
+  }
+  const std::size_t degraded_estimates = degraded_tcp_errors.size();
+  std::printf("degraded estimates: %zu; TCP error median %.2f mm, 90th percentile %.2f mm, over %.0f mm: %ld\n",
+              degraded_estimates, median_of(degraded_tcp_errors), quantile_of(degraded_tcp_errors, 0.9),
+              kDegradedFarMm, degraded_far);
   std::printf("median time: stage 1 %.0f us, stage 2 %.0f us, stage 3 %.0f us, stage 4 %.0f us, stages 1-4 %.0f us, "
               "solver %.0f us\n",
               median_of(stage[0]), median_of(stage[1]), median_of(stage[2]), median_of(stage[3]),
