@@ -92,46 +92,33 @@ bool better(const GuidedResult& candidate, const GuidedResult& current, const Gu
   return current.rounds_kept == 0 || candidate.fit.rms_px < current.fit.rms_px;
 }
 
-// The rounds from a seed (a coarse start unless told otherwise); the
-// result replaces `out` when better and, with a finite `near_lambda_mm`,
-// when its insertion lies nearer to that than out's (else the extractor's
-// corners are put back). True when it was kept.
+// What a seed's result must also meet to replace the current one.
+struct SeedRule {
+  // With a finite value: its insertion lies nearer to this than out's.
+  double near_lambda_mm = std::numeric_limits<double>::quiet_NaN();
+  bool coarse_start = true;  // the fit's first iterations widened
+  // Its fit read no fewer boundaries than out's (GuidedOptions::start_unmoved).
+  bool no_fewer_boundaries = false;
+};
+
+// The rounds from a seed; the result replaces `out` when better and meets
+// `rule` (else the extractor's corners are put back). True when it was kept.
 bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
               const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
               const solver::Estimate& first, const solver::PoseVector& seed_r, const GuidedOptions& options,
-              GuidedResult& out, double near_lambda_mm = std::numeric_limits<double>::quiet_NaN(),
-              bool coarse_start = true) noexcept {
+              GuidedResult& out, const SeedRule& rule = SeedRule{}) noexcept {
   solver::Estimate seed = first;
   seed.quality = solver::EstimateQuality::Degraded;
   seed.r = seed_r;
   const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
   const GuidedResult tried =
-      rounds_from(extractor, estimator, camera, model, image, mode, seed, options, coarse_start);
-  const bool nearer = std::isnan(near_lambda_mm) ||
-                      std::fabs(tried.estimate.r[solver::kLambda] - near_lambda_mm) <
-                          std::fabs(out.estimate.r[solver::kLambda] - near_lambda_mm);
-  if (nearer && better(tried, out, options)) {
-    out = tried;
-    return true;
-  }
-  extractor.restore_snapshot(kept);
-  if (out.rounds_kept == 0) {
-    out.fit = tried.fit;  // what the last fit tried saw, for the record
-  }
-  return false;
-}
-
-// The start seed without the class fit (GuidedOptions::start_unmoved):
-// kept in `out` when better and its fit read no fewer boundaries than
-// out's. True when kept.
-bool try_unmoved_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
-                      const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                      const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
-                      const solver::PoseVector& seed_r, const GuidedOptions& options, GuidedResult& out) noexcept {
-  const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
-  GuidedResult tried = out;
-  if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, tried) &&
-      (out.rounds_kept == 0 || tried.fit.boundaries >= out.fit.boundaries)) {
+      rounds_from(extractor, estimator, camera, model, image, mode, seed, options, rule.coarse_start);
+  const bool nearer = std::isnan(rule.near_lambda_mm) ||
+                      std::fabs(tried.estimate.r[solver::kLambda] - rule.near_lambda_mm) <
+                          std::fabs(out.estimate.r[solver::kLambda] - rule.near_lambda_mm);
+  const bool read_enough =
+      !rule.no_fewer_boundaries || out.rounds_kept == 0 || tried.fit.boundaries >= out.fit.boundaries;
+  if (nearer && read_enough && better(tried, out, options)) {
     out = tried;
     return true;
   }
@@ -199,7 +186,9 @@ void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
     if (seed_index == 0 && options.class_fit && options.start_unmoved &&
         out.estimate.quality != solver::EstimateQuality::Valid && seeds_tried < options.fallback_seeds) {
       ++seeds_tried;
-      if (try_unmoved_seed(extractor, estimator, camera, model, image, mode, first, unmoved, options, out)) {
+      SeedRule rule;
+      rule.no_fewer_boundaries = true;  // a class-fitted seed may have read a smeared tube more fully
+      if (try_seed(extractor, estimator, camera, model, image, mode, first, unmoved, options, out, rule)) {
         out.from_start = true;
         out.from_regions = false;
       }
@@ -239,8 +228,10 @@ bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, co
   const double near_mm = start[solver::kLambda];
   const bool kept =
       (options.alias_fine_start &&
-       try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, near_mm, false)) ||
-      try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, near_mm, true);
+       try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
+                SeedRule{near_mm, false, false})) ||
+      try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
+               SeedRule{near_mm, true, false});
   out.alias_checked = true;
   out.from_alias = kept;
   return kept;

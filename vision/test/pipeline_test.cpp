@@ -73,6 +73,11 @@ std::unique_ptr<FeatureExtractor> default_extractor(const ExtractorConfig& confi
   return created.ok() ? std::move(created.value()) : nullptr;
 }
 
+// A pose written as its 7 values (a sidecar's r: mm and rad).
+solver::PoseVector pose_of(const double (&r)[7]) {
+  return Eigen::Map<const solver::PoseVector>(r);
+}
+
 // Every corner the renderer saw is given and lies within tolerance_px of
 // its truth; returns how many were visible.
 int expect_visible_corners_within(const FeatureExtractor& fx, const render::InstrumentTruth& truth,
@@ -663,10 +668,7 @@ TEST(Pipeline, AFitThatReadsOneBoundaryAndTheSilhouetteGivesItsCornersAndADegrad
        11491084574015254213ULL},
   };
   for (const Scene& scene : scenes) {
-    solver::PoseVector scene_r;
-    for (int k = 0; k < 7; ++k) {
-      scene_r[k] = scene.r[k];
-    }
+    const solver::PoseVector scene_r = pose_of(scene.r);
     const ImageView image = f.render_r(scene_r, render::kHardOccluder, scene.seed);
     const render::InstrumentTruth& truth = f.truth.instruments[0];
     for (const bool one_boundary : {true, false}) {
@@ -716,10 +718,7 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
        621544379441551376ULL},
   };
   for (const Scene& scene : scenes) {
-    solver::PoseVector scene_r;
-    for (int k = 0; k < 7; ++k) {
-      scene_r[k] = scene.r[k];
-    }
+    const solver::PoseVector scene_r = pose_of(scene.r);
     const ImageView image = f.render_r(scene_r, render::kHardOccluder, scene.seed);
     const solver::PoseVector prior =
         f.model.geometry().nominal_pose(scene.encoders[0], scene.encoders[1], scene.encoders[2]);
