@@ -130,7 +130,8 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
 }
 
 // The fallback seeds (GuidedOptions), each kept in `out` when better.
-void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
+// True when the start was also tried without its class fit.
+bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                         const solver::CameraModel& camera, const solver::InstrumentModel& model,
                         const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
                         const solver::PoseVector& start, const GuidedOptions& options, GuidedResult& out) noexcept {
@@ -141,6 +142,7 @@ void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
   // its class fit (start_unmoved); seed 1: the rough pose of the labelled
   // regions (from_regions), when seed 0 did not give a valid estimate.
   int seeds_tried = 0;
+  bool unmoved_tried = false;
   for (int seed_index = 0; seed_index < 2; ++seed_index) {
     if (out.estimate.quality == solver::EstimateQuality::Valid || seeds_tried >= options.fallback_seeds) {
       break;
@@ -182,18 +184,22 @@ void try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
     if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out)) {
       out.from_start = seed_index == 0;
       out.from_regions = seed_index == 1;
+      out.from_unmoved = false;
     }
     if (seed_index == 0 && options.class_fit && options.start_unmoved &&
         out.estimate.quality != solver::EstimateQuality::Valid && seeds_tried < options.fallback_seeds) {
       ++seeds_tried;
       SeedRule rule;
       rule.no_fewer_boundaries = true;  // a class-fitted seed may have read a smeared tube more fully
+      unmoved_tried = true;
       if (try_seed(extractor, estimator, camera, model, image, mode, first, unmoved, options, out, rule)) {
         out.from_start = true;
+        out.from_unmoved = true;
         out.from_regions = false;
       }
     }
   }
+  return unmoved_tried;
 }
 
 // Two stripes along the tube the colours repeat (blue, yellow, blue): with
@@ -266,11 +272,13 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   // Not valid yet: the fallback seeds. They need labelled markers: without
   // them (stage 1 or 2 failed) the fit would read whatever edges lie where
   // the seed puts the instrument.
+  bool unmoved_tried = false;
   if (options.rounds > 0 && out.estimate.quality != solver::EstimateQuality::Valid &&
       extractor.result().interpretation.found_count >= kMinSeedMarkers) {
-    try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out);
+    unmoved_tried = try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out);
   }
   static_cast<void>(try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out));
+  out.unmoved_tried = unmoved_tried;  // after every seed: a kept result's flags come from its own rounds
   return out;
 }
 

@@ -203,6 +203,16 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   static_cast<void>(f.render_r(blurred_r, render::kHardDecoy | render::kHardMotionBlur, 6688904659736107710ULL));
   const std::vector<std::uint8_t> blurred = f.pixels;
   int streaked = 0;
+  // An occluded frame (hard frame 108) whose start seed's result is not
+  // valid: the start is also tried without its class fit.
+  solver::PoseVector occluded_r;
+  occluded_r << -15.843518569, 4.32930613471, 0.222113243687, -0.00769750186993, 20.0, 0.523598775598,
+      -1.74532925199;
+  static_cast<void>(f.render_r(occluded_r, render::kHardOccluder, 5852092909541815619ULL));
+  const std::vector<std::uint8_t> occluded = f.pixels;
+  const solver::PoseVector occluded_encoders =
+      f.model.geometry().nominal_pose(20.4331473337, 0.387191368398, -1.77151189335);
+  int unmoved_tried = 0;
   auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
   ASSERT_TRUE(created.ok());
   auto fx = std::move(created.value());
@@ -251,6 +261,14 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
         static_cast<void>(fx->fit_pose_to_image(smeared, f.camera, f.model, fitted, fit));  // outcome not under test
         streaked += fit.silhouette_readings > fit.plain_silhouette_readings ? 1 : 0;
       }
+      if (i % 10 == 5) {
+        const ImageView hidden{occluded.data(), f.camera.width(), f.camera.height(),
+                               static_cast<std::size_t>(f.camera.width()) * 3U};
+        const bool stage4_ok = fx->extract(hidden, model_priors(f.camera, f.model, occluded_encoders)).ok();
+        const GuidedResult from_encoders = guided_estimate(*fx, estimator, f.camera, f.model, hidden, stage4_ok,
+                                                           solver::SolveMode::Adaptive, occluded_encoders, options);
+        unmoved_tried += from_encoders.unmoved_tried ? 1 : 0;
+      }
     }
     EXPECT_EQ(scope.count(), 0U);
   }
@@ -259,6 +277,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   EXPECT_GT(guided_rounds, 0);  // the refinement ran, so its path was counted
   EXPECT_GT(region_seeded, 0);  // idem for the region pose
   EXPECT_GT(start_seeded, 0);   // and for the start seed with the class-image fit
+  EXPECT_GT(unmoved_tried, 0);  // and for the start without it
 }
 
 // The model-guided corners on rendered frames: from stage 4's first pose,
@@ -731,7 +750,10 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
     ASSERT_GE(with.visible, 4) << "seed " << scene.seed;
     EXPECT_GE(with.found * 10, with.visible * 8) << "seed " << scene.seed << ": a success";
     EXPECT_LT(without.found * 10, without.visible * 8) << "seed " << scene.seed << ": not a success";
+    EXPECT_TRUE(with.guided.unmoved_tried);
+    EXPECT_TRUE(with.guided.from_unmoved);
     EXPECT_TRUE(with.guided.from_start);
+    EXPECT_FALSE(without.guided.unmoved_tried);
     EXPECT_NE(with.guided.estimate.quality, solver::EstimateQuality::Valid);  // fewer than 3 boundaries read
   }
 }

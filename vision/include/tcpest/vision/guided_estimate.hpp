@@ -102,6 +102,8 @@ struct GuidedResult {
   ImageFitSummary fit{};          // of the last fit tried
   bool from_regions = false;      // the rounds started from pose_from_regions
   bool from_start = false;        // the rounds started from the start pose (start_seed)
+  bool unmoved_tried = false;     // the start was also tried without its class fit (start_unmoved)
+  bool from_unmoved = false;      // ... and that result was kept (from_start is then true too)
   bool shaft_rechecked = false;   // a valid result was tried again from the shaft's channel pose
   bool alias_checked = false;     // the result was tried again two stripes along (alias_check)
   bool from_alias = false;        // ... and that result was kept
