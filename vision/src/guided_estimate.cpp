@@ -40,7 +40,7 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
       break;
     }
     if (again.quality == solver::EstimateQuality::Valid &&
-        (out.fit.boundaries < options.min_valid_fit_boundaries ||
+        (out.fit.boundary_run < options.min_valid_fit_boundaries ||
          out.fit.plain_silhouette_readings < options.min_valid_fit_silhouette_readings)) {
       again.quality = solver::EstimateQuality::Degraded;
     }
@@ -76,7 +76,7 @@ bool better(const GuidedResult& candidate, const GuidedResult& current, const Gu
     return false;
   }
   const ImageFitSummary& fit = candidate.fit;
-  if (options.prefer_fit_confirmed && current.rounds_kept == 0 && fit.boundaries >= options.min_valid_fit_boundaries &&
+  if (options.prefer_fit_confirmed && current.rounds_kept == 0 && fit.boundary_run >= options.min_valid_fit_boundaries &&
       fit.silhouette_readings >= options.min_valid_fit_silhouette_readings) {
     return true;
   }

@@ -1015,8 +1015,15 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
       arc_readings = all_arcs;
     }
     int boundaries = 0;
+    int boundary_run = 0;  // ImageFitSummary::boundary_run
+    int run = 0;
     for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
-      boundaries += sharp_on[j] + (summary.smeared ? smeared_on[j] : 0) >= 3 ? 1 : 0;
+      const bool read_j = sharp_on[j] + (summary.smeared ? smeared_on[j] : 0) >= 3;
+      boundaries += read_j ? 1 : 0;
+      if (j >= 1U && j + 1U < static_cast<std::size_t>(kNumBoundaries)) {  // the colour boundaries
+        run = read_j ? run + 1 : 0;
+        boundary_run = std::max(boundary_run, run);
+      }
     }
     // Under a streak of refine_streak_min_px and more, the silhouette is
     // read at its plateau's outer end where the smear across it is large
@@ -1074,6 +1081,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     summary.silhouette_readings = silhouette_readings;
     summary.plain_silhouette_readings = plain_readings;
     summary.boundaries = boundaries;
+    summary.boundary_run = boundary_run;
     // A fine iteration needs 2 boundaries' arcs, and no silhouette reading:
     // the arcs and the shaft hold the tube where a smear or an occluder
     // hides its silhouette (the caller decides what such a fit may give,

@@ -758,6 +758,38 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
   }
 }
 
+// An occluder hides the tube's tip half, seen nearly end-on: the base's
+// stripes show, and the occluder's edge over a blue stripe reads as the
+// tip's colour change. From the encoders the image fit settles on a pose
+// whose arcs it reads on 3 boundaries, but with a gap (no colour boundary
+// read between two that are), and its TCP lies 6-7 mm from the truth: the
+// old count (3 boundaries anywhere) made it valid. The run of consecutive
+// colour boundaries (boundary_run) is what makes an estimate valid, so
+// this one is at most Degraded. The scene is frame 70 of a `seq` video
+// with occluders (seed 2), rendered without its JPEG step.
+TEST(Pipeline, AFitWhoseBoundariesHaveAGapGivesADegradedEstimate) {
+  Fixture f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const double scene[7] = {-11.0775585071, 7.8208846684,   0.17857827867, 0.0253011395983,
+                           27.6613014132,  -0.033416382331, -0.849931463291};
+  render::SceneSpec spec;
+  spec.r = pose_of(scene);
+  spec.hard_cases = render::kHardOccluder;
+  spec.seed = 13431642518955240580ULL;
+  spec.world_seed = 16511278744549465163ULL;
+  const MutableImageView out{f.pixels.data(), f.camera.width(), f.camera.height(),
+                             static_cast<std::size_t>(f.camera.width()) * 3U};
+  ASSERT_TRUE(f.renderer->render(spec, out, f.truth).ok());
+  const solver::PoseVector encoders = f.model.geometry().nominal_pose(29.7291279411, -0.120185710321, -0.84969101824);
+  const GuidedRun run = guided_run(f, estimator, out.view(), encoders, GuidedOptions{});
+  ASSERT_GT(run.guided.rounds_kept, 0);
+  EXPECT_GE(run.guided.fit.boundaries, 3);    // enough for the old count
+  EXPECT_LT(run.guided.fit.boundary_run, 3);  // not for the run
+  EXPECT_EQ(run.guided.estimate.quality, solver::EstimateQuality::Degraded);
+  const double tcp_error_mm = (f.model.tcp(run.guided.estimate.r) - f.model.tcp(spec.r)).norm();
+  EXPECT_GT(tcp_error_mm, 5.0);  // why it must not be valid
+}
+
 // Motion blur smears the tube's silhouette over more than the reading's
 // window, so the image fit reads few silhouette points or none, but the
 // boundaries' arcs and the shaft still hold the tube: the fit is trusted

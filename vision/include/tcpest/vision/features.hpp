@@ -266,6 +266,14 @@ struct ImageFitSummary {
   int arc_readings = 0;         // colour-change readings on the boundary arcs (last iteration)
   int silhouette_readings = 0;  // silhouette readings (last iteration)
   int boundaries = 0;           // boundaries with arc readings
+  // The longest run of consecutive colour boundaries (j = 1..4, blue
+  // against yellow) with arc readings: what the validity rule counts
+  // (GuidedOptions::min_valid_fit_boundaries). The tip's change (blue
+  // against the grasper) is left out, and so is a boundary beyond a gap:
+  // an occluder's edge over a blue stripe reads as the tip's change, and a
+  // fit two stripes along reads a far boundary with a gap before it
+  // (docs/vision.md, "Occluders").
+  int boundary_run = 0;
   double rms_px = 0.0;          // robust RMS of the readings' residuals at the result
   bool converged = false;
   bool smeared = false;         // the last iteration read the arcs as smeared (refine_smear_*)

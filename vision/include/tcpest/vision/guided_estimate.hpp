@@ -25,7 +25,10 @@ struct GuidedOptions {
   // A fit that read fewer boundaries than this (an occluder or the image's
   // border hiding the rest) gives corners, but at most a Degraded estimate:
   // the unseen part of the tube, and the TCP with it, is held only by the
-  // solve's penalty and the joints' start (docs/vision.md).
+  // solve's penalty and the joints' start (docs/vision.md). Counted is the
+  // run of consecutive colour boundaries read (ImageFitSummary::
+  // boundary_run): an occluder's edge mimics the tip's change, and a fit
+  // two stripes along reads a far boundary beyond a gap.
   int min_valid_fit_boundaries = 3;
   // Likewise a fit with fewer silhouette readings than this (of the 20 along
   // the striped section: an occluder or a smear hiding the rest): its
