@@ -36,6 +36,28 @@ bool options_valid(const EstimateOptions& o) noexcept {
          o.outlier_min_corners > kMinCorners && o.outlier_min_corners <= kNumCorners;
 }
 
+bool encoder_check_valid(const EncoderCheck& check) noexcept {
+  return std::isfinite(check.lambda_tolerance_mm) && check.lambda_tolerance_mm >= 0.0 &&
+         std::isfinite(check.bend_tolerance_rad) && check.bend_tolerance_rad >= 0.0;
+}
+
+bool check_against_encoders(Estimate& estimate, const PoseVector& encoders, const EncoderCheck& check) noexcept {
+  if (estimate.quality == EstimateQuality::None || !estimate.r.allFinite() || !encoders.allFinite()) {
+    return false;
+  }
+  const PoseVector& r = estimate.r;
+  const bool insertion_off = check.lambda_tolerance_mm > 0.0 &&
+                             std::fabs(r[kLambda] - encoders[kLambda]) > check.lambda_tolerance_mm;
+  const double bend_dx = r[kTheta] * std::cos(r[kPhi]) - encoders[kTheta] * std::cos(encoders[kPhi]);
+  const double bend_dy = r[kTheta] * std::sin(r[kPhi]) - encoders[kTheta] * std::sin(encoders[kPhi]);
+  const bool bend_off = check.bend_tolerance_rad > 0.0 && std::hypot(bend_dx, bend_dy) > check.bend_tolerance_rad;
+  if (!insertion_off && !bend_off) {
+    return false;
+  }
+  estimate.quality = estimate.quality == EstimateQuality::Valid ? EstimateQuality::Degraded : EstimateQuality::None;
+  return true;
+}
+
 PoseEstimator::PoseEstimator(const CameraModel& camera, const InstrumentModel& model,
                              const EstimateOptions& options) noexcept
     : camera_(camera), model_(model), options_(options), solver_(camera, model) {}

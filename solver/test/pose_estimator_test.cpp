@@ -142,6 +142,48 @@ TEST(EstimateOptions, RangesAreChecked) {
   EXPECT_FALSE(options_valid(o));
 }
 
+// An estimate of joints (lambda mm, phi rad, theta rad) of `quality`.
+Estimate estimate_at(const InstrumentModel& model, double lambda_mm, double phi_rad, double theta_rad,
+                     EstimateQuality quality) {
+  Estimate e;
+  e.quality = quality;
+  e.r = model.geometry().nominal_pose(lambda_mm, phi_rad, theta_rad);
+  return e;
+}
+
+// Within the encoders' accuracy nothing changes; beyond it, in insertion or
+// in bend, the estimate loses one level. phi is compared through the bend
+// vector: on a nearly straight tube any phi agrees.
+TEST_F(PoseEstimatorTest, AnEstimateFarFromTheEncodersIsDemotedOneLevel) {
+  const EncoderCheck check;  // 6 mm, 0.5 rad
+  const PoseVector encoders = model_.geometry().nominal_pose(25.0, 0.3, 0.8);
+  Estimate e = estimate_at(model_, 29.0, 0.5, 0.6, EstimateQuality::Valid);  // 4 mm, bend 0.24 rad off
+  EXPECT_FALSE(check_against_encoders(e, encoders, check));
+  EXPECT_EQ(e.quality, EstimateQuality::Valid);
+  e = estimate_at(model_, 31.5, 0.3, 0.8, EstimateQuality::Valid);  // 6.5 mm off
+  EXPECT_TRUE(check_against_encoders(e, encoders, check));
+  EXPECT_EQ(e.quality, EstimateQuality::Degraded);
+  e = estimate_at(model_, 25.0, 0.3, 0.2, EstimateQuality::Degraded);  // bend 0.6 rad off
+  EXPECT_TRUE(check_against_encoders(e, encoders, check));
+  EXPECT_EQ(e.quality, EstimateQuality::None);
+  e = estimate_at(model_, 25.0, 0.3, 0.2, EstimateQuality::None);  // no pose: nothing to check
+  EXPECT_FALSE(check_against_encoders(e, encoders, check));
+  // A straight tube: phi differs by pi, the bend by 0.1 rad.
+  const PoseVector straight = model_.geometry().nominal_pose(25.0, 0.0, 0.05);
+  e = estimate_at(model_, 25.0, 3.14159, 0.05, EstimateQuality::Valid);
+  EXPECT_FALSE(check_against_encoders(e, straight, check));
+  // Tolerances of 0 check nothing; non-finite encoders neither.
+  e = estimate_at(model_, 40.0, 0.3, -0.8, EstimateQuality::Valid);
+  EXPECT_FALSE(check_against_encoders(e, encoders, EncoderCheck{0.0, 0.0}));
+  PoseVector unknown = encoders;
+  unknown[kLambda] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(check_against_encoders(e, unknown, check));
+  EXPECT_EQ(e.quality, EstimateQuality::Valid);
+  EXPECT_TRUE(encoder_check_valid(check));
+  EXPECT_FALSE(encoder_check_valid(EncoderCheck{-1.0, 0.5}));
+  EXPECT_FALSE(encoder_check_valid(EncoderCheck{6.0, std::numeric_limits<double>::infinity()}));
+}
+
 TEST_F(PoseEstimatorTest, EstimateDoesNotAllocate) {
   std::mt19937 rng(13);
   PoseEstimator estimator(camera_, model_);

@@ -52,6 +52,27 @@ struct Estimate {
   int solves = 0;
 };
 
+// The estimate against the robot's encoders (their joints at kLambda,
+// kPhi, kTheta of `encoders`; the channel's pose is not theirs). An
+// estimate whose insertion, or whose bend theta (cos phi, sin phi) (phi
+// alone means nothing on a straight tube), lies farther from theirs than
+// these tolerances is demoted one level: Valid -> Degraded -> None. The
+// defaults are twice model.md's coarse prior (lambda +/- 3 mm, phi and
+// theta +/- 0.2 rad), the accuracy the encoders are trusted to; an image
+// fit that lands beyond it has most likely read something else (an
+// occluder's edge, a decoy): docs/solver.md.
+struct EncoderCheck {
+  double lambda_tolerance_mm = 6.0;  // 0: not checked
+  double bend_tolerance_rad = 0.5;   // 0: not checked
+};
+
+// Checks ranges (finite, >= 0).
+bool encoder_check_valid(const EncoderCheck& check) noexcept;
+
+// Applies `check` to `estimate` (nothing when encoders or estimate are not
+// finite, or the estimate has no pose). True when it was demoted.
+bool check_against_encoders(Estimate& estimate, const PoseVector& encoders, const EncoderCheck& check) noexcept;
+
 class PoseEstimator {
  public:
   // Keeps references: camera and model must outlive the estimator.
