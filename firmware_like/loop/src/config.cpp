@@ -148,6 +148,8 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
   TCPEST_TRY(read_int_as(doc, "loop.track_drop_after", 1, 1000, l.track_drop_after));
   TCPEST_TRY(read_int_as(doc, "loop.min_corners_valid", 4, 12, l.min_corners_valid));
   TCPEST_TRY(read_double(doc, "loop.max_rms_valid_px", 0.0, 1000.0, l.max_rms_valid_px));
+  TCPEST_TRY(read_double(doc, "loop.encoder_check_lambda_mm", 0.0, 100.0, l.encoder_check_lambda_mm));
+  TCPEST_TRY(read_double(doc, "loop.encoder_check_bend_rad", 0.0, 4.0, l.encoder_check_bend_rad));
   TCPEST_TRY(read_int_as(doc, "loop.outlier_rounds", 0, solver::kMaxOutlierRounds, l.outlier_rounds));
   TCPEST_TRY(read_int_as(doc, "loop.guided_rounds", 0, vision::kMaxGuidedRounds, l.guided_rounds));
   TCPEST_TRY(read_int_as(doc, "loop.fallback_seeds", 0, vision::kMaxFallbackSeeds, l.fallback_seeds));

@@ -502,6 +502,9 @@ void Executive::run_pipeline() noexcept {
   lap(Step::kSolve);
   step_refine(image);
   lap(Step::kRefine);
+  if (record_.solved) {
+    last_r_ = estimate_.r;  // the track's pose, and what a held frame repeats
+  }
   pipeline.end_frame(record_.solved);
   if (record_.solved) {
     track_alive_ = true;
@@ -535,15 +538,21 @@ void Executive::step_refine(const ImageView& image) noexcept {
 }
 
 void Executive::take_estimate() noexcept {
+  // The encoders' joints, when they are this frame's prior, bound what the
+  // image may claim (solver::check_against_encoders).
+  record_.encoder_disagrees = false;
+  if (record_.prior == PriorSource::kEncoder) {
+    const solver::EncoderCheck check{config_.loop.encoder_check_lambda_mm, config_.loop.encoder_check_bend_rad};
+    record_.encoder_disagrees = solver::check_against_encoders(estimate_, prior_r_, check);
+  }
   record_.solve_status = estimate_.summary.status;
   record_.quality = estimate_.quality;
   record_.corners_rejected = estimate_.corners_rejected;
   record_.publication.corners_used = static_cast<std::uint8_t>(estimate_.summary.corners_used);
   record_.publication.rms_px = estimate_.summary.rms_px;
-  if (estimate_.quality != solver::EstimateQuality::None) {
-    record_.solved = true;
-    last_r_ = estimate_.r;
-  }
+  // Solved as this estimate says: the refined one replaces the first
+  // solve's, and the encoders' check may leave it without a pose.
+  record_.solved = estimate_.quality != solver::EstimateQuality::None;
 }
 
 bool Executive::camera_cycle() const noexcept {

@@ -35,6 +35,7 @@ TEST(LoopConfig, ReadsEverySection) {
       "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
       "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
       "  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n  shaft_recheck: true\n  alias_check: true\n"
+      "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
       "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
       "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n";
   const auto s = parse(text, config);
@@ -54,6 +55,8 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_EQ(config.loop.fallback_seeds, 2);
   EXPECT_TRUE(config.loop.shaft_recheck);
   EXPECT_TRUE(config.loop.alias_check);
+  EXPECT_DOUBLE_EQ(config.loop.encoder_check_lambda_mm, 4.5);
+  EXPECT_DOUBLE_EQ(config.loop.encoder_check_bend_rad, 0.0);
   EXPECT_STREQ(config.can.bus, "vcan0");
   EXPECT_EQ(config.can.node_id, 33U);
   EXPECT_FALSE(config.can.autostart);
@@ -74,12 +77,21 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
   ASSERT_FALSE(s.ok());
   s = parse("rt:\n  lock_memory: maybe\n", config);
   ASSERT_FALSE(s.ok());
-  s = parse("loop:\n  classify_step: 3\n", config);
-  ASSERT_FALSE(s.ok());
-  EXPECT_STREQ(s.error().field, "loop.classify_step");
-  s = parse("loop:\n  fallback_seeds: 4\n", config);
-  ASSERT_FALSE(s.ok());
-  EXPECT_STREQ(s.error().field, "loop.fallback_seeds");
+  // Out-of-range values name their field.
+  const struct {
+    const char* text;
+    const char* field;
+  } bad[] = {
+      {"loop:\n  classify_step: 3\n", "loop.classify_step"},
+      {"loop:\n  fallback_seeds: 4\n", "loop.fallback_seeds"},
+      {"loop:\n  encoder_check_bend_rad: -0.1\n", "loop.encoder_check_bend_rad"},
+      {"loop:\n  encoder_check_lambda_mm: nan\n", "loop.encoder_check_lambda_mm"},
+  };
+  for (const auto& b : bad) {
+    s = parse(b.text, config);
+    ASSERT_FALSE(s.ok()) << b.text;
+    EXPECT_STREQ(s.error().field, b.field);
+  }
   ASSERT_TRUE(parse("loop:\n  classify_step: auto\n", config).ok());
   EXPECT_EQ(config.loop.classify_step, 0);
 }

@@ -160,6 +160,30 @@ TEST(Executive, FreshEncoderPriorIsUsedAndAStaleOneIsNot) {
   EXPECT_EQ(rig.loop->last().prior, PriorSource::kTemporal);
 }
 
+// Encoders that disagree with the image beyond their accuracy (loop.
+// encoder_check_*): the estimate loses one level, and publishes degraded
+// instead of valid; with the check off it stays valid.
+TEST(Executive, AnEstimateFarFromTheEncodersIsPublishedOneLevelLower) {
+  for (const bool check_on : {true, false}) {
+    Rig rig(10U);
+    if (!check_on) {
+      rig.config.loop.encoder_check_lambda_mm = 0.0;
+      rig.config.loop.encoder_check_bend_rad = 0.0;
+      rig.build(rig.source.get());
+    }
+    const auto r = rig.motion.pose(rig.model.geometry(), 0U);
+    rig.node.inject_prior(JointPrior{r[solver::kLambda] + 9.0, r[solver::kPhi], r[solver::kTheta]},
+                          rig.clock.now_ns());
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+    const CycleRecord& last = rig.loop->last();
+    ASSERT_EQ(last.prior, PriorSource::kEncoder);
+    ASSERT_TRUE(last.solved);
+    EXPECT_NEAR(last.publication.r[solver::kLambda], r[solver::kLambda], 0.5);  // the image's, not the encoders'
+    EXPECT_EQ(last.encoder_disagrees, check_on);
+    EXPECT_EQ(last.publication.status, check_on ? EstimateStatus::kDegraded : EstimateStatus::kValid);
+  }
+}
+
 TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
   Rig rig(40U);
   for (int i = 0; i < 5; ++i) {

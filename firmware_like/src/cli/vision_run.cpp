@@ -275,7 +275,10 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   const solver::SolveMode mode = fixed_model_ ? solver::SolveMode::FixedModel : solver::SolveMode::Adaptive;
   const vision::GuidedResult guided = vision::guided_estimate(fx, *estimator_, setup_.camera, setup_.instrument, image,
                                                               status.ok(), mode, start, guided_);
-  const solver::Estimate& estimate = guided.estimate;
+  solver::Estimate estimate = guided.estimate;
+  if (prior_joints != nullptr) {  // `start` holds the encoders' joints
+    out.encoder_disagrees = solver::check_against_encoders(estimate, start, encoder_check_);
+  }
   const vision::Extraction& e = fx.result();
   const auto t6 = std::chrono::steady_clock::now();
   out.summary = estimate.summary;

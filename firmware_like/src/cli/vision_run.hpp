@@ -65,6 +65,7 @@ struct EstimateResult {
   solver::SolveSummary summary{};
   int corners_rejected = 0;  // dropped as disagreeing with the model at the estimate
   int guided_rounds = 0;     // model-guided rounds kept (0: stage 4's corners)
+  bool encoder_disagrees = false;  // demoted one level: beyond the encoders' accuracy (solver::check_against_encoders)
   bool extraction_ok = false;
   const char* extraction_error = "";
   StageTimes times{};
@@ -82,6 +83,8 @@ class EstimatePipeline {
   const ModelSetup& setup() const noexcept { return setup_; }
   // The model-guided rounds after the first solve (0: stage 4's corners only).
   vision::GuidedOptions& guided_options() noexcept { return guided_; }
+  // The estimate checked against the encoders' joints when a frame has them.
+  solver::EncoderCheck& encoder_check() noexcept { return encoder_check_; }
   // Overlay of the last frame (extraction, model at the estimate, TCP) into `pixels`.
   void draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept;
 
@@ -91,6 +94,7 @@ class EstimatePipeline {
   std::unique_ptr<solver::PoseEstimator> estimator_;
   vision::TemporalPriors temporal_{};
   vision::GuidedOptions guided_{};
+  solver::EncoderCheck encoder_check_{};
   bool fixed_model_ = false;
   bool have_previous_ = false;
   solver::PoseVector previous_r_ = solver::PoseVector::Zero();

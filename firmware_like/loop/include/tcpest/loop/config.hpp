@@ -38,6 +38,11 @@ struct LoopSettings {
   int track_drop_after = 5;            // consecutive failed frames before the track is dropped
   int min_corners_valid = 6;           // fewer corners used: status "degraded"
   double max_rms_valid_px = 2.0;       // larger RMS reprojection error: status "degraded"
+  // An estimate farther than these from the encoders' joints (when the
+  // frame's prior is theirs) loses one level: valid -> degraded -> held
+  // (solver::EncoderCheck; twice model.md's coarse prior; 0 = not checked).
+  double encoder_check_lambda_mm = 6.0;
+  double encoder_check_bend_rad = 0.5;  // |theta (cos phi, sin phi) - theirs|
   int outlier_rounds = 2;              // re-solves without corners far from the model (0..4; solver::EstimateOptions)
   int guided_rounds = 1;               // model-guided corner rounds after the first solve (0..4; 0: stage 4's corners)
   int fallback_seeds = 1;              // image fits from other seeds on a frame not yet valid (0..3; vision::GuidedOptions)

@@ -65,6 +65,7 @@ struct CycleRecord {
   solver::SolveStatus solve_status = solver::SolveStatus::InvalidInput;
   solver::EstimateQuality quality = solver::EstimateQuality::None;
   int corners_rejected = 0;         // dropped as disagreeing with the model at the estimate
+  bool encoder_disagrees = false;   // demoted one level: beyond the encoders' accuracy (loop.encoder_check_*)
   bool solved = false;              // quality != None
   bool refined = false;             // the model-guided rounds gave the estimate
   Publication publication{};        // what this cycle's estimate is (sent now or at the next tick)
