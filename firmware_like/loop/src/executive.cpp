@@ -137,6 +137,10 @@ Result<std::unique_ptr<Executive>, LoopError> Executive::create(const LoopConfig
   if (!solver::options_valid(estimate_options)) {
     return R::failure(LoopError::kBadConfig);
   }
+  loop->encoder_check_ = solver::EncoderCheck{config.loop.encoder_check_lambda_mm, config.loop.encoder_check_bend_rad};
+  if (!solver::encoder_check_valid(loop->encoder_check_)) {
+    return R::failure(LoopError::kBadConfig);
+  }
   loop->estimator_.reset(new (std::nothrow) solver::PoseEstimator(*parts.camera, *parts.instrument, estimate_options));
   if (!loop->frame_buffer_ || !loop->stats_ || !loop->estimator_) {
     return R::failure(LoopError::kOutOfMemory);
@@ -542,8 +546,7 @@ void Executive::take_estimate() noexcept {
   // image may claim (solver::check_against_encoders).
   record_.encoder_disagrees = false;
   if (record_.prior == PriorSource::kEncoder) {
-    const solver::EncoderCheck check{config_.loop.encoder_check_lambda_mm, config_.loop.encoder_check_bend_rad};
-    record_.encoder_disagrees = solver::check_against_encoders(estimate_, prior_r_, check);
+    record_.encoder_disagrees = solver::check_against_encoders(estimate_, prior_r_, encoder_check_);
   }
   record_.solve_status = estimate_.summary.status;
   record_.quality = estimate_.quality;

@@ -184,6 +184,21 @@ TEST(Executive, AnEstimateFarFromTheEncodersIsPublishedOneLevelLower) {
   }
 }
 
+// A tolerance the configuration reader would refuse, set in code: refused
+// at start-up, not met in the cycle.
+TEST(Executive, ANonFiniteEncoderToleranceIsRefusedAtStartUp) {
+  Rig rig(1U);
+  rig.config.loop.encoder_check_bend_rad = std::nan("");
+  LoopParts parts;
+  parts.source = rig.source.get();
+  parts.clock = &rig.clock;
+  parts.pipeline = &rig.pipeline;
+  parts.node = &rig.node;
+  parts.camera = &rig.camera;
+  parts.instrument = &rig.model;
+  EXPECT_EQ(Executive::create(rig.config, parts).error(), LoopError::kBadConfig);
+}
+
 TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
   Rig rig(40U);
   for (int i = 0; i < 5; ++i) {

@@ -83,8 +83,6 @@ class EstimatePipeline {
   const ModelSetup& setup() const noexcept { return setup_; }
   // The model-guided rounds after the first solve (0: stage 4's corners only).
   vision::GuidedOptions& guided_options() noexcept { return guided_; }
-  // The estimate checked against the encoders' joints when a frame has them.
-  solver::EncoderCheck& encoder_check() noexcept { return encoder_check_; }
   // Overlay of the last frame (extraction, model at the estimate, TCP) into `pixels`.
   void draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept;
 
@@ -94,7 +92,7 @@ class EstimatePipeline {
   std::unique_ptr<solver::PoseEstimator> estimator_;
   vision::TemporalPriors temporal_{};
   vision::GuidedOptions guided_{};
-  solver::EncoderCheck encoder_check_{};
+  solver::EncoderCheck encoder_check_{};  // applied when a frame has the encoders' joints (docs/solver.md)
   bool fixed_model_ = false;
   bool have_previous_ = false;
   solver::PoseVector previous_r_ = solver::PoseVector::Zero();

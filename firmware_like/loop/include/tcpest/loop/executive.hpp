@@ -179,6 +179,7 @@ class Executive {
   MutableImageView frame_view_{};
   std::unique_ptr<LoopStats> stats_;
   std::unique_ptr<solver::PoseEstimator> estimator_;
+  solver::EncoderCheck encoder_check_{};  // from loop.encoder_check_*, checked at create()
   solver::Estimate estimate_{};
   CycleObserver* observer_ = nullptr;
   CycleRecord record_{};
