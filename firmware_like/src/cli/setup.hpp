@@ -19,7 +19,8 @@ constexpr OptionSpec kGuidedRoundsOption{"guided-rounds", "N",
                                          "model-guided corner rounds after the first solve, 0..4 (default 1; 0: stage 4's "
                                          "corners, the paper's pipeline)"};
 constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
-                                          "image fits from other seeds (the prior's pose, the regions' pose) on a frame "
+                                          "image fits from other seeds (the prior's pose, the same without its class fit, "
+                                          "the regions' pose) on a frame "
                                           "not yet valid, 0..3 (default 3; the loop's loop.fallback_seeds: 1)"};
 
 struct ModelSetup {

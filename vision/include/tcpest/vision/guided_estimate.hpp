@@ -71,9 +71,10 @@ struct GuidedOptions {
   // valid, the start (its channel from the shaft) is also tried as it is,
   // without the class fit (`start_unmoved`). It counts as one of the
   // `fallback_seeds`, tried second (the loop's 1 leaves it out; with 2
-  // the regions' seed is not tried), and its result is kept only if better (the rule above) and its fit read no
-  // fewer boundaries than the current result's: the class fit's seed may
-  // have read a smeared tube more fully (docs/vision.md, "Occluders").
+  // the regions' seed is not tried), and its result is kept only if
+  // better (the rule above) and its fit read no fewer boundaries than the
+  // current result's: the class fit's seed may have read a smeared tube
+  // more fully (docs/vision.md, "Occluders").
   bool start_unmoved = true;
   // A valid result is checked against the shaft: when the shaft's fit moves
   // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
