@@ -130,32 +130,52 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
 }
 
 // The fallback seeds (GuidedOptions), each kept in `out` when better.
-// True when the start was also tried without its class fit.
+// True when the start was also tried without its class fit;
+// `insertion_tried` when it was moved along the insertion.
 bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                         const solver::CameraModel& camera, const solver::InstrumentModel& model,
                         const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
-                        const solver::PoseVector& start, const GuidedOptions& options, GuidedResult& out) noexcept {
+                        const solver::PoseVector& start, const GuidedOptions& options, GuidedResult& out,
+                        bool& insertion_tried) noexcept {
   // The fit from other seeds, each moved onto the class image
   // first (class_fit) and fitted from a coarse start. Seed 0: `start` (the
   // encoders' or the track's pose; start_seed), measured the more useful of
   // the two (docs/vision.md), then, when not valid, the same start without
   // its class fit (start_unmoved); seed 1: the rough pose of the labelled
-  // regions (from_regions), when seed 0 did not give a valid estimate.
+  // regions (from_regions), when seed 0 did not give a valid estimate;
+  // seeds 2 and 3: the start moved forth and back along the insertion
+  // (insertion_seed_step_mm), their results kept only nearer to the start.
+  constexpr int kStartSeed = 0;
+  constexpr int kRegionsSeed = 1;
+  constexpr int kSeedIndices = 4;
   int seeds_tried = 0;
+  insertion_tried = false;
   bool unmoved_tried = false;
-  for (int seed_index = 0; seed_index < 2; ++seed_index) {
+  for (int seed_index = 0; seed_index < kSeedIndices; ++seed_index) {
     if (out.estimate.quality == solver::EstimateQuality::Valid || seeds_tried >= options.fallback_seeds) {
       break;
     }
     solver::PoseVector seed_r = start;
-    if (seed_index == 0) {
+    SeedRule rule;
+    const bool insertion_seed = seed_index > kRegionsSeed;
+    if (seed_index == kStartSeed) {
       if (!options.start_seed || !start.allFinite()) {
         continue;
       }
-    } else {
+    } else if (seed_index == kRegionsSeed) {
       if (!options.from_regions || !extractor.pose_from_regions(camera, model, seed_r).ok()) {
         continue;
       }
+    } else {
+      if (!(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
+        continue;
+      }
+      seed_r[solver::kLambda] += seed_index == kRegionsSeed + 1 ? options.insertion_seed_step_mm
+                                                                 : -options.insertion_seed_step_mm;
+      if (!(seed_r[solver::kLambda] > 0.0)) {
+        continue;
+      }
+      rule.near_lambda_mm = start[solver::kLambda];
     }
     // The channel's pose from the shaft first (when it is seen), so that
     // the class fit need only find the joints.
@@ -181,21 +201,24 @@ bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
       }
     }
     ++seeds_tried;
-    if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out)) {
-      out.from_start = seed_index == 0;
-      out.from_regions = seed_index == 1;
+    insertion_tried = insertion_tried || insertion_seed;
+    if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, rule)) {
+      out.from_start = seed_index == kStartSeed;
+      out.from_regions = seed_index == kRegionsSeed;
       out.from_unmoved = false;
+      out.from_insertion = insertion_seed;
     }
-    if (seed_index == 0 && options.class_fit && options.start_unmoved &&
+    if (seed_index == kStartSeed && options.class_fit && options.start_unmoved &&
         out.estimate.quality != solver::EstimateQuality::Valid && seeds_tried < options.fallback_seeds) {
       ++seeds_tried;
-      SeedRule rule;
-      rule.no_fewer_boundaries = true;  // a class-fitted seed may have read a smeared tube more fully
+      SeedRule unmoved_rule;
+      unmoved_rule.no_fewer_boundaries = true;  // a class-fitted seed may have read a smeared tube more fully
       unmoved_tried = true;
-      if (try_seed(extractor, estimator, camera, model, image, mode, first, unmoved, options, out, rule)) {
+      if (try_seed(extractor, estimator, camera, model, image, mode, first, unmoved, options, out, unmoved_rule)) {
         out.from_start = true;
         out.from_unmoved = true;
         out.from_regions = false;
+        out.from_insertion = false;
       }
     }
   }
@@ -273,12 +296,16 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   // them (stage 1 or 2 failed) the fit would read whatever edges lie where
   // the seed puts the instrument.
   bool unmoved_tried = false;
+  bool insertion_tried = false;
   if (options.rounds > 0 && out.estimate.quality != solver::EstimateQuality::Valid &&
       extractor.result().interpretation.found_count >= kMinSeedMarkers) {
-    unmoved_tried = try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out);
+    unmoved_tried =
+        try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out, insertion_tried);
   }
   static_cast<void>(try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out));
-  out.unmoved_tried = unmoved_tried;  // after every seed: a kept result's flags come from its own rounds
+  // After every seed: a kept result's flags come from its own rounds.
+  out.unmoved_tried = unmoved_tried;
+  out.insertion_tried = insertion_tried;
   return out;
 }
 

@@ -204,7 +204,8 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   const std::vector<std::uint8_t> blurred = f.pixels;
   int streaked = 0;
   // An occluded frame (hard frame 108) whose start seed's result is not
-  // valid: the start is also tried without its class fit.
+  // valid: the start is also tried without its class fit, and moved along
+  // the insertion.
   solver::PoseVector occluded_r;
   occluded_r << -15.843518569, 4.32930613471, 0.222113243687, -0.00769750186993, 20.0, 0.523598775598,
       -1.74532925199;
@@ -213,6 +214,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   const solver::PoseVector occluded_encoders =
       f.model.geometry().nominal_pose(20.4331473337, 0.387191368398, -1.77151189335);
   int unmoved_tried = 0;
+  int insertion_tried = 0;
   auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
   ASSERT_TRUE(created.ok());
   auto fx = std::move(created.value());
@@ -268,6 +270,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
         const GuidedResult from_encoders = guided_estimate(*fx, estimator, f.camera, f.model, hidden, stage4_ok,
                                                            solver::SolveMode::Adaptive, occluded_encoders, options);
         unmoved_tried += from_encoders.unmoved_tried ? 1 : 0;
+        insertion_tried += from_encoders.insertion_tried ? 1 : 0;
       }
     }
     EXPECT_EQ(scope.count(), 0U);
@@ -278,6 +281,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   EXPECT_GT(region_seeded, 0);  // idem for the region pose
   EXPECT_GT(start_seeded, 0);   // and for the start seed with the class-image fit
   EXPECT_GT(unmoved_tried, 0);  // and for the start without it
+  EXPECT_GT(insertion_tried, 0);  // and for the start moved along the insertion
 }
 
 // The model-guided corners on rendered frames: from stage 4's first pose,
@@ -742,8 +746,9 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
     const solver::PoseVector prior =
         f.model.geometry().nominal_pose(scene.encoders[0], scene.encoders[1], scene.encoders[2]);
     GuidedOptions options;
-    ASSERT_EQ(options.fallback_seeds, 3);
+    ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
     ASSERT_TRUE(options.start_unmoved);
+    options.insertion_seed_step_mm = 0.0;  // the seeds before the insertion seeds (tested below)
     const GuidedRun with = guided_run(f, estimator, image, prior, options);
     options.start_unmoved = false;
     const GuidedRun without = guided_run(f, estimator, image, prior, options);
@@ -755,6 +760,54 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
     EXPECT_TRUE(with.guided.from_start);
     EXPECT_FALSE(without.guided.unmoved_tried);
     EXPECT_NE(with.guided.estimate.quality, solver::EstimateQuality::Valid);  // fewer than 3 boundaries read
+  }
+}
+
+// The encoders' insertion is known to +/- 3 mm, most of a stripe: from
+// such a start the coarse fit can settle with its boundaries a stripe from
+// their own, or read too few of them. The start moved by 2 mm along the
+// insertion (GuidedOptions::insertion_seed_step_mm, the last two
+// fallback seeds) gives these frames back: hard frames 8 and 16 (an
+// occluder; haze and noise), through the set's JPEG step.
+TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
+  Fixture f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  struct Scene {
+    double r[7];
+    double encoders[3];  // lambda mm, phi rad, theta rad
+    std::uint32_t hard_cases;
+    std::uint64_t seed;
+  };
+  const Scene scenes[] = {
+      {{-13.5115322402, 7.92692169894, 0.201610161109, -0.0146321265966, 10.0, -1.0471975512, -0.349065850399},
+       {8.40003002611, -1.23824893875, -0.291822300393},
+       render::kHardOccluder,
+       9775997355840255571ULL},
+      {{-11.9031812572, 5.87465633198, 0.185338826247, 0.0171909577028, 10.0, -0.523598775598, 1.0471975512},
+       {7.84191398796, -0.386415600319, 0.968595134165},
+       render::kHardOccluder | render::kHardHaze | render::kHardNoise,
+       11554982412516706143ULL},
+  };
+  for (const Scene& scene : scenes) {
+    static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
+    const ImageView image = f.jpeg_round_trip(92);
+    const solver::PoseVector prior =
+        f.model.geometry().nominal_pose(scene.encoders[0], scene.encoders[1], scene.encoders[2]);
+    GuidedOptions options;
+    ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
+    ASSERT_DOUBLE_EQ(options.insertion_seed_step_mm, 2.0);
+    const GuidedRun with = guided_run(f, estimator, image, prior, options);
+    options.insertion_seed_step_mm = 0.0;  // off
+    const GuidedRun without = guided_run(f, estimator, image, prior, options);
+    ASSERT_GE(with.visible, 3) << "seed " << scene.seed;
+    EXPECT_GE(with.found * 10, with.visible * 8) << "seed " << scene.seed << ": a success";
+    EXPECT_LT(without.found * 10, without.visible * 8) << "seed " << scene.seed << ": not a success";
+    EXPECT_TRUE(with.guided.insertion_tried);
+    EXPECT_TRUE(with.guided.from_insertion);
+    EXPECT_FALSE(with.guided.from_start);
+    EXPECT_FALSE(without.guided.insertion_tried);
+    EXPECT_FALSE(without.guided.from_insertion);
+    EXPECT_NEAR(with.guided.estimate.r[solver::kLambda], scene.r[solver::kLambda], 3.0);
   }
 }
 

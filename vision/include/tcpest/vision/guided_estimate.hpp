@@ -50,14 +50,14 @@ struct GuidedOptions {
   // silhouette points with a residual below prefer_fit_rms_ratio times the
   // current's); else valid over degraded; at the same quality, a
   // fit-confirmed one over stage 4's, then the lower fit residual
-  // (docs/vision.md). Bounded: at most `fallback_seeds` (0..3)
+  // (docs/vision.md). Bounded: at most `fallback_seeds` (0..5)
   // seeds per frame, only on frames not yet valid (each about 1-3 ms at PAL,
   // docs/vision.md).
   bool prefer_fit_confirmed = true;   // the first of those rules (false: off)
   double prefer_fit_rms_ratio = 0.7;  // the second (0: off)
   bool start_seed = true;
   bool from_regions = true;
-  int fallback_seeds = 3;
+  int fallback_seeds = 5;
   // Each fallback seed's channel pose is first fitted to the shaft's
   // silhouette (`shaft_fit`: FeatureExtractor::fit_channel_to_shaft), then
   // the seed is moved onto the class image (`class_fit`:
@@ -76,6 +76,18 @@ struct GuidedOptions {
   // current result's: the class fit's seed may have read a smeared tube
   // more fully (docs/vision.md, "Occluders").
   bool start_unmoved = true;
+  // The encoders' insertion is known to +/- 3 mm (model.md), most of a
+  // stripe (3.7 mm): from a start that far along, the coarse fit can settle
+  // with every boundary one stripe from its own. So after the seeds above,
+  // when still not valid, the start is tried moved by
+  // +insertion_seed_step_mm and then -insertion_seed_step_mm along the
+  // insertion (shaft fit and class fit as for the start), each counted as
+  // one of the `fallback_seeds` (the last two; a seed not available, such
+  // as the regions' pose, leaves its count to the next); their result is kept
+  // only if better (the rule above) and its insertion nearer to the
+  // start's than the current result's, so that a seed cannot carry the fit
+  // two stripes along (0: off; docs/vision.md, "Insertion seeds").
+  double insertion_seed_step_mm = 2.0;
   // A valid result is checked against the shaft: when the shaft's fit moves
   // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
   // tried again from that channel pose (coarse start) and the better result
@@ -98,7 +110,7 @@ struct GuidedOptions {
   bool alias_fine_start = true;
 };
 constexpr int kMaxGuidedRounds = 4;
-constexpr int kMaxFallbackSeeds = 3;
+constexpr int kMaxFallbackSeeds = 5;
 
 struct GuidedResult {
   solver::Estimate estimate{};
@@ -108,6 +120,8 @@ struct GuidedResult {
   bool from_start = false;        // the rounds started from the start pose (start_seed)
   bool unmoved_tried = false;     // the start was also tried without its class fit (start_unmoved)
   bool from_unmoved = false;      // ... and that result was kept (from_start is then true too)
+  bool from_insertion = false;    // the rounds started from the start moved along the insertion
+  bool insertion_tried = false;   // the start was also tried moved along the insertion
   bool shaft_rechecked = false;   // a valid result was tried again from the shaft's channel pose
   bool alias_checked = false;     // the result was tried again two stripes along (alias_check)
   bool from_alias = false;        // ... and that result was kept
