@@ -113,7 +113,10 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
   const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
   const GuidedResult tried =
       rounds_from(extractor, estimator, camera, model, image, mode, seed, options, rule.coarse_start);
-  const bool nearer = std::isnan(rule.near_lambda_mm) ||
+  // Compared with a fit-confirmed result only: without a round kept, out's
+  // pose is stage 4's solve or, with none, the start itself (nothing is
+  // nearer to it).
+  const bool nearer = std::isnan(rule.near_lambda_mm) || out.rounds_kept == 0 ||
                       std::fabs(tried.estimate.r[solver::kLambda] - rule.near_lambda_mm) <
                           std::fabs(out.estimate.r[solver::kLambda] - rule.near_lambda_mm);
   const bool read_enough =
@@ -167,7 +170,7 @@ bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
         continue;
       }
     } else {
-      if (!(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
+      if (!options.start_seed || !(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
         continue;
       }
       seed_r[solver::kLambda] += seed_index == kRegionsSeed + 1 ? options.insertion_seed_step_mm

@@ -768,7 +768,10 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
 // their own, or read too few of them. The start moved by 2 mm along the
 // insertion (GuidedOptions::insertion_seed_step_mm, the last two
 // fallback seeds) gives these frames back: hard frames 8 and 16 (an
-// occluder; haze and noise), through the set's JPEG step.
+// occluder; haze and noise), through the set's JPEG step; and hard frame
+// 60, where no other seed gives a pose: the seed's insertion is compared
+// with a fit-confirmed result's only (the start itself is nearest to the
+// start).
 TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);
@@ -787,7 +790,12 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
        {7.84191398796, -0.386415600319, 0.968595134165},
        render::kHardOccluder | render::kHardHaze | render::kHardNoise,
        11554982412516706143ULL},
+      {{-11.9981585214, 6.19300764087, 0.294920323017, -0.102468160698, 15.0, 0.0, -1.74532925199},
+       {16.3023482797, 0.0765760552327, -1.69491644234},
+       render::kHardDecoy,
+       8437888975762272235ULL},
   };
+  const std::uint64_t kNoPoseWithout = 8437888975762272235ULL;  // hard frame 60
   for (const Scene& scene : scenes) {
     static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
     const ImageView image = f.jpeg_round_trip(92);
@@ -808,6 +816,10 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
     EXPECT_FALSE(without.guided.insertion_tried);
     EXPECT_FALSE(without.guided.from_insertion);
     EXPECT_NEAR(with.guided.estimate.r[solver::kLambda], scene.r[solver::kLambda], 3.0);
+    EXPECT_NE(with.guided.estimate.quality, solver::EstimateQuality::None);
+    if (scene.seed == kNoPoseWithout) {
+      EXPECT_EQ(without.guided.estimate.quality, solver::EstimateQuality::None);
+    }
   }
 }
 

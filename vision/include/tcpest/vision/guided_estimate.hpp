@@ -83,10 +83,11 @@ struct GuidedOptions {
   // +insertion_seed_step_mm and then -insertion_seed_step_mm along the
   // insertion (shaft fit and class fit as for the start), each counted as
   // one of the `fallback_seeds` (the last two; a seed not available, such
-  // as the regions' pose, leaves its count to the next); their result is kept
-  // only if better (the rule above) and its insertion nearer to the
-  // start's than the current result's, so that a seed cannot carry the fit
-  // two stripes along (0: off; docs/vision.md, "Insertion seeds").
+  // as the regions' pose, leaves its count to the next); their result is
+  // kept only if better (the rule above) and, against a fit-confirmed
+  // result, its insertion nearer to the start's, so that a seed cannot
+  // carry the fit two stripes along (0: off, and off with start_seed;
+  // docs/vision.md, "Insertion seeds").
   double insertion_seed_step_mm = 2.0;
   // A valid result is checked against the shaft: when the shaft's fit moves
   // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
