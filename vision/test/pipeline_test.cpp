@@ -155,6 +155,29 @@ GuidedRun guided_run(Fixture& f, solver::PoseEstimator& estimator, const ImageVi
   return run;
 }
 
+// A frame of the `hard` set: its true pose, the encoders drawn for it, its
+// hard cases and its render seed (from its sidecar).
+struct HardScene {
+  double r[7];
+  double encoders[3];  // lambda mm, phi rad, theta rad
+  std::uint32_t hard_cases;
+  std::uint64_t seed;
+};
+
+// The start a hard scene's encoders give (the channel at its CAD pose).
+solver::PoseVector encoders_start(const Fixture& f, const HardScene& scene) {
+  return f.model.geometry().nominal_pose(scene.encoders[0], scene.encoders[1], scene.encoders[2]);
+}
+
+// `with` is a success by the evaluation's criterion (80 % of its visible
+// corners, at least `min_visible` of them) and `without` is not.
+void expect_success_only_with(const GuidedRun& with, const GuidedRun& without, int min_visible,
+                              std::uint64_t scene_seed) {
+  ASSERT_GE(with.visible, min_visible) << "seed " << scene_seed;
+  EXPECT_GE(with.found * 10, with.visible * 8) << "seed " << scene_seed << ": a success";
+  EXPECT_LT(without.found * 10, without.visible * 8) << "seed " << scene_seed << ": not a success";
+}
+
 TEST(Pipeline, FindsTheMarkerChainAndCornersOnARenderedFrame) {
   Fixture f;
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
@@ -727,24 +750,19 @@ TEST(Pipeline, AFitThatReadsOneBoundaryAndTheSilhouetteGivesItsCornersAndADegrad
 TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);
-  struct Scene {
-    double r[7];
-    double encoders[3];  // lambda mm, phi rad, theta rad
-    std::uint64_t seed;
-  };
-  const Scene scenes[] = {
+  const HardScene scenes[] = {
       {{-15.843518569, 4.32930613471, 0.222113243687, -0.00769750186993, 20.0, 0.523598775598, -1.74532925199},
        {20.4331473337, 0.387191368398, -1.77151189335},
+       render::kHardOccluder,
        5852092909541815619ULL},
       {{-11.7367352042, 4.81216507588, 0.223963221216, -0.0228343674795, 25.0, -1.57079632679, 0.349065850399},
        {23.7630606218, -1.47977447104, 0.393082427935},
+       render::kHardOccluder,
        621544379441551376ULL},
   };
-  for (const Scene& scene : scenes) {
-    const solver::PoseVector scene_r = pose_of(scene.r);
-    const ImageView image = f.render_r(scene_r, render::kHardOccluder, scene.seed);
-    const solver::PoseVector prior =
-        f.model.geometry().nominal_pose(scene.encoders[0], scene.encoders[1], scene.encoders[2]);
+  for (const HardScene& scene : scenes) {
+    const ImageView image = f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed);
+    const solver::PoseVector prior = encoders_start(f, scene);
     GuidedOptions options;
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
     ASSERT_TRUE(options.start_unmoved);
@@ -752,9 +770,7 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
     const GuidedRun with = guided_run(f, estimator, image, prior, options);
     options.start_unmoved = false;
     const GuidedRun without = guided_run(f, estimator, image, prior, options);
-    ASSERT_GE(with.visible, 4) << "seed " << scene.seed;
-    EXPECT_GE(with.found * 10, with.visible * 8) << "seed " << scene.seed << ": a success";
-    EXPECT_LT(without.found * 10, without.visible * 8) << "seed " << scene.seed << ": not a success";
+    expect_success_only_with(with, without, 4, scene.seed);
     EXPECT_TRUE(with.guided.unmoved_tried);
     EXPECT_TRUE(with.guided.from_unmoved);
     EXPECT_TRUE(with.guided.from_start);
@@ -775,13 +791,7 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
 TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);
-  struct Scene {
-    double r[7];
-    double encoders[3];  // lambda mm, phi rad, theta rad
-    std::uint32_t hard_cases;
-    std::uint64_t seed;
-  };
-  const Scene scenes[] = {
+  const HardScene scenes[] = {
       {{-13.5115322402, 7.92692169894, 0.201610161109, -0.0146321265966, 10.0, -1.0471975512, -0.349065850399},
        {8.40003002611, -1.23824893875, -0.291822300393},
        render::kHardOccluder,
@@ -796,20 +806,17 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
        8437888975762272235ULL},
   };
   const std::uint64_t kNoPoseWithout = 8437888975762272235ULL;  // hard frame 60
-  for (const Scene& scene : scenes) {
+  for (const HardScene& scene : scenes) {
     static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
     const ImageView image = f.jpeg_round_trip(92);
-    const solver::PoseVector prior =
-        f.model.geometry().nominal_pose(scene.encoders[0], scene.encoders[1], scene.encoders[2]);
+    const solver::PoseVector prior = encoders_start(f, scene);
     GuidedOptions options;
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
     ASSERT_DOUBLE_EQ(options.insertion_seed_step_mm, 2.0);
     const GuidedRun with = guided_run(f, estimator, image, prior, options);
     options.insertion_seed_step_mm = 0.0;  // off
     const GuidedRun without = guided_run(f, estimator, image, prior, options);
-    ASSERT_GE(with.visible, 3) << "seed " << scene.seed;
-    EXPECT_GE(with.found * 10, with.visible * 8) << "seed " << scene.seed << ": a success";
-    EXPECT_LT(without.found * 10, without.visible * 8) << "seed " << scene.seed << ": not a success";
+    expect_success_only_with(with, without, 3, scene.seed);
     EXPECT_TRUE(with.guided.insertion_tried);
     EXPECT_TRUE(with.guided.from_insertion);
     EXPECT_FALSE(with.guided.from_start);
