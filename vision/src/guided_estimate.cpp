@@ -132,14 +132,19 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
   return false;
 }
 
+// Which of the start's variants the fallback seeds tried (GuidedResult's
+// unmoved_tried and insertion_tried).
+struct SeedsTried {
+  bool unmoved = false;
+  bool insertion = false;
+};
+
 // The fallback seeds (GuidedOptions), each kept in `out` when better.
-// True when the start was also tried without its class fit;
-// `insertion_tried` when it was moved along the insertion.
-bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
-                        const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                        const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
-                        const solver::PoseVector& start, const GuidedOptions& options, GuidedResult& out,
-                        bool& insertion_tried) noexcept {
+SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
+                              const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                              const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
+                              const solver::PoseVector& start, const GuidedOptions& options,
+                              GuidedResult& out) noexcept {
   // The fit from other seeds, each moved onto the class image
   // first (class_fit) and fitted from a coarse start. Seed 0: `start` (the
   // encoders' or the track's pose; start_seed), measured the more useful of
@@ -147,20 +152,21 @@ bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
   // its class fit (start_unmoved); seed 1: the rough pose of the labelled
   // regions (from_regions), when seed 0 did not give a valid estimate;
   // seeds 2 and 3: the start moved forth and back along the insertion
-  // (insertion_seed_step_mm), their results kept only nearer to the start.
+  // (insertion_seed_step_mm), their results kept against a fit-confirmed
+  // one only when nearer to the start's insertion.
   constexpr int kStartSeed = 0;
   constexpr int kRegionsSeed = 1;
+  constexpr int kInsertionForthSeed = 2;
   constexpr int kSeedIndices = 4;
   int seeds_tried = 0;
-  insertion_tried = false;
-  bool unmoved_tried = false;
+  SeedsTried tried{};
   for (int seed_index = 0; seed_index < kSeedIndices; ++seed_index) {
     if (out.estimate.quality == solver::EstimateQuality::Valid || seeds_tried >= options.fallback_seeds) {
       break;
     }
     solver::PoseVector seed_r = start;
     SeedRule rule;
-    const bool insertion_seed = seed_index > kRegionsSeed;
+    const bool insertion_seed = seed_index >= kInsertionForthSeed;
     if (seed_index == kStartSeed) {
       if (!options.start_seed || !start.allFinite()) {
         continue;
@@ -173,8 +179,8 @@ bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
       if (!options.start_seed || !(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
         continue;
       }
-      seed_r[solver::kLambda] += seed_index == kRegionsSeed + 1 ? options.insertion_seed_step_mm
-                                                                 : -options.insertion_seed_step_mm;
+      seed_r[solver::kLambda] += seed_index == kInsertionForthSeed ? options.insertion_seed_step_mm
+                                                                   : -options.insertion_seed_step_mm;
       if (!(seed_r[solver::kLambda] > 0.0)) {
         continue;
       }
@@ -204,7 +210,7 @@ bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
       }
     }
     ++seeds_tried;
-    insertion_tried = insertion_tried || insertion_seed;
+    tried.insertion = tried.insertion || insertion_seed;
     if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, rule)) {
       out.from_start = seed_index == kStartSeed;
       out.from_regions = seed_index == kRegionsSeed;
@@ -216,7 +222,7 @@ bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
       ++seeds_tried;
       SeedRule unmoved_rule;
       unmoved_rule.no_fewer_boundaries = true;  // a class-fitted seed may have read a smeared tube more fully
-      unmoved_tried = true;
+      tried.unmoved = true;
       if (try_seed(extractor, estimator, camera, model, image, mode, first, unmoved, options, out, unmoved_rule)) {
         out.from_start = true;
         out.from_unmoved = true;
@@ -225,7 +231,7 @@ bool try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& esti
       }
     }
   }
-  return unmoved_tried;
+  return tried;
 }
 
 // Two stripes along the tube the colours repeat (blue, yellow, blue): with
@@ -298,17 +304,15 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   // Not valid yet: the fallback seeds. They need labelled markers: without
   // them (stage 1 or 2 failed) the fit would read whatever edges lie where
   // the seed puts the instrument.
-  bool unmoved_tried = false;
-  bool insertion_tried = false;
+  SeedsTried tried{};
   if (options.rounds > 0 && out.estimate.quality != solver::EstimateQuality::Valid &&
       extractor.result().interpretation.found_count >= kMinSeedMarkers) {
-    unmoved_tried =
-        try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out, insertion_tried);
+    tried = try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out);
   }
   static_cast<void>(try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out));
   // After every seed: a kept result's flags come from its own rounds.
-  out.unmoved_tried = unmoved_tried;
-  out.insertion_tried = insertion_tried;
+  out.unmoved_tried = tried.unmoved;
+  out.insertion_tried = tried.insertion;
   return out;
 }
 
