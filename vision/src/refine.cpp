@@ -987,6 +987,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
         double tau = 0.0;
         const Crossing read =
             refiner.crossing(p, normal, window_mm * px_per_mm, colours, config_.refine_smear_clear_reach, tau);
+        if (colours.margin && read != Crossing::kNone) {
+          // The tip arc (j = 0 is not read): under the streak read in an
+          // earlier iteration (zero on a sharp frame), refine_smear_tip_bias.
+          tau += config_.refine_smear_tip_bias * std::fabs(streak_px.dot(normal));
+        }
         if (read == Crossing::kSharp) {
           push_reading(rd, normal, tau, p);
           ++on_this;

@@ -830,6 +830,43 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
   }
 }
 
+// Motion blur smears the tip arc's colour change (blue to the grey
+// grasper) along the tube, and the blue margin's zero then lies where the
+// mix is about 65 % blue, short of the boundary by 15 % of the smear
+// (ExtractorConfig::refine_smear_tip_bias). Moved back by that share of the
+// streak the image fit reads, the fit's boundaries agree again: hard frames
+// 38, 136 and 192 (each with motion blur) succeed only with the correction.
+TEST(Pipeline, TheTipArcUnderASmearIsReadAtTheBoundaryItself) {
+  Fixture f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const HardScene scenes[] = {
+      {{-14.0557394397, 7.17838882353, 0.180135768003, 0.0755596172755, 10.0, 1.57079632679, -0.349065850399},
+       {11.7684521623, 1.3944179284, -0.395322989183},
+       render::kHardOccluder | render::kHardHaze | render::kHardMotionBlur,
+       3959219094046971984ULL},
+      {{-12.4799331622, 8.69459297894, 0.143887794782, 0.103773153829, 25.0, -1.0471975512, 1.0471975512},
+       {24.4421232687, -1.06390690786, 1.09888824191},
+       render::kHardHaze | render::kHardMotionBlur,
+       9665399092365174048ULL},
+      {{-13.5853271516, 7.32847725411, 0.176402629844, 0.00152312068209, 30.0, 0.523598775598, -1.74532925199},
+       {28.8738014771, 0.588623996086, -1.9362265237},
+       render::kHardReflection | render::kHardNoise | render::kHardMotionBlur,
+       8234813845077103636ULL},
+  };
+  for (const HardScene& scene : scenes) {
+    static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
+    const ImageView image = f.jpeg_round_trip(92);
+    const solver::PoseVector prior = encoders_start(f, scene);
+    const GuidedOptions options;
+    ExtractorConfig config;
+    ASSERT_DOUBLE_EQ(config.refine_smear_tip_bias, 0.15);
+    const GuidedRun with = guided_run(f, estimator, image, prior, options, config);
+    config.refine_smear_tip_bias = 0.0;  // off
+    const GuidedRun without = guided_run(f, estimator, image, prior, options, config);
+    expect_success_only_with(with, without, 4, scene.seed);
+  }
+}
+
 // An occluder hides the tube's tip half, seen nearly end-on: the base's
 // stripes show, and the occluder's edge over a blue stripe reads as the
 // tip's colour change. From the encoders the image fit settles on a pose

@@ -243,6 +243,13 @@ struct ExtractorConfig {
   bool refine_streak = true;
   double refine_streak_min_px = 6.0;
   double refine_streak_across_px = 5.0;
+  // Under that streak, the tip arc's colour change (blue to the grey
+  // grasper) crosses the blue margin's zero where the smeared mix is about
+  // 65 % blue (L*a*b* chroma is not linear in the mix), not at its middle:
+  // the reading lies this share of the smear across the arc short of the
+  // boundary, towards the base, and is moved back by it (docs/vision.md
+  // "The tip arc under a smear"). 0: no correction.
+  double refine_smear_tip_bias = 0.15;
   // The base boundary's arc shows no usable colour change (the shaft's
   // outline), but the first stripe's end face, the ring between the
   // shaft's radius and the tube's at s = 0, faces the camera when the
