@@ -231,6 +231,14 @@ TEST(Regions, CreateRejectsBadConfiguration) {
   EXPECT_FALSE(FeatureExtractor::create(step, default_color_model()).ok());
   step.classify_step = -1;
   EXPECT_FALSE(FeatureExtractor::create(step, default_color_model()).ok());
+  // The tip arc's share of a smear: 0 (off) to one half, never NaN.
+  ExtractorConfig tip;
+  for (const double bad_share : {-0.01, 0.51, std::nan("")}) {
+    tip.refine_smear_tip_bias = bad_share;
+    EXPECT_FALSE(FeatureExtractor::create(tip, default_color_model()).ok()) << bad_share;
+  }
+  tip.refine_smear_tip_bias = 0.0;
+  EXPECT_TRUE(FeatureExtractor::create(tip, default_color_model()).ok());
 }
 
 }  // namespace
