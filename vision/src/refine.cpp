@@ -64,7 +64,15 @@ constexpr int kStreakPeakSearchPx = 6;       // the change's peak within +/- thi
 constexpr double kStreakMinPeak = 0.01;      // linear-light contrast per px below which no width is read
 constexpr double kStreakLobeShare = 0.1;     // the peak's main lobe: contiguous samples above this share
 constexpr double kStreakSharpWidthPx = 5.8;  // measured on the sharp hard frames (docs/vision.md)
-constexpr int kMaxStreakWidths = (kNumBoundaries - 2) * kStreakArcPoints;
+// A smear across the tube shows in the silhouette's width instead: across
+// the middle of each blue stripe, where the tube's linear red is near 0
+// whatever its shading and the tissue's is high, the red step's width is
+// the smear along the silhouette's normal. Its width on a sharp frame
+// (the JPEG's luma is full resolution) is the median over the sharp hard
+// frames' blue stripes (docs/vision.md "The smear across the tube").
+constexpr double kStreakSilhouetteSharpWidthPx = 2.7;
+constexpr int kMaxStreakArcWidths = (kNumBoundaries - 2) * kStreakArcPoints;
+constexpr int kMaxStreakWidths = kMaxStreakArcWidths + 2 * kNumMarkers;
 constexpr int kMinStreakWidths = 8;
 // The silhouette's reading under a streak (Refiner::edge_across): the outer
 // end of the gradient plateau, where it falls below kOuterEndShare of its
@@ -628,7 +636,12 @@ bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& m
 // kStreakLobeShare of it); the width of a box of the lobe's variance,
 // sqrt(12 var). False when the change is faint, the lobe reaches the
 // profile's end or a sample lies outside the image.
-bool change_width(const ImageView& image, const solver::Vec2& p, const solver::Vec2& n, double& width_sq_px2) noexcept {
+// What change_width reads along the normal: a stripe boundary's chroma
+// change, or the red step at a blue stripe's silhouette.
+enum class ChangeProfile : std::uint8_t { kStripeChroma, kRed };
+
+bool change_width(const ImageView& image, const solver::Vec2& p, const solver::Vec2& n, ChangeProfile profile,
+                  double& width_sq_px2) noexcept {
   const detail::LinearLight& linear = detail::linear_light();
   std::array<double, kStreakProfile> f{};
   for (int k = 0; k < kStreakProfile; ++k) {
@@ -637,7 +650,8 @@ bool change_width(const ImageView& image, const solver::Vec2& p, const solver::V
     if (!sample(image, p.x() + t * n.x(), p.y() + t * n.y(), q)) {
       return false;
     }
-    f[static_cast<std::size_t>(k)] = linear(q.b) - 0.5 * (linear(q.r) + linear(q.g));
+    f[static_cast<std::size_t>(k)] =
+        profile == ChangeProfile::kRed ? linear(q.r) : linear(q.b) - 0.5 * (linear(q.r) + linear(q.g));
   }
   constexpr int kSlopes = 2 * kStreakReachPx + 1;
   std::array<double, kSlopes> d{};  // d[k]: the slope at t = k - kStreakReachPx
@@ -708,7 +722,7 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
       continue;
     }
     const double half = solver::kPi - limb_half;
-    for (int i = 0; i < kStreakArcPoints && count < kMaxStreakWidths; ++i) {
+    for (int i = 0; i < kStreakArcPoints && count < kMaxStreakArcWidths; ++i) {
       const double u = -kStreakArcSpan + 2.0 * kStreakArcSpan * i / (kStreakArcPoints - 1.0);
       const double a = base + solver::kPi + u * half;
       const auto point_at = [&](double angle) noexcept {
@@ -725,12 +739,33 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
       }
       const solver::Vec2 n = solver::Vec2(-tangent.y(), tangent.x()).normalized();
       double width_sq = 0.0;
-      if (!change_width(image, p, n, width_sq)) {
+      if (!change_width(image, p, n, ChangeProfile::kStripeChroma, width_sq)) {
         continue;
       }
       const auto k = static_cast<std::size_t>(count++);
       rows[k] = Eigen::Vector3d(n.x() * n.x(), 2.0 * n.x() * n.y(), n.y() * n.y());
       excess[k] = width_sq - kStreakSharpWidthPx * kStreakSharpWidthPx;
+    }
+  }
+  // The silhouette across each blue stripe's middle, both sides: the
+  // arcs' normals run along the tube, these across it.
+  for (int m = 0; m < kNumMarkers; ++m) {
+    const auto mm = static_cast<std::size_t>(m);
+    if (config.marker_classes[mm] != PixelClass::Blue) {
+      continue;
+    }
+    const double s_mid_mm = 0.5 * (g.boundaries_mm[mm] + g.boundaries_mm[mm + 1U]);
+    for (std::size_t side = 0U; side < 2U && count < kMaxStreakWidths; ++side) {
+      solver::Vec2 point;
+      solver::Vec2 normal;
+      double width_sq = 0.0;
+      if (!silhouette_at(camera, model, f, s_mid_mm, side, point, normal) ||
+          !change_width(image, point, normal, ChangeProfile::kRed, width_sq)) {
+        continue;
+      }
+      const auto k = static_cast<std::size_t>(count++);
+      rows[k] = Eigen::Vector3d(normal.x() * normal.x(), 2.0 * normal.x() * normal.y(), normal.y() * normal.y());
+      excess[k] = width_sq - kStreakSilhouetteSharpWidthPx * kStreakSilhouetteSharpWidthPx;
     }
   }
   if (count < kMinStreakWidths) {
@@ -1032,16 +1067,22 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     }
     // Under a streak of refine_streak_min_px and more, the silhouette is
     // read at its plateau's outer end where the smear across it is large
-    // (Refiner::edge_across). Only in iterations whose arcs read as
-    // smeared: a pose beside the tube reads widths from stray colour.
-    if (summary.smeared && config_.refine_streak && !streak_tried) {
+    // (Refiner::edge_across). Read once per fit: at the first iteration
+    // whose arcs read as smeared, or (a smear across the tube leaves the
+    // arcs sharp) at the first fine one that reads enough boundaries to
+    // stand on the tube, where it must be longer (a pose beside the tube
+    // reads widths from stray colour). Once read it is the frame's, for
+    // every later iteration.
+    const bool unsmeared_read = config_.refine_streak_unsmeared && !summary.smeared && !coarse_it &&
+                                boundaries >= config_.refine_streak_unsmeared_min_boundaries;
+    if ((summary.smeared || unsmeared_read) && config_.refine_streak && !streak_tried) {
       streak_tried = true;
-      if (!read_streak(image, config_, camera, model, f, streak_px) ||
-          !(streak_px.norm() >= config_.refine_streak_min_px)) {
+      const double min_px = summary.smeared ? config_.refine_streak_min_px : config_.refine_streak_unsmeared_min_px;
+      if (!read_streak(image, config_, camera, model, f, streak_px) || !(streak_px.norm() >= min_px)) {
         streak_px = solver::Vec2::Zero();
       }
     }
-    summary.streak_px = summary.smeared ? streak_px : solver::Vec2::Zero();
+    summary.streak_px = streak_px;
     refiner.use_streak(summary.streak_px);
     // Silhouette readings: both sides along the striped section, and the
     // shaft's just before the base (not counted in the acceptance: the

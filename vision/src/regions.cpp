@@ -163,7 +163,9 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
       config.irls_iterations < 1 || config.irls_iterations > 50 || config.profile_samples < 16 ||
       config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0) ||
       config.classify_step < 0 || config.classify_step > 2 ||
-      !(config.refine_smear_tip_bias >= 0.0 && config.refine_smear_tip_bias <= 0.5)) {
+      !(config.refine_smear_tip_bias >= 0.0 && config.refine_smear_tip_bias <= 0.5) ||
+      !(config.refine_streak_unsmeared_min_px >= 0.0) || config.refine_streak_unsmeared_min_boundaries < 0 ||
+      config.refine_streak_unsmeared_min_boundaries > kNumBoundaries) {
     return R::failure(VisionError::BadParameter);
   }
   std::unique_ptr<FeatureExtractor> e(new (std::nothrow) FeatureExtractor());

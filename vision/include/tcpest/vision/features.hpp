@@ -233,16 +233,27 @@ struct ExtractorConfig {
   int refine_smear_clear_reach = 3;         // samples, 1..8 (1: no smeared reading)
   double refine_smear_share = 0.5;
   int refine_smear_min_arc_readings = 20;
-  // In the iterations whose arcs read as smeared, the streak itself is read
-  // from the stripe boundaries' colour-change widths around their arcs
+  // At the first iteration whose arcs read as smeared, the streak itself is
+  // read from the stripe boundaries' colour-change widths around their
+  // arcs and the silhouette's widths across the blue stripes
   // (ImageFitSummary::streak_px). When it is refine_streak_min_px long or
-  // longer, the silhouette readings whose smear across (|streak . normal|)
-  // is refine_streak_across_px or more take the outer end of the
-  // gradient's plateau, moved in by half that smear, instead of the peak's
-  // centre, in the image fit (not in refine_corners; docs/vision.md).
+  // longer, it holds for that and every later iteration: the silhouette
+  // readings whose smear across (|streak . normal|) is
+  // refine_streak_across_px or more take the outer end of the gradient's
+  // plateau, moved in by half that smear, instead of the peak's centre, in
+  // the image fit (not in refine_corners; docs/vision.md).
   bool refine_streak = true;
   double refine_streak_min_px = 6.0;
   double refine_streak_across_px = 5.0;
+  // A smear across the tube leaves the arcs sharp, so they never read as
+  // smeared: the streak is then also read at the first fine iteration that
+  // reads refine_streak_unsmeared_min_boundaries boundaries or more (a pose
+  // on the tube), and held when refine_streak_unsmeared_min_px long or
+  // longer (a sharp frame's widths at a pose a little off can add up to
+  // 6 px; docs/vision.md "The smear across the tube").
+  bool refine_streak_unsmeared = true;
+  int refine_streak_unsmeared_min_boundaries = 4;
+  double refine_streak_unsmeared_min_px = 7.0;
   // Under that streak, the tip arc's colour change (blue to the grey
   // grasper) crosses the blue margin's zero where the smeared mix is about
   // 65 % blue (L*a*b* chroma is not linear in the mix), not at its middle:
@@ -285,7 +296,8 @@ struct ImageFitSummary {
   bool converged = false;
   bool smeared = false;         // the last iteration read the arcs as smeared (refine_smear_*)
   // The motion-blur streak (px, image; sign arbitrary) under which the last
-  // iteration read the silhouette (refine_streak_*); zero when none.
+  // iteration read the silhouette (refine_streak_*); zero when none was
+  // read or it was too short.
   solver::Vec2 streak_px = solver::Vec2::Zero();
   // Of silhouette_readings, those the gradient peak's centre gives (all of
   // them without a streak): what the validity rule counts (GuidedOptions).
@@ -344,9 +356,11 @@ class FeatureExtractor {
   // arbitrary): each stripe boundary is a sharp colour change between
   // surfaces shaded alike, so along an arc point's image normal n its
   // change is as wide as the streak along n (with the width of a sharp
-  // change, 5.8 px); the arcs' turning normals give the streak. The image
-  // fit reads it so (ImageFitSummary::streak_px). Fails with NoInstrument
-  // when too few arc points read a width (docs/vision.md).
+  // change, 5.8 px); the arcs' turning normals give the streak along the
+  // tube, and the red step across each blue stripe's silhouette (2.7 px
+  // when sharp) gives it across. The image fit reads it so
+  // (ImageFitSummary::streak_px). Fails with NoInstrument when too few
+  // points read a width (docs/vision.md).
   Status<VisionError> read_motion_streak(const ImageView& image, const solver::CameraModel& camera,
                                          const solver::InstrumentModel& model, const solver::PoseVector& r,
                                          solver::Vec2& streak_px) const noexcept;
