@@ -239,6 +239,16 @@ TEST(Regions, CreateRejectsBadConfiguration) {
   }
   tip.refine_smear_tip_bias = 0.0;
   EXPECT_TRUE(FeatureExtractor::create(tip, default_color_model()).ok());
+  // The streak read where the arcs stay sharp: a boundary count the model
+  // has, a finite length.
+  ExtractorConfig streak;
+  streak.refine_streak_unsmeared_min_boundaries = kNumBoundaries + 1;
+  EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());
+  streak.refine_streak_unsmeared_min_boundaries = -1;
+  EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());
+  streak.refine_streak_unsmeared_min_boundaries = 4;
+  streak.refine_streak_unsmeared_min_px = std::nan("");
+  EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());
 }
 
 }  // namespace
