@@ -115,6 +115,23 @@ GuidedResult rounds_from_truth(FeatureExtractor& fx, solver::PoseEstimator& esti
   return guided_rounds(fx, estimator, f.camera, f.model, image, solver::SolveMode::Adaptive, first, true_r, options);
 }
 
+// rounds_from_truth on a new extractor with `config`, kept for its corners.
+struct TruthRun {
+  std::unique_ptr<FeatureExtractor> fx;
+  GuidedResult guided;
+};
+TruthRun truth_run(solver::PoseEstimator& estimator, const Fixture& f, const ImageView& image,
+                   const solver::PoseVector& true_r, const ExtractorConfig& config) {
+  TruthRun run;
+  run.fx = default_extractor(config);
+  if (run.fx == nullptr) {
+    ADD_FAILURE() << "no extractor";
+    return run;
+  }
+  run.guided = rounds_from_truth(*run.fx, estimator, f, image, true_r);
+  return run;
+}
+
 // Visible corners given within 1.5 px of their truth (the evaluation's
 // criterion); `visible` gets how many the renderer saw.
 int corners_found(const FeatureExtractor& fx, const render::InstrumentTruth& truth, int& visible) {
@@ -920,9 +937,9 @@ TEST(Pipeline, AFitThatReadsNoSilhouetteUnderMotionBlurGivesItsCornersAndADegrad
   for (const bool across : {false, true}) {
     ExtractorConfig config;
     config.refine_streak_unsmeared = across;
-    auto fx = default_extractor(config);
-    ASSERT_NE(fx, nullptr);
-    const GuidedResult guided = rounds_from_truth(*fx, estimator, f, image, scene_r);
+    const TruthRun run = truth_run(estimator, f, image, scene_r, config);
+    ASSERT_NE(run.fx, nullptr);
+    const GuidedResult& guided = run.guided;
     ASSERT_GT(guided.rounds_kept, 0) << "across " << across;
     EXPECT_FALSE(guided.fit.smeared) << "across " << across;
     EXPECT_LT(guided.fit.plain_silhouette_readings, 6) << "across " << across;
@@ -936,7 +953,7 @@ TEST(Pipeline, AFitThatReadsNoSilhouetteUnderMotionBlurGivesItsCornersAndADegrad
     EXPECT_GE(guided.fit.boundaries, 2) << "across " << across;
     EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Degraded) << "across " << across;
     // Every visible corner is given, within 3 px under the smear.
-    EXPECT_GE(expect_visible_corners_within(*fx, truth, 3.0), 8) << "across " << across;
+    EXPECT_GE(expect_visible_corners_within(*run.fx, truth, 3.0), 8) << "across " << across;
   }
 }
 
@@ -1074,13 +1091,13 @@ TEST(Pipeline, UnderAStreakTheImageFitReadsTheSilhouetteAtItsOuterEnd) {
   for (bool streak_rule : {false, true}) {
     ExtractorConfig config;
     config.refine_streak = streak_rule;
-    auto fx = default_extractor(config);
-    ASSERT_NE(fx, nullptr);
-    const GuidedResult guided = rounds_from_truth(*fx, estimator, f, image, scene_r);
+    const TruthRun run = truth_run(estimator, f, image, scene_r, config);
+    ASSERT_NE(run.fx, nullptr);
+    const GuidedResult& guided = run.guided;
     ASSERT_GT(guided.rounds_kept, 0) << "rule " << streak_rule;
     EXPECT_TRUE(guided.fit.smeared);
     int visible = 0;
-    const int found = corners_found(*fx, truth, visible);
+    const int found = corners_found(*run.fx, truth, visible);
     EXPECT_EQ(visible, 11);
     if (!streak_rule) {
       EXPECT_EQ(guided.fit.streak_px.norm(), 0.0);
