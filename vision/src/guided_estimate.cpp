@@ -28,7 +28,7 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
     if (!fit_ok) {
       break;
     }
-    if (!extractor.refine_corners(image, camera, model, fitted).ok()) {
+    if (!extractor.refine_corners(image, camera, model, fitted, out.fit.streak_px).ok()) {
       extractor.restore_corners(previous);
       break;
     }

@@ -285,6 +285,11 @@ class Refiner {
       if (!silhouette_at(camera_, model_, frames_, s, side, point, normal)) {
         continue;
       }
+      // Smeared across by the streak: the peak's centre is pulled towards
+      // the darker side (docs/vision.md "The smear across the tube").
+      if (std::fabs(streak_px_.dot(normal)) >= config_.refine_streak_across_px) {
+        continue;
+      }
       double e = 0.0;
       if (edge(point, normal, config_.refine_edge_search_px, e)) {
         os[static_cast<std::size_t>(count)] = o;
@@ -1452,7 +1457,8 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
 
 Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, const solver::CameraModel& camera,
                                                      const solver::InstrumentModel& model,
-                                                     const solver::PoseVector& r) noexcept {
+                                                     const solver::PoseVector& r,
+                                                     const solver::Vec2& streak_px) noexcept {
   Extraction& e = result_;
   if (!e.refined) {
     e.stage4_corners = e.corners;
@@ -1469,6 +1475,7 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
   }
   const solver::PoseFrames frames = model.frames(r);
   Refiner refiner(image, colors_, config_, camera, model, frames);
+  refiner.use_streak(streak_px);
   const auto& g = model.geometry();
   for (int j = 0; j < kNumBoundaries; ++j) {
     const BoundaryColours colours = colours_of(config_, j);

@@ -341,8 +341,14 @@ class FeatureExtractor {
   // The silhouette offsets are read at the gradient peak's centre even on
   // a frame the image fit read under a streak (ImageFitSummary::streak_px):
   // measured the same frames, two more corners found (docs/vision.md).
+  // But where that streak (`streak_px`, px, image; zero: none) smears the
+  // silhouette across by refine_streak_across_px or more, the peak's centre
+  // is pulled towards the darker side: no offset is read there, and the
+  // corner stays the fitted pose's limb point, which the image fit put on
+  // the plateau's outer end.
   Status<VisionError> refine_corners(const ImageView& image, const solver::CameraModel& camera,
-                                     const solver::InstrumentModel& model, const solver::PoseVector& r) noexcept;
+                                     const solver::InstrumentModel& model, const solver::PoseVector& r,
+                                     const solver::Vec2& streak_px = solver::Vec2::Zero()) noexcept;
   // Fits the pose r to the image itself (ours): the visible arc of every
   // boundary onto its colour change and the model's silhouette onto the
   // colour-gradient maxima, by robust Gauss-Newton from `r` (a first pose),
