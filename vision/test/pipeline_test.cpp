@@ -1067,8 +1067,9 @@ double streak_angle_deg(const solver::Vec2& read, const render::GroundTruth& tru
 // streak runs across the tube so that their arcs do not read as smeared;
 // read at the true pose, with and without the set's JPEG step (quality
 // 92; the last two only with it, as the sets are: the sharp widths were
-// measured on JPEG frames, and without the step they read 2-3 px short). A sharp frame reads a streak shorter than the gate under which the
-// image fit ignores it (refine_streak_min_px).
+// measured on JPEG frames, and without the step they read 2-3 px short).
+// A sharp frame reads a streak shorter than the gate under which the image
+// fit ignores it (refine_streak_min_px).
 TEST(Pipeline, TheMotionStreakIsReadFromTheArcs) {
   Fixture f;
   auto fx = default_extractor();

@@ -240,7 +240,7 @@ TEST(Regions, CreateRejectsBadConfiguration) {
   tip.refine_smear_tip_bias = 0.0;
   EXPECT_TRUE(FeatureExtractor::create(tip, default_color_model()).ok());
   // The streak read where the arcs stay sharp: a boundary count the model
-  // has, a finite length.
+  // has, a length that is not negative or NaN.
   ExtractorConfig streak;
   streak.refine_streak_unsmeared_min_boundaries = kNumBoundaries + 1;
   EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());

@@ -241,7 +241,8 @@ struct ExtractorConfig {
   // readings whose smear across (|streak . normal|) is
   // refine_streak_across_px or more take the outer end of the gradient's
   // plateau, moved in by half that smear, instead of the peak's centre, in
-  // the image fit (not in refine_corners; docs/vision.md).
+  // the image fit; refine_corners, given the fit's streak, reads no offset
+  // beside such a silhouette (docs/vision.md).
   bool refine_streak = true;
   double refine_streak_min_px = 6.0;
   double refine_streak_across_px = 5.0;
@@ -259,7 +260,7 @@ struct ExtractorConfig {
   // 65 % blue (L*a*b* chroma is not linear in the mix), not at its middle:
   // the reading lies this share of the smear across the arc short of the
   // boundary, towards the base, and is moved back by it (docs/vision.md
-  // "The tip arc under a smear"). 0: no correction.
+  // "The tip arc under a streak"). 0: no correction.
   double refine_smear_tip_bias = 0.15;
   // The base boundary's arc shows no usable colour change (the shaft's
   // outline), but the first stripe's end face, the ring between the
