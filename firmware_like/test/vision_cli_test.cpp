@@ -165,6 +165,28 @@ TEST(VisionCommands, EstimateJsonLineHasEveryMember) {
   }
 }
 
+// Corners are reported when stages 1-4 found them, or when the guided
+// rounds re-measured them after a failed stage 3 or 4 (the estimate was
+// solved from them); never otherwise.
+TEST(VisionCommands, CornersAreReportedWhenFoundThisFrame) {
+  EstimateResult result;
+  vision::Extraction extraction;
+  extraction.corners[0].found = true;
+  extraction.corners[0].pixel = vision::Point{7.0, 9.5};
+  result.extraction_ok = false;
+  EXPECT_FALSE(corner_reported(result, extraction, 0U));
+  extraction.refined = true;
+  EXPECT_TRUE(corner_reported(result, extraction, 0U));
+  EXPECT_FALSE(corner_reported(result, extraction, 1U));  // not found
+  EXPECT_FALSE(corner_reported(result, extraction, static_cast<std::size_t>(solver::kNumCorners)));
+  char line[4096];
+  format_estimate_json("x.jpg", result, extraction, line, sizeof line);
+  EXPECT_NE(std::string(line).find("\"corners\": [[7.000, 9.500], null"), std::string::npos) << line;
+  extraction.refined = false;
+  result.extraction_ok = true;
+  EXPECT_TRUE(corner_reported(result, extraction, 0U));
+}
+
 }  // namespace
 }  // namespace cli
 }  // namespace tcpest

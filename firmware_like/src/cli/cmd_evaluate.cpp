@@ -202,7 +202,7 @@ int cmd_evaluate(int argc, char** argv) {
     int frame_visible = 0, frame_ok = 0;
     for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
       const bool is_visible = truth.instrument.corner_visible[k];
-      const bool found = result.extraction_ok && e.corners[k].found;
+      const bool found = corner_reported(result, e, k);
       if (is_visible) {
         ++frame_visible;
       }
@@ -270,7 +270,7 @@ int cmd_evaluate(int argc, char** argv) {
         setup.instrument.corners(setup.camera, result.r, model);
       }
       for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
-        const bool found = result.extraction_ok && e.corners[k].found;
+        const bool found = corner_reported(result, e, k);
         const bool has_truth = truth.instrument.corner_present[k];
         const double tu = has_truth ? truth.instrument.corners[k].x() : std::nan("");
         const double tv = has_truth ? truth.instrument.corners[k].y() : std::nan("");

@@ -345,6 +345,10 @@ void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableI
   vision::draw_extraction(image, extractor_->result(), model);
 }
 
+bool corner_reported(const EstimateResult& result, const vision::Extraction& extraction, std::size_t k) noexcept {
+  return k < extraction.corners.size() && extraction.corners[k].found && (result.extraction_ok || extraction.refined);
+}
+
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,
                           char* out, std::size_t capacity) noexcept {
   if (capacity == 0U) {
@@ -385,7 +389,7 @@ void format_estimate_json(const char* image, const EstimateResult& result, const
   for (std::size_t k = 0U; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
     const vision::Corner& c = extraction.corners[k];
     const char* separator = k == 0U ? "" : ", ";
-    if (c.found && result.extraction_ok) {
+    if (corner_reported(result, extraction, k)) {
       advance(std::snprintf(out + used, capacity - used, "%s[%.3f, %.3f]", separator, c.pixel.x, c.pixel.y));
     } else {
       advance(std::snprintf(out + used, capacity - used, "%snull", separator));

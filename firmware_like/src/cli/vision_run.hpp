@@ -105,6 +105,14 @@ bool apply_guided_rounds(const char* command, const char* value, EstimatePipelin
 // printing an error.
 bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept;
 
+// Whether corner k of this frame is reported (estimate's JSON, evaluate's
+// scores): found by stages 1-4, or re-measured around a pose by the
+// model-guided rounds (Extraction::refined), which may follow a failed
+// stage 3 or 4 and then give the corners the estimate was solved from.
+// find_regions clears every corner at a frame's start, so neither is an
+// older frame's.
+bool corner_reported(const EstimateResult& result, const vision::Extraction& extraction, std::size_t k) noexcept;
+
 // The JSON line of `tcpest estimate --json` (no newline).
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,
                           char* out, std::size_t capacity) noexcept;
