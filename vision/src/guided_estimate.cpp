@@ -275,6 +275,52 @@ bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, co
   return kept;
 }
 
+// GuidedOptions::base_rim_seed. True when its result was kept in `out`.
+bool try_base_rim(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
+                  const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
+                  const solver::PoseVector& start, const GuidedOptions& options, GuidedResult& out) noexcept {
+  if (!options.base_rim_seed || options.rounds <= 0 || out.rounds_kept > 0 ||
+      out.estimate.quality == solver::EstimateQuality::Valid || !start.allFinite()) {
+    return false;
+  }
+  solver::PoseVector seed_r = start;
+  ShaftFitSummary shaft;
+  if (!extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok() ||
+      !extractor.fit_insertion_to_base_rim(image, camera, model, seed_r).ok()) {
+    return false;
+  }
+  const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
+  // The rim must be read again where the corners are taken (the base
+  // measured), or the corners would be the start's guesses.
+  if (!extractor.refine_corners(image, camera, model, seed_r).ok() || !extractor.result().boundary_measured[0]) {
+    extractor.restore_snapshot(kept);
+    return false;
+  }
+  solver::CornerObservation refined;
+  corners_to_arrays(extractor.result(), refined.pixel, refined.visible);
+  solver::Estimate estimate = estimator.estimate(refined, mode, seed_r);
+  if (estimate.quality == solver::EstimateQuality::None) {
+    extractor.restore_snapshot(kept);
+    return false;
+  }
+  // Reported are the measured boundaries' corners only: the others are the
+  // limb points of the start's bend, which the image did not confirm (the
+  // solve had them as it had the start).
+  std::array<Corner, kNumCorners> measured = extractor.result().corners;
+  for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
+    if (!extractor.result().boundary_measured[j]) {
+      measured[2U * j] = Corner{};
+      measured[2U * j + 1U] = Corner{};
+    }
+  }
+  extractor.restore_corners(measured);
+  estimate.quality = solver::EstimateQuality::Degraded;
+  out.estimate = estimate;
+  out.rounds_kept = 1;
+  out.from_base_rim = true;
+  return true;
+}
+
 }  // namespace
 
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
@@ -310,6 +356,7 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
     tried = try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out);
   }
   static_cast<void>(try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out));
+  static_cast<void>(try_base_rim(extractor, estimator, camera, model, image, mode, start, options, out));
   // After every seed: a kept result's flags come from its own rounds.
   out.unmoved_tried = tried.unmoved;
   out.insertion_tried = tried.insertion;

@@ -924,6 +924,46 @@ Status<VisionError> FeatureExtractor::read_motion_streak(const ImageView& image,
   return ok_status<VisionError>();
 }
 
+Status<VisionError> FeatureExtractor::fit_insertion_to_base_rim(const ImageView& image,
+                                                                const solver::CameraModel& camera,
+                                                                const solver::InstrumentModel& model,
+                                                                solver::PoseVector& r) const noexcept {
+  if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
+    return Status<VisionError>::failure(VisionError::BadImage);
+  }
+  if (!config_.refine_base_rim) {
+    return Status<VisionError>::failure(VisionError::NoInstrument);
+  }
+  const auto& g = model.geometry();
+  const double rim_radius = g.shaft_radius_mm + config_.refine_base_rim_share * (g.radius_mm - g.shaft_radius_mm);
+  const double step_mm = config_.refine_rim_scan_step_mm;
+  // Checked at creation: range <= step * kMaxRimScanSteps.
+  const int steps = std::min(static_cast<int>(config_.refine_rim_scan_range_mm / step_mm + 1e-9), kMaxRimScanSteps);
+  // Nearest first: 0, +step, -step, +2 step, ...
+  for (int i = 0; i <= 2 * steps; ++i) {
+    const int k = (i + 1) / 2;
+    solver::PoseVector at = r;
+    at[solver::kLambda] += (i % 2 == 1 ? 1.0 : -1.0) * static_cast<double>(k) * step_mm;
+    if (!(at[solver::kLambda] > 0.0)) {
+      continue;
+    }
+    const solver::PoseFrames frames = model.frames(at);
+    if (!base_face_visible(model, frames)) {
+      continue;
+    }
+    Refiner refiner(image, colors_, config_, camera, model, frames);
+    double shift_mm = 0.0;
+    if (refiner.rim_shift(rim_radius, shift_mm)) {
+      // The rim moves the base, and the tube with it, along the axis:
+      // lambda grows with the shift towards the tip.
+      at[solver::kLambda] += shift_mm;
+      r = at;
+      return ok_status<VisionError>();
+    }
+  }
+  return Status<VisionError>::failure(VisionError::NoInstrument);
+}
+
 Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
                                                         const solver::InstrumentModel& model, solver::PoseVector& r,
                                                         ImageFitSummary& summary, bool coarse_start) noexcept {

@@ -100,8 +100,8 @@ int expect_visible_corners_within(const FeatureExtractor& fx, const render::Inst
 
 // Stages 1-4 with priors from the true pose, then the guided rounds from
 // the true pose as the first estimate (no fallback seed, no shaft re-check,
-// no alias check): what the image fit and the refinement make of a frame
-// when the pose is not in question.
+// no alias check, no base-rim seed): what the image fit and the refinement
+// make of a frame when the pose is not in question.
 GuidedResult rounds_from_truth(FeatureExtractor& fx, solver::PoseEstimator& estimator, const Fixture& f,
                                const ImageView& image, const solver::PoseVector& true_r) {
   EXPECT_TRUE(fx.extract(image, model_priors(f.camera, f.model, true_r)).ok());
@@ -112,6 +112,7 @@ GuidedResult rounds_from_truth(FeatureExtractor& fx, solver::PoseEstimator& esti
   options.fallback_seeds = 0;
   options.shaft_recheck = false;
   options.alias_check = false;
+  options.base_rim_seed = false;
   return guided_rounds(fx, estimator, f.camera, f.model, image, solver::SolveMode::Adaptive, first, true_r, options);
 }
 
@@ -253,6 +254,15 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   const std::vector<std::uint8_t> occluded = f.pixels;
   const solver::PoseVector occluded_encoders =
       f.model.geometry().nominal_pose(20.4331473337, 0.387191368398, -1.77151189335);
+  // A tube seen end-on behind the shaft (hard frame 194), which only the
+  // base-rim seed serves.
+  solver::PoseVector end_on_r;
+  end_on_r << -11.893048688, 4.77109927996, 0.21660439758, 0.0309522965401, 30.0, 0.523598775598, -0.349065850399;
+  static_cast<void>(f.render_r(end_on_r, render::kHardOccluder, 4960235973997643380ULL));
+  const std::vector<std::uint8_t> end_on = f.pixels;
+  const solver::PoseVector end_on_encoders =
+      f.model.geometry().nominal_pose(32.9886638225, 0.419947812127, -0.30197259653);
+  int rim_seeded = 0;
   int unmoved_tried = 0;
   int insertion_tried = 0;
   auto created = FeatureExtractor::create(ExtractorConfig{}, default_color_model());
@@ -312,6 +322,14 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
         unmoved_tried += from_encoders.unmoved_tried ? 1 : 0;
         insertion_tried += from_encoders.insertion_tried ? 1 : 0;
       }
+      if (i % 10 == 7) {
+        const ImageView behind{end_on.data(), f.camera.width(), f.camera.height(),
+                               static_cast<std::size_t>(f.camera.width()) * 3U};
+        const bool stage4_ok = fx->extract(behind, model_priors(f.camera, f.model, end_on_encoders)).ok();
+        const GuidedResult from_rim = guided_estimate(*fx, estimator, f.camera, f.model, behind, stage4_ok,
+                                                      solver::SolveMode::Adaptive, end_on_encoders, GuidedOptions{});
+        rim_seeded += from_rim.from_base_rim ? 1 : 0;
+      }
     }
     EXPECT_EQ(scope.count(), 0U);
   }
@@ -322,6 +340,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   EXPECT_GT(start_seeded, 0);   // and for the start seed with the class-image fit
   EXPECT_GT(unmoved_tried, 0);  // and for the start without it
   EXPECT_GT(insertion_tried, 0);  // and for the start moved along the insertion
+  EXPECT_GT(rim_seeded, 0);       // and for the base-rim seed
 }
 
 // The model-guided corners on rendered frames: from stage 4's first pose,
@@ -383,10 +402,11 @@ TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
   EXPECT_TRUE(guided.from_regions);
   ASSERT_NE(guided.estimate.quality, solver::EstimateQuality::None);
   EXPECT_LT((f.model.tcp(guided.estimate.r) - f.model.tcp(truth)).norm(), 2.0);
-  // Off: no estimate.
+  // Off: no estimate (nor the base-rim seed's, which needs no seed).
   GuidedOptions off;
   off.from_regions = false;
   off.start_seed = false;
+  off.base_rim_seed = false;
   ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
   EXPECT_EQ(guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, off)
                 .estimate.quality,
@@ -1352,6 +1372,82 @@ TEST(Pipeline, TheBaseCornersAreReadOnTheRimOfTheFirstStripesEndFace) {
   }
 }
 
+// Hard frames 194 and 222 (seed 1; an occluder; reflection and noise),
+// through the set's JPEG step: the tube points away behind the shaft, only
+// its first stripe shows, and only the base's two corners are visible.
+// Stage 3 or the image fit cannot hold such a view, so no fit is kept;
+// the base-rim seed (GuidedOptions::base_rim_seed) takes the channel from
+// the shaft and the insertion from the base's rim, 2-3 mm from the
+// encoders', and gives both corners, as a Degraded estimate.
+TEST(Pipeline, TheBaseRimServesATubeSeenEndOnBehindTheShaft) {
+  Fixture f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const HardScene scenes[] = {
+      {{-11.893048688, 4.77109927996, 0.21660439758, 0.0309522965401, 30.0, 0.523598775598, -0.349065850399},
+       {32.9886638225, 0.419947812127, -0.30197259653},
+       render::kHardOccluder,
+       4960235973997643380ULL},
+      {{-10.2870765677, 5.39535761981, 0.199400198643, -0.0971051446117, 35.0, -0.523598775598, -1.74532925199},
+       {35.3779627412, -0.522337443208, -1.81932803694},
+       render::kHardReflection | render::kHardOccluder | render::kHardNoise,
+       4872073518384818787ULL},
+  };
+  for (const HardScene& scene : scenes) {
+    static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
+    const ImageView image = f.jpeg_round_trip(92);
+    const solver::PoseVector prior = encoders_start(f, scene);
+    GuidedOptions options;
+    ASSERT_TRUE(options.base_rim_seed);
+    const GuidedRun with = guided_run(f, estimator, image, prior, options);
+    options.base_rim_seed = false;
+    const GuidedRun without = guided_run(f, estimator, image, prior, options);
+    expect_success_only_with(with, without, 2, scene.seed);
+    EXPECT_TRUE(with.guided.from_base_rim) << "seed " << scene.seed;
+    EXPECT_EQ(with.guided.estimate.quality, solver::EstimateQuality::Degraded) << "seed " << scene.seed;
+    EXPECT_TRUE(with.fx->result().boundary_measured[0]) << "seed " << scene.seed;
+    EXPECT_FALSE(without.guided.from_base_rim) << "seed " << scene.seed;
+    EXPECT_EQ(without.guided.rounds_kept, 0) << "seed " << scene.seed;
+  }
+}
+
+// fit_insertion_to_base_rim on the first of those frames: from the true
+// pose with the insertion 2.5 mm off either way (most of the encoders'
+// +/- 3 mm), the rim puts it back within 0.3 mm; with a scan too short to
+// reach the rim, or on an image without an instrument, it reports
+// NoInstrument and leaves the pose as it was.
+TEST(Pipeline, TheBaseRimGivesTheInsertion) {
+  Fixture f;
+  solver::PoseVector scene_r;
+  scene_r << -11.893048688, 4.77109927996, 0.21660439758, 0.0309522965401, 30.0, 0.523598775598, -0.349065850399;
+  static_cast<void>(f.render_r(scene_r, render::kHardOccluder, 4960235973997643380ULL));
+  const ImageView image = f.jpeg_round_trip(92);
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  for (const double off_mm : {-2.5, 2.5}) {
+    solver::PoseVector r = scene_r;
+    r[solver::kLambda] += off_mm;
+    ASSERT_TRUE(fx->fit_insertion_to_base_rim(image, f.camera, f.model, r).ok()) << off_mm;
+    EXPECT_NEAR(r[solver::kLambda], scene_r[solver::kLambda], 0.3) << off_mm;
+    EXPECT_EQ(r.head<4>(), scene_r.head<4>());  // the channel and the bend are the caller's
+    EXPECT_EQ(r.tail<2>(), scene_r.tail<2>());
+  }
+  ExtractorConfig short_scan;
+  short_scan.refine_rim_scan_range_mm = 0.0;
+  auto near_only = default_extractor(short_scan);
+  ASSERT_NE(near_only, nullptr);
+  solver::PoseVector far_r = scene_r;
+  far_r[solver::kLambda] += 3.0;
+  const solver::PoseVector before = far_r;
+  EXPECT_EQ(near_only->fit_insertion_to_base_rim(image, f.camera, f.model, far_r).error(), VisionError::NoInstrument);
+  EXPECT_EQ(far_r, before);
+  std::vector<std::uint8_t> grey(f.pixels.size(), 128U);
+  const ImageView blank{grey.data(), f.camera.width(), f.camera.height(), static_cast<std::size_t>(f.camera.width()) * 3U};
+  solver::PoseVector r = scene_r;
+  EXPECT_EQ(fx->fit_insertion_to_base_rim(blank, f.camera, f.model, r).error(), VisionError::NoInstrument);
+  EXPECT_EQ(fx->fit_insertion_to_base_rim(ImageView{}, f.camera, f.model, r).error(), VisionError::BadImage);
+  EXPECT_EQ(r, scene_r);
+}
+
 // When stage 4 gives no pose, the start pose (the encoders') moved onto the
 // class image seeds the image fit: the estimate comes, near the truth.
 TEST(Pipeline, StartSeedOnTheClassImageGivesTheEstimateWhenStage4GivesNoPose) {
@@ -1393,6 +1489,7 @@ TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
   GuidedOptions no_regions;
   no_regions.from_regions = false;
   no_regions.start_seed = false;
+  no_regions.base_rim_seed = false;  // it needs no corners of stage 4: tested on its own
   const GuidedResult none =
       guided_estimate(*fx, estimator, f.camera, f.model, image, false, solver::SolveMode::Adaptive, prior, no_regions);
   EXPECT_EQ(none.estimate.quality, solver::EstimateQuality::None);

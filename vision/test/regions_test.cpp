@@ -249,6 +249,20 @@ TEST(Regions, CreateRejectsBadConfiguration) {
   streak.refine_streak_unsmeared_min_boundaries = 4;
   streak.refine_streak_unsmeared_min_px = std::nan("");
   EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());
+  // The base-rim scan: a positive step, a range it covers within
+  // kMaxRimScanSteps steps each way, never NaN.
+  ExtractorConfig rim;
+  for (const double bad_step : {0.0, -0.5, std::nan("")}) {
+    rim.refine_rim_scan_step_mm = bad_step;
+    EXPECT_FALSE(FeatureExtractor::create(rim, default_color_model()).ok()) << bad_step;
+  }
+  rim.refine_rim_scan_step_mm = 0.5;
+  for (const double bad_range : {-1.0, 0.5 * FeatureExtractor::kMaxRimScanSteps + 0.01, std::nan("")}) {
+    rim.refine_rim_scan_range_mm = bad_range;
+    EXPECT_FALSE(FeatureExtractor::create(rim, default_color_model()).ok()) << bad_range;
+  }
+  rim.refine_rim_scan_range_mm = 0.5 * FeatureExtractor::kMaxRimScanSteps;
+  EXPECT_TRUE(FeatureExtractor::create(rim, default_color_model()).ok());
 }
 
 }  // namespace

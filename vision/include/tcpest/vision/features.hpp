@@ -277,6 +277,11 @@ struct ExtractorConfig {
   double refine_base_rim_share = 0.6;
   double refine_base_rim_contrast = 0.05;
   double refine_base_rim_max_spread_mm = 0.05;
+  // fit_insertion_to_base_rim's steps along the insertion, and how far
+  // they reach each way (mm; at most FeatureExtractor::kMaxRimScanSteps
+  // steps each way).
+  double refine_rim_scan_step_mm = 0.5;
+  double refine_rim_scan_range_mm = 4.0;
 };
 
 // What fit_pose_to_image did.
@@ -383,6 +388,21 @@ class FeatureExtractor {
   Status<VisionError> fit_channel_to_shaft(const ImageView& image, const solver::CameraModel& camera,
                                            const solver::InstrumentModel& model, solver::PoseVector& r,
                                            ShaftFitSummary& summary) const noexcept;
+  // The insertion from the base's end-face rim (ours; docs/vision.md, "The
+  // tube seen end-on"): for a tube that points away behind the shaft, where
+  // the image fit cannot hold (one stripe shows, its arcs seen edge-on),
+  // the base's rim still shows as a thin bright ring. With r's channel
+  // pose already fitted to the shaft (fit_channel_to_shaft), lambda is
+  // stepped from r's outwards, nearest first, by refine_rim_scan_step_mm up
+  // to +/- refine_rim_scan_range_mm (the encoders' +/- 3 mm, model.md); at
+  // the first step whose base face is turned towards the camera and whose
+  // rim reads (the check refine_corners makes), lambda is moved by the
+  // rim's shift. `r` is updated only on success; NoInstrument when no step
+  // reads the rim. At most 2 * kMaxRimScanSteps + 1 rim reads.
+  static constexpr int kMaxRimScanSteps = 20;
+  Status<VisionError> fit_insertion_to_base_rim(const ImageView& image, const solver::CameraModel& camera,
+                                                const solver::InstrumentModel& model,
+                                                solver::PoseVector& r) const noexcept;
   // A rough pose from stage 2 alone (ours): x_ch, y_ch, lambda, phi, theta
   // moved from `r` so that the model's marker middles project onto the
   // labelled regions' centroids (damped Gauss-Newton, at most 15

@@ -109,6 +109,19 @@ struct GuidedOptions {
   // put them, and from a coarse start only when that was not kept (false:
   // the coarse start alone).
   bool alias_fine_start = true;
+  // When no image fit was kept and the result is not valid (stage 4's
+  // Degraded solve, or none; a valid one is kept as the seeds keep it): the tube
+  // seen end-on behind the shaft, one stripe showing, gives the image fit
+  // too little to hold. Its base corners need only the channel's pose and
+  // the insertion: the channel from the shaft (fit_channel_to_shaft, from
+  // `start`), the insertion from the base's rim
+  // (FeatureExtractor::fit_insertion_to_base_rim), the bend the start's;
+  // then the corners re-measured there (refine_corners, the rim read) and
+  // the pose solved from them, at most Degraded (the tube beyond the first
+  // boundary is not seen). Kept when the solve gives a pose. One shaft fit,
+  // at most 2 * kMaxRimScanSteps + 1 rim reads, one refinement and one
+  // solve (docs/vision.md, "The tube seen end-on").
+  bool base_rim_seed = true;
 };
 constexpr int kMaxGuidedRounds = 4;
 constexpr int kMaxFallbackSeeds = 5;
@@ -126,12 +139,14 @@ struct GuidedResult {
   bool shaft_rechecked = false;   // a valid result was tried again from the shaft's channel pose
   bool alias_checked = false;     // the result was tried again two stripes along (alias_check)
   bool from_alias = false;        // ... and that result was kept
+  bool from_base_rim = false;     // the result is base_rim_seed's
 };
 
 // Everything after the first solve (the loop times it as its own step):
 // the rounds from `first` when it has a pose, then, while the result is not
 // valid, the fallback seeds (the regions' rough pose, `start`), then the
-// alias check against `start`'s insertion. `first` may have no pose. On
+// alias check against `start`'s insertion, then, with no fit kept, the
+// base-rim seed. `first` may have no pose. On
 // return the extractor's corners are those of the kept estimate (stage 4's
 // if no round was kept).
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
