@@ -149,11 +149,17 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessPerHardCase) {
   EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
 }
 
+// An extraction with corner k found at `pixel`, and nothing else.
+vision::Extraction one_corner(std::size_t k, vision::Point pixel) {
+  vision::Extraction extraction;
+  extraction.corners[k].found = true;
+  extraction.corners[k].pixel = pixel;
+  return extraction;
+}
+
 TEST(VisionCommands, EstimateJsonLineHasEveryMember) {
   EstimateResult result;
-  vision::Extraction extraction;
-  extraction.corners[3].found = true;
-  extraction.corners[3].pixel = vision::Point{12.5, 40.25};
+  const vision::Extraction extraction = one_corner(3U, vision::Point{12.5, 40.25});
   result.extraction_ok = true;
   char line[4096];
   format_estimate_json("a \"quoted\" name.jpg", result, extraction, line, sizeof line);
@@ -170,9 +176,7 @@ TEST(VisionCommands, EstimateJsonLineHasEveryMember) {
 // solved from them); never otherwise.
 TEST(VisionCommands, CornersAreReportedWhenFoundThisFrame) {
   EstimateResult result;
-  vision::Extraction extraction;
-  extraction.corners[0].found = true;
-  extraction.corners[0].pixel = vision::Point{7.0, 9.5};
+  vision::Extraction extraction = one_corner(0U, vision::Point{7.0, 9.5});
   result.extraction_ok = false;
   EXPECT_FALSE(corner_reported(result, extraction, 0U));
   extraction.refined = true;

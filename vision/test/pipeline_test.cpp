@@ -187,6 +187,12 @@ solver::PoseVector encoders_start(const Fixture& f, const HardScene& scene) {
   return f.model.geometry().nominal_pose(scene.encoders[0], scene.encoders[1], scene.encoders[2]);
 }
 
+// A hard scene as the set has it: rendered, then through its JPEG step.
+ImageView render_as_in_set(Fixture& f, const HardScene& scene) {
+  static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
+  return f.jpeg_round_trip(92);
+}
+
 // `with` is a success by the evaluation's criterion (80 % of its visible
 // corners, at least `min_visible` of them) and `without` is not.
 void expect_success_only_with(const GuidedRun& with, const GuidedRun& without, int min_visible,
@@ -896,8 +902,7 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
   };
   const std::uint64_t kNoPoseWithout = 8437888975762272235ULL;  // hard frame 60
   for (const HardScene& scene : scenes) {
-    static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
-    const ImageView image = f.jpeg_round_trip(92);
+    const ImageView image = render_as_in_set(f, scene);
     const solver::PoseVector prior = encoders_start(f, scene);
     GuidedOptions options;
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
@@ -943,8 +948,7 @@ TEST(Pipeline, TheTipArcUnderASmearIsReadAtTheBoundaryItself) {
        8234813845077103636ULL},
   };
   for (const HardScene& scene : scenes) {
-    static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
-    const ImageView image = f.jpeg_round_trip(92);
+    const ImageView image = render_as_in_set(f, scene);
     const solver::PoseVector prior = encoders_start(f, scene);
     const GuidedOptions options;
     ExtractorConfig config;
@@ -1393,8 +1397,7 @@ TEST(Pipeline, TheBaseRimServesATubeSeenEndOnBehindTheShaft) {
        4872073518384818787ULL},
   };
   for (const HardScene& scene : scenes) {
-    static_cast<void>(f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed));
-    const ImageView image = f.jpeg_round_trip(92);
+    const ImageView image = render_as_in_set(f, scene);
     const solver::PoseVector prior = encoders_start(f, scene);
     GuidedOptions options;
     ASSERT_TRUE(options.base_rim_seed);
