@@ -394,11 +394,11 @@ class FeatureExtractor {
   // the base's rim still shows as a thin bright ring. With r's channel
   // pose already fitted to the shaft (fit_channel_to_shaft), lambda is
   // stepped from r's outwards, nearest first, by refine_rim_scan_step_mm up
-  // to +/- refine_rim_scan_range_mm (the encoders' +/- 3 mm, model.md); at
-  // the first step whose base face is turned towards the camera and whose
-  // rim reads (the check refine_corners makes), lambda is moved by the
-  // rim's shift. `r` is updated only on success; NoInstrument when no step
-  // reads the rim. At most 2 * kMaxRimScanSteps + 1 rim reads.
+  // to +/- refine_rim_scan_range_mm (beyond the encoders' +/- 3 mm,
+  // model.md); at the first step whose base face is turned towards the
+  // camera and whose rim reads (the check refine_corners makes), lambda is
+  // moved by the rim's shift. `r` is updated only on success; NoInstrument
+  // when no step reads the rim. At most 2 * kMaxRimScanSteps + 1 rim reads.
   static constexpr int kMaxRimScanSteps = 20;
   Status<VisionError> fit_insertion_to_base_rim(const ImageView& image, const solver::CameraModel& camera,
                                                 const solver::InstrumentModel& model,

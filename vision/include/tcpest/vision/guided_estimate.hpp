@@ -110,17 +110,18 @@ struct GuidedOptions {
   // the coarse start alone).
   bool alias_fine_start = true;
   // When no image fit was kept and the result is not valid (stage 4's
-  // Degraded solve, or none; a valid one is kept as the seeds keep it): the tube
-  // seen end-on behind the shaft, one stripe showing, gives the image fit
-  // too little to hold. Its base corners need only the channel's pose and
-  // the insertion: the channel from the shaft (fit_channel_to_shaft, from
-  // `start`), the insertion from the base's rim
+  // Degraded solve, or none; a valid one stays, as it stops the seeds): a
+  // tube seen end-on behind the shaft, one stripe showing, gives the image
+  // fit too little to hold. Its base corners need only the channel's pose
+  // and the insertion: the channel from the shaft (fit_channel_to_shaft,
+  // from `start`), the insertion from the base's rim
   // (FeatureExtractor::fit_insertion_to_base_rim), the bend the start's;
-  // then the corners re-measured there (refine_corners, the rim read) and
-  // the pose solved from them, at most Degraded (the tube beyond the first
-  // boundary is not seen). Kept when the solve gives a pose. One shaft fit,
-  // at most 2 * kMaxRimScanSteps + 1 rim reads, one refinement and one
-  // solve (docs/vision.md, "The tube seen end-on").
+  // then the corners re-measured there (refine_corners, the rim read
+  // again) and the pose solved from them, at most Degraded (the tube
+  // beyond the first boundary is not seen). Kept when the solve gives a
+  // pose; only the measured boundaries' corners are then reported. One
+  // shaft fit, at most 2 * kMaxRimScanSteps + 1 rim reads, one refinement
+  // and one solve (docs/vision.md, "The tube seen end-on").
   bool base_rim_seed = true;
 };
 constexpr int kMaxGuidedRounds = 4;
@@ -145,10 +146,10 @@ struct GuidedResult {
 // Everything after the first solve (the loop times it as its own step):
 // the rounds from `first` when it has a pose, then, while the result is not
 // valid, the fallback seeds (the regions' rough pose, `start`), then the
-// alias check against `start`'s insertion, then, with no fit kept, the
-// base-rim seed. `first` may have no pose. On
-// return the extractor's corners are those of the kept estimate (stage 4's
-// if no round was kept).
+// alias check against `start`'s insertion, then, with no fit kept and the
+// result not valid, the base-rim seed. `first` may have no pose. On return
+// the extractor's corners are those of the kept estimate (stage 4's if no
+// round was kept).
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                            const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
