@@ -133,10 +133,14 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
 }
 
 // Which of the start's variants the fallback seeds tried (GuidedResult's
-// unmoved_tried and insertion_tried).
+// unmoved_tried and insertion_tried), and the start's shaft fit when the
+// start seed made it (the base-rim seed needs the same one).
 struct SeedsTried {
   bool unmoved = false;
   bool insertion = false;
+  bool start_shaft_fitted = false;  // fit_channel_to_shaft was run from `start`
+  bool start_shaft_ok = false;      // ... and succeeded: start_shafted holds its pose
+  solver::PoseVector start_shafted = solver::PoseVector::Zero();
 };
 
 // The fallback seeds (GuidedOptions), each kept in `out` when better.
@@ -191,6 +195,11 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
     ShaftFitSummary shaft;
     const bool channel_known =
         options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
+    if (seed_index == kStartSeed && options.shaft_fit) {
+      tried.start_shaft_fitted = true;
+      tried.start_shaft_ok = channel_known;
+      tried.start_shafted = seed_r;
+    }
     const solver::PoseVector unmoved = seed_r;
     if (options.class_fit) {
       solver::PoseVector moved = seed_r;
@@ -276,17 +285,26 @@ bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, co
 }
 
 // GuidedOptions::base_rim_seed. True when its result was kept in `out`.
+// The start's shaft fit is taken from the start seed when it made one
+// (`tried`): the same fit of the same image from the same pose.
 bool try_base_rim(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
                   const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
-                  const solver::PoseVector& start, const GuidedOptions& options, GuidedResult& out) noexcept {
+                  const solver::PoseVector& start, const GuidedOptions& options, const SeedsTried& tried,
+                  GuidedResult& out) noexcept {
   if (!options.base_rim_seed || options.rounds <= 0 || out.rounds_kept > 0 ||
       out.estimate.quality == solver::EstimateQuality::Valid || !start.allFinite()) {
     return false;
   }
   solver::PoseVector seed_r = start;
-  ShaftFitSummary shaft;
-  if (!extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok() ||
-      !extractor.fit_insertion_to_base_rim(image, camera, model, seed_r).ok()) {
+  bool channel_known = false;
+  if (tried.start_shaft_fitted) {
+    channel_known = tried.start_shaft_ok;
+    seed_r = tried.start_shafted;
+  } else {
+    ShaftFitSummary shaft;
+    channel_known = extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
+  }
+  if (!channel_known || !extractor.fit_insertion_to_base_rim(image, camera, model, seed_r).ok()) {
     return false;
   }
   const FeatureExtractor::CornerSnapshot kept = extractor.snapshot_corners();
@@ -356,7 +374,7 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
     tried = try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out);
   }
   static_cast<void>(try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out));
-  static_cast<void>(try_base_rim(extractor, estimator, camera, model, image, mode, start, options, out));
+  static_cast<void>(try_base_rim(extractor, estimator, camera, model, image, mode, start, options, tried, out));
   // After every seed: a kept result's flags come from its own rounds.
   out.unmoved_tried = tried.unmoved;
   out.insertion_tried = tried.insertion;

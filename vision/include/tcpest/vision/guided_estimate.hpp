@@ -120,8 +120,9 @@ struct GuidedOptions {
   // again) and the pose solved from them, at most Degraded (the tube
   // beyond the first boundary is not seen). Kept when the solve gives a
   // pose; only the measured boundaries' corners are then reported. One
-  // shaft fit, at most 2 * kMaxRimScanSteps + 1 rim reads, one refinement
-  // and one solve (docs/vision.md, "The tube seen end-on").
+  // shaft fit (none when the start seed fitted the start's), at most
+  // 2 * kMaxRimScanSteps + 1 rim reads, one refinement and one solve
+  // (docs/vision.md, "The tube seen end-on").
   bool base_rim_seed = true;
 };
 constexpr int kMaxGuidedRounds = 4;
