@@ -1,5 +1,6 @@
 // tcpest estimate / evaluate / train-colors on a tiny rendered dataset: exit
-// codes, a bad image in the middle of a run, the overlay file, the JSON line.
+// codes, a bad image in the middle of a run, the overlay file, the JSON line,
+// several datasets pooled.
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
@@ -128,6 +129,39 @@ TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
   EXPECT_NEAR(trained.blue.mean_b, shipped.blue.mean_b, 10.0);
   EXPECT_NEAR(trained.yellow.mean_b, shipped.yellow.mean_b, 10.0);
   EXPECT_EQ(run({"evaluate", "--colors", model, dir}), kExitOk);
+}
+
+// Several datasets are pooled into one score, with a frame-success line per
+// dataset; the corner rows then name each image with its directory (the
+// same names recur); every directory is checked before any image is run.
+TEST(VisionCommands, EvaluatePoolsSeveralDatasets) {
+  const std::string first = make_dataset("vision_cli_pool_a");
+  const std::string second = make_dataset("vision_cli_pool_b");
+  const std::string csv = first + "/corners.csv";
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"evaluate", "--corners-csv", csv, first, second}), kExitOk);
+  const std::string summary = testing::internal::GetCapturedStdout();
+  EXPECT_NE(summary.find("dataset " + first + ": frame success "), std::string::npos) << summary;
+  EXPECT_NE(summary.find("dataset " + second + ": frame success "), std::string::npos) << summary;
+  EXPECT_NE(summary.find("pooled over 2 datasets: 4 images scored (0 unreadable)"), std::string::npos) << summary;
+  std::FILE* f = std::fopen(csv.c_str(), "r");
+  ASSERT_NE(f, nullptr);
+  std::string rows;
+  char line[512];
+  while (std::fgets(line, sizeof line, f) != nullptr) {
+    rows += line;
+  }
+  std::fclose(f);
+  EXPECT_NE(rows.find("\n" + first + "/0000.ppm,0,"), std::string::npos);
+  EXPECT_NE(rows.find("\n" + second + "/0001.ppm,11,"), std::string::npos);
+  // --max counts the pooled images.
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"evaluate", "--max", "3", first, second}), kExitOk);
+  EXPECT_NE(testing::internal::GetCapturedStdout().find("pooled over 2 datasets: 3 images scored"), std::string::npos);
+  // A directory that cannot be read fails the run before any image is.
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"evaluate", first, "/nonexistent-dir"}), kExitConfig);
+  EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
 }
 
 // evaluate's line of frame success per hard case: a frame counts under each

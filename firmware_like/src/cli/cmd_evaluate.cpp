@@ -1,8 +1,12 @@
-// tcpest evaluate: runs the pipeline over a dataset directory (images and
-// their JSON sidecars, docs/dataset-format.md) and scores it against the
-// ground truth: corners found within 1.5 px with the right label, median
-// corner error, wrongly labelled and misplaced corners, the per-frame success criterion
-// of the hard set, TCP error, and the time of each stage.
+// tcpest evaluate: runs the pipeline over one or more dataset directories
+// (images and their JSON sidecars, docs/dataset-format.md) and scores them
+// against the ground truth: corners found within 1.5 px with the right
+// label, median corner error, wrongly labelled and misplaced corners, the
+// per-frame success criterion of the hard set, TCP error, and the time of
+// each stage. Several directories (e.g. one set rendered with several
+// seeds) are pooled into one score, with a frame-success line per
+// directory: a change is judged on many frames, not on one set's few that
+// sit near the tolerance.
 #include <dirent.h>
 
 #include <algorithm>
@@ -51,6 +55,39 @@ double quantile_of(std::vector<double>& v, double share) noexcept {
   return v[static_cast<std::size_t>(std::lround(share * last))];
 }
 
+// The sidecars of one dataset directory, sorted; false (with the reason
+// printed) when it cannot be read or holds none.
+bool list_sidecars(const std::string& dir, std::vector<std::string>& sidecars) {
+  sidecars.clear();
+  DIR* d = opendir(dir.c_str());
+  if (d == nullptr) {
+    std::fprintf(stderr, "tcpest evaluate: cannot open directory %s: %s\n", dir.c_str(), std::strerror(errno));
+    return false;
+  }
+  for (const dirent* entry = readdir(d); entry != nullptr; entry = readdir(d)) {
+    const std::size_t n = std::strlen(entry->d_name);
+    if (n > 5U && std::strcmp(entry->d_name + n - 5U, ".json") == 0) {
+      sidecars.emplace_back(entry->d_name);
+    }
+  }
+  static_cast<void>(closedir(d));  // read-only directory handle
+  std::sort(sidecars.begin(), sidecars.end());
+  if (sidecars.empty()) {
+    std::fprintf(stderr, "tcpest evaluate: no sidecar (*.json) in %s\n", dir.c_str());
+    return false;
+  }
+  return true;
+}
+
+// One directory's share of the pooled score (printed when several are).
+struct DatasetTally {
+  std::string dir;
+  int frames_with_visible = 0;
+  int successes = 0;
+  long visible = 0;
+  long found_ok = 0;
+};
+
 double median_of(std::vector<double>& v) noexcept {
   if (v.empty()) {
     return 0.0;
@@ -72,10 +109,11 @@ int cmd_evaluate(int argc, char** argv) {
     std::fprintf(stderr, "tcpest evaluate: %s\n", error);
     return kExitUsage;
   }
-  if (args.help_requested() || args.positional_count() != 1U) {
+  if (args.help_requested() || args.positional_count() < 1U) {
     print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--no-prior | --true-prior] "
-                "[--max N] [--verbose] DATASET_DIR",
-                "Runs extraction and the solver on every image of a dataset and scores them against the sidecars.",
+                "[--max N] [--verbose] DATASET_DIR...",
+                "Runs extraction and the solver on every image of one or more datasets and scores them against the "
+                "sidecars; several datasets are pooled, with a frame-success line for each.",
                 kSpecs, kSpecCount);
     return args.help_requested() ? kExitOk : kExitUsage;
   }
@@ -94,25 +132,18 @@ int cmd_evaluate(int argc, char** argv) {
     std::fprintf(stderr, "tcpest evaluate: --true-prior and --no-prior exclude each other\n");
     return kExitUsage;
   }
-  const std::string dir = args.positional(0U);
-  std::vector<std::string> sidecars;
-  DIR* d = opendir(dir.c_str());
-  if (d == nullptr) {
-    std::fprintf(stderr, "tcpest evaluate: cannot open directory %s: %s\n", dir.c_str(), std::strerror(errno));
-    return kExitConfig;
-  }
-  for (const dirent* entry = readdir(d); entry != nullptr; entry = readdir(d)) {
-    const std::size_t n = std::strlen(entry->d_name);
-    if (n > 5U && std::strcmp(entry->d_name + n - 5U, ".json") == 0) {
-      sidecars.emplace_back(entry->d_name);
+  // Every directory is listed before any image is processed: a typo in the
+  // last one fails at once, not after the others have run.
+  const std::size_t dataset_count = args.positional_count();
+  std::vector<DatasetTally> datasets(dataset_count);
+  std::vector<std::vector<std::string>> sidecars(dataset_count);
+  for (std::size_t i = 0U; i < dataset_count; ++i) {
+    datasets[i].dir = args.positional(i);
+    if (!list_sidecars(datasets[i].dir, sidecars[i])) {
+      return kExitConfig;
     }
   }
-  static_cast<void>(closedir(d));  // read-only directory handle
-  std::sort(sidecars.begin(), sidecars.end());
-  if (sidecars.empty()) {
-    std::fprintf(stderr, "tcpest evaluate: no sidecar (*.json) in %s\n", dir.c_str());
-    return kExitConfig;
-  }
+  const bool pooled = dataset_count > 1U;
   ModelSetup setup;
   if (!load_model_setup("evaluate", args.value("calib"), args.value("config"), setup)) {
     return kExitConfig;
@@ -153,141 +184,153 @@ int cmd_evaluate(int argc, char** argv) {
   std::vector<double> errors, tcp_errors, degraded_tcp_errors, stage[4], stages_total, solve_times;
   double tcp_sq[3] = {0.0, 0.0, 0.0};
   bool sequence = false;
-  for (const std::string& name : sidecars) {
-    if (static_cast<unsigned long long>(frames) + static_cast<unsigned long long>(unreadable) >= max_images) {
-      break;
-    }
-    std::string sidecar_path = dir;
-    sidecar_path += "/";
-    sidecar_path += name;
-    const auto parsed = render::read_sidecar_file(sidecar_path.c_str());
-    if (!parsed.ok()) {
-      parsed.error().format(error, sizeof error);
-      std::fprintf(stderr, "tcpest evaluate: %s\n", error);
-      ++unreadable;
-      continue;
-    }
-    const render::Sidecar& truth = parsed.value();
-    std::string image_path = dir;
-    image_path += "/";
-    image_path += truth.image;
-    ImageView view;
-    if (!reader.read(image_path.c_str(), pixels, view, error, sizeof error)) {
-      std::fprintf(stderr, "tcpest evaluate: %s: %s\n", image_path.c_str(), error);
-      ++unreadable;
-      continue;
-    }
-    if (view.width != setup.camera.width() || view.height != setup.camera.height()) {
-      std::fprintf(stderr, "tcpest evaluate: %s: size differs from the calibration\n", image_path.c_str());
-      ++unreadable;
-      continue;
-    }
-    sequence = std::strcmp(truth.set, "seq") == 0;
-    if (!sequence) {
-      pipeline.reset_sequence();  // independent images
-    }
-    // The true joints: r's lambda, phi, theta (the channel's pose is not a
-    // prior: the pipeline starts it at the CAD pose either way).
-    const double true_joints[3] = {truth.instrument.r[solver::kLambda], truth.instrument.r[solver::kPhi],
-                                   truth.instrument.r[solver::kTheta]};
-    const double* prior = nullptr;
-    if (true_prior) {
-      prior = truth.instrument.has_r ? true_joints : nullptr;
-    } else if (truth.has_prior && !args.flag("no-prior")) {
-      prior = truth.prior.data();
-    }
-    const EstimateResult result = pipeline.process(view, prior);
-    const vision::Extraction& e = pipeline.extractor().result();
-    ++frames;
-    int frame_visible = 0, frame_ok = 0;
-    for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
-      const bool is_visible = truth.instrument.corner_visible[k];
-      const bool found = corner_reported(result, e, k);
-      if (is_visible) {
-        ++frame_visible;
+  for (std::size_t set = 0U; set < dataset_count; ++set) {
+    DatasetTally& tally = datasets[set];
+    const std::string& dir = tally.dir;
+    pipeline.reset_sequence();  // a dataset is a sequence of its own
+    for (const std::string& name : sidecars[set]) {
+      if (static_cast<unsigned long long>(frames) + static_cast<unsigned long long>(unreadable) >= max_images) {
+        break;
       }
-      if (!found) {
+      std::string sidecar_path = dir;
+      sidecar_path += "/";
+      sidecar_path += name;
+      const auto parsed = render::read_sidecar_file(sidecar_path.c_str());
+      if (!parsed.ok()) {
+        parsed.error().format(error, sizeof error);
+        std::fprintf(stderr, "tcpest evaluate: %s\n", error);
+        ++unreadable;
         continue;
       }
-      ++found_total;
-      const bool has_truth = truth.instrument.corner_present[k];
-      const double err = has_truth ? std::hypot(e.corners[k].pixel.x - truth.instrument.corners[k].x(),
-                                                e.corners[k].pixel.y - truth.instrument.corners[k].y())
-                                   : 1e9;
-      if (err <= tolerance_px) {
-        if (is_visible) {
-          ++frame_ok;
-          errors.push_back(err);
-        }
-      } else {
-        ++wrong;
-        // Mislabelled: it is another corner (within the tolerance of another
-        // k's truth, and nearer to it than to its own); else misplaced.
-        for (std::size_t other = 0U; other < static_cast<std::size_t>(solver::kNumCorners); ++other) {
-          if (other == k || !truth.instrument.corner_present[other]) {
-            continue;
-          }
-          const double to_other = std::hypot(e.corners[k].pixel.x - truth.instrument.corners[other].x(),
-                                             e.corners[k].pixel.y - truth.instrument.corners[other].y());
-          if (to_other <= tolerance_px && to_other < err) {
-            ++mislabelled;
-            break;
-          }
-        }
+      const render::Sidecar& truth = parsed.value();
+      std::string image_path = dir;
+      image_path += "/";
+      image_path += truth.image;
+      ImageView view;
+      if (!reader.read(image_path.c_str(), pixels, view, error, sizeof error)) {
+        std::fprintf(stderr, "tcpest evaluate: %s: %s\n", image_path.c_str(), error);
+        ++unreadable;
+        continue;
       }
-    }
-    visible += frame_visible;
-    found_ok += frame_ok;
-    if (frame_visible > 0) {
-      ++frames_with_visible;
-      const bool success = frame_ok * 10 >= frame_visible * 8;
-      successes += success ? 1 : 0;
-      by_case.add(truth.hard_cases, success);
-    }
-    for (int s = 0; s < 4; ++s) {
-      stage[s].push_back(result.times.stage_us[s]);
-    }
-    stages_total.push_back(result.times.stage_us[0] + result.times.stage_us[1] + result.times.stage_us[2] +
-                           result.times.stage_us[3]);
-    solve_times.push_back(result.times.solve_us);
-    double tcp_err = -1.0;
-    if (result.status == EstimateStatus::Valid && truth.instrument.has_tcp) {
-      ++valid_estimates;
-      const solver::Vec3 diff = result.tcp - truth.instrument.tcp;
-      tcp_err = diff.norm();
-      tcp_errors.push_back(tcp_err);
-      for (int c = 0; c < 3; ++c) {
-        tcp_sq[c] += diff[c] * diff[c];
+      if (view.width != setup.camera.width() || view.height != setup.camera.height()) {
+        std::fprintf(stderr, "tcpest evaluate: %s: size differs from the calibration\n", image_path.c_str());
+        ++unreadable;
+        continue;
       }
-    }
-    if (result.status == EstimateStatus::Degraded && truth.instrument.has_tcp) {
-      tcp_err = (result.tcp - truth.instrument.tcp).norm();
-      degraded_tcp_errors.push_back(tcp_err);
-    }
-    if (csv != nullptr) {
-      solver::CornerSet model;
-      if (result.status != EstimateStatus::None) {
-        setup.instrument.corners(setup.camera, result.r, model);
+      sequence = std::strcmp(truth.set, "seq") == 0;
+      if (!sequence) {
+        pipeline.reset_sequence();  // independent images
       }
+      // The true joints: r's lambda, phi, theta (the channel's pose is not a
+      // prior: the pipeline starts it at the CAD pose either way).
+      const double true_joints[3] = {truth.instrument.r[solver::kLambda], truth.instrument.r[solver::kPhi],
+                                     truth.instrument.r[solver::kTheta]};
+      const double* prior = nullptr;
+      if (true_prior) {
+        prior = truth.instrument.has_r ? true_joints : nullptr;
+      } else if (truth.has_prior && !args.flag("no-prior")) {
+        prior = truth.prior.data();
+      }
+      const EstimateResult result = pipeline.process(view, prior);
+      const vision::Extraction& e = pipeline.extractor().result();
+      ++frames;
+      int frame_visible = 0, frame_ok = 0;
       for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+        const bool is_visible = truth.instrument.corner_visible[k];
         const bool found = corner_reported(result, e, k);
+        if (is_visible) {
+          ++frame_visible;
+        }
+        if (!found) {
+          continue;
+        }
+        ++found_total;
         const bool has_truth = truth.instrument.corner_present[k];
-        const double tu = has_truth ? truth.instrument.corners[k].x() : std::nan("");
-        const double tv = has_truth ? truth.instrument.corners[k].y() : std::nan("");
-        const double u = found ? e.corners[k].pixel.x : std::nan("");
-        const double v = found ? e.corners[k].pixel.y : std::nan("");
-        std::fprintf(csv, "%s,%zu,%d,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%.3f,%s,%.3f,%.3f\n", truth.image, k,
-                     truth.instrument.corner_visible[k] ? 1 : 0, tu, tv, found ? 1 : 0, u, v,
-                     found ? e.corners[k].confidence : 0.0, std::hypot(u - tu, v - tv), to_string(result.status),
-                     model.present[k] ? model.pixel[k].x() : std::nan(""),
-                     model.present[k] ? model.pixel[k].y() : std::nan(""));
+        const double err = has_truth ? std::hypot(e.corners[k].pixel.x - truth.instrument.corners[k].x(),
+                                                  e.corners[k].pixel.y - truth.instrument.corners[k].y())
+                                     : 1e9;
+        if (err <= tolerance_px) {
+          if (is_visible) {
+            ++frame_ok;
+            errors.push_back(err);
+          }
+        } else {
+          ++wrong;
+          // Mislabelled: it is another corner (within the tolerance of another
+          // k's truth, and nearer to it than to its own); else misplaced.
+          for (std::size_t other = 0U; other < static_cast<std::size_t>(solver::kNumCorners); ++other) {
+            if (other == k || !truth.instrument.corner_present[other]) {
+              continue;
+            }
+            const double to_other = std::hypot(e.corners[k].pixel.x - truth.instrument.corners[other].x(),
+                                               e.corners[k].pixel.y - truth.instrument.corners[other].y());
+            if (to_other <= tolerance_px && to_other < err) {
+              ++mislabelled;
+              break;
+            }
+          }
+        }
       }
-    }
-    if (verbose) {
-      std::printf("%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
-                  truth.image, to_string(result.status), frame_visible, frame_ok, e.corner_count,
-                  result.extraction_ok ? "extraction ok" : "extraction: ", result.extraction_ok ? "" : result.extraction_error,
-                  tcp_err, stages_total.back());
+      visible += frame_visible;
+      found_ok += frame_ok;
+      tally.visible += frame_visible;
+      tally.found_ok += frame_ok;
+      if (frame_visible > 0) {
+        ++frames_with_visible;
+        ++tally.frames_with_visible;
+        const bool success = frame_ok * 10 >= frame_visible * 8;
+        successes += success ? 1 : 0;
+        tally.successes += success ? 1 : 0;
+        by_case.add(truth.hard_cases, success);
+      }
+      for (int s = 0; s < 4; ++s) {
+        stage[s].push_back(result.times.stage_us[s]);
+      }
+      stages_total.push_back(result.times.stage_us[0] + result.times.stage_us[1] + result.times.stage_us[2] +
+                             result.times.stage_us[3]);
+      solve_times.push_back(result.times.solve_us);
+      double tcp_err = -1.0;
+      if (result.status == EstimateStatus::Valid && truth.instrument.has_tcp) {
+        ++valid_estimates;
+        const solver::Vec3 diff = result.tcp - truth.instrument.tcp;
+        tcp_err = diff.norm();
+        tcp_errors.push_back(tcp_err);
+        for (int c = 0; c < 3; ++c) {
+          tcp_sq[c] += diff[c] * diff[c];
+        }
+      }
+      if (result.status == EstimateStatus::Degraded && truth.instrument.has_tcp) {
+        tcp_err = (result.tcp - truth.instrument.tcp).norm();
+        degraded_tcp_errors.push_back(tcp_err);
+      }
+      if (csv != nullptr) {
+        solver::CornerSet model;
+        if (result.status != EstimateStatus::None) {
+          setup.instrument.corners(setup.camera, result.r, model);
+        }
+        for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+          const bool found = corner_reported(result, e, k);
+          const bool has_truth = truth.instrument.corner_present[k];
+          const double tu = has_truth ? truth.instrument.corners[k].x() : std::nan("");
+          const double tv = has_truth ? truth.instrument.corners[k].y() : std::nan("");
+          const double u = found ? e.corners[k].pixel.x : std::nan("");
+          const double v = found ? e.corners[k].pixel.y : std::nan("");
+          // Pooled: the image named with its directory (the same names recur).
+          std::fprintf(csv, "%s%s%s,%zu,%d,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%.3f,%s,%.3f,%.3f\n", pooled ? dir.c_str() : "",
+                       pooled ? "/" : "", truth.image, k,
+                       truth.instrument.corner_visible[k] ? 1 : 0, tu, tv, found ? 1 : 0, u, v,
+                       found ? e.corners[k].confidence : 0.0, std::hypot(u - tu, v - tv), to_string(result.status),
+                       model.present[k] ? model.pixel[k].x() : std::nan(""),
+                       model.present[k] ? model.pixel[k].y() : std::nan(""));
+        }
+      }
+      if (verbose) {
+        std::printf("%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
+                    truth.image, to_string(result.status), frame_visible, frame_ok, e.corner_count,
+                    result.extraction_ok ? "extraction ok" : "extraction: ",
+                    result.extraction_ok ? "" : result.extraction_error,
+                    tcp_err, stages_total.back());
+      }
     }
   }
   if (csv != nullptr && std::fclose(csv) != 0) {
@@ -295,8 +338,21 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitFailure;
   }
   const double n_tcp = tcp_errors.empty() ? 1.0 : static_cast<double>(tcp_errors.size());
-  std::printf("dataset %s: %d images scored (%d unreadable), %ld visible corners\n", dir.c_str(), frames, unreadable,
-              visible);
+  const auto percent = [](long part, long whole) noexcept {
+    return whole > 0 ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;
+  };
+  if (pooled) {
+    for (const DatasetTally& t : datasets) {
+      std::printf("dataset %s: frame success %.1f %% of %d frames, corners found %.2f %% of %ld visible\n",
+                  t.dir.c_str(), percent(t.successes, t.frames_with_visible), t.frames_with_visible,
+                  percent(t.found_ok, t.visible), t.visible);
+    }
+    std::printf("pooled over %zu datasets: %d images scored (%d unreadable), %ld visible corners\n", dataset_count,
+                frames, unreadable, visible);
+  } else {
+    std::printf("dataset %s: %d images scored (%d unreadable), %ld visible corners\n", datasets[0].dir.c_str(), frames,
+                unreadable, visible);
+  }
   std::printf("corners found within %.1f px and correctly labelled: %.2f %% of visible\n", tolerance_px,
               visible > 0 ? 100.0 * static_cast<double>(found_ok) / static_cast<double>(visible) : 0.0);
   std::printf("median corner error (found ones): %.3f px\n", median_of(errors));
