@@ -154,10 +154,13 @@ TEST(VisionCommands, EvaluatePoolsSeveralDatasets) {
   std::fclose(f);
   EXPECT_NE(rows.find("\n" + first + "/0000.ppm,0,"), std::string::npos);
   EXPECT_NE(rows.find("\n" + second + "/0001.ppm,11,"), std::string::npos);
-  // --max counts the pooled images.
+  // --max counts the pooled images; --verbose names them as the rows do.
   testing::internal::CaptureStdout();
-  EXPECT_EQ(run({"evaluate", "--max", "3", first, second}), kExitOk);
-  EXPECT_NE(testing::internal::GetCapturedStdout().find("pooled over 2 datasets: 3 images scored"), std::string::npos);
+  EXPECT_EQ(run({"evaluate", "--max", "3", "--verbose", first, second}), kExitOk);
+  const std::string limited = testing::internal::GetCapturedStdout();
+  EXPECT_NE(limited.find("pooled over 2 datasets: 3 images scored"), std::string::npos) << limited;
+  EXPECT_NE(limited.find(second + "/0000.ppm: "), std::string::npos) << limited;
+  EXPECT_EQ(limited.find(second + "/0001.ppm: "), std::string::npos) << limited;
   // A directory that cannot be read fails the run before any image is.
   testing::internal::CaptureStdout();
   EXPECT_EQ(run({"evaluate", first, "/nonexistent-dir"}), kExitConfig);

@@ -325,8 +325,10 @@ int cmd_evaluate(int argc, char** argv) {
         }
       }
       if (verbose) {
-        std::printf("%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
-                    truth.image, to_string(result.status), frame_visible, frame_ok, e.corner_count,
+        // Pooled: the image named with its directory, as in the corner rows.
+        std::printf("%s%s%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
+                    pooled ? dir.c_str() : "", pooled ? "/" : "", truth.image, to_string(result.status),
+                    frame_visible, frame_ok, e.corner_count,
                     result.extraction_ok ? "extraction ok" : "extraction: ",
                     result.extraction_ok ? "" : result.extraction_error,
                     tcp_err, stages_total.back());
