@@ -261,6 +261,8 @@ Sidecar make_sidecar(const GroundTruth& truth, const SceneSpec& scene, const Ren
   s.scene = scene;
   s.tissue_depth_mm = truth.tissue_depth_mm;
   s.supersample = settings.supersample;
+  s.has_motion_blur = (truth.hard_cases & kHardMotionBlur) != 0U;
+  s.motion_blur_px = {truth.motion_blur_dx_px, truth.motion_blur_dy_px};
   s.has_second = truth.instrument_count > 1;
   if (s.has_second) {
     s.second = from_truth(truth.instruments[1]);
@@ -302,9 +304,14 @@ std::size_t format_sidecar(const Sidecar& s, char* out, std::size_t capacity) no
   }
   if (s.has_render) {
     w.add(",\n  \"render\": {\"clean\": %s, \"noise_sigma\": %.6g, \"blur_sigma_px\": %.6g, \"vignetting\": %.6g, "
-          "\"exposure\": %.6g, \"tissue_depth_mm\": %.6g, \"supersample\": %d, \"jpeg_quality\": %d}",
+          "\"exposure\": %.6g, \"tissue_depth_mm\": %.6g, \"supersample\": %d, \"jpeg_quality\": %d",
           s.scene.clean ? "true" : "false", s.scene.noise_sigma, s.scene.blur_sigma_px, s.scene.vignetting,
           s.scene.exposure, s.tissue_depth_mm, s.supersample, s.jpeg_quality);
+    if (s.has_motion_blur) {
+      w.add(", \"motion_blur_px\": ");
+      add_numbers(w, s.motion_blur_px.data(), 2);
+    }
+    w.add("}");
   }
   if (s.has_second) {
     w.add(",\n  \"instrument2\": {\n");
@@ -446,6 +453,13 @@ Result<Sidecar, Diagnostic> parse_sidecar(const char* text, std::size_t length, 
         }
         *int_render_values[k] = static_cast<int>(v.value());
       }
+    }
+    const std::size_t blur = rd.find(i, "motion_blur_px");
+    if (blur != json::kNone) {
+      if (!rd.numbers(blur, s.motion_blur_px.data(), 2U)) {
+        return R::failure(rd.error("render.motion_blur_px", "expected [dx, dy] (px)"));
+      }
+      s.has_motion_blur = true;
     }
     const std::size_t c = rd.find(i, "clean");
     s.scene.clean = c != json::kNone && doc.type(c) == json::TokenType::True;

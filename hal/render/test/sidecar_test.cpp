@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -12,7 +13,7 @@ namespace tcpest {
 namespace render {
 namespace {
 
-Sidecar rendered_sidecar(bool two) {
+Sidecar rendered_sidecar(bool two, std::uint32_t hard_cases = kHardHaze | kHardDecoy) {
   static const auto camera = test::pal_camera();
   static auto renderer = test::make_renderer(camera);
   test::Frame f(720, 576);
@@ -20,7 +21,7 @@ Sidecar rendered_sidecar(bool two) {
   scene.r = solver::InstrumentGeometry{}.nominal_pose(22.5, 0.3, 1.1);
   scene.seed = 0xFFFFFFFFFFFFFFF1ULL;  // beyond 2^53: must survive the round trip
   scene.world_seed = 0xFFFFFFFFFFFFFF07ULL;
-  scene.hard_cases = kHardHaze | kHardDecoy;
+  scene.hard_cases = hard_cases;
   scene.second_instrument = two;
   scene.r2 = renderer->mirrored_nominal_pose(20.0, -0.2, 0.9);
   GroundTruth truth;
@@ -83,6 +84,32 @@ TEST(Sidecar, RoundTripKeepsEveryField) {
   }
 }
 
+TEST(Sidecar, MotionBlurStreakIsWrittenOnlyWithTheBlur) {
+  const Sidecar blurred = rendered_sidecar(false, kHardMotionBlur);
+  ASSERT_TRUE(blurred.has_motion_blur);
+  const double length_px = std::hypot(blurred.motion_blur_px[0], blurred.motion_blur_px[1]);
+  EXPECT_GE(length_px, 5.0);  // the renderer's streak: 5..14 px
+  EXPECT_LE(length_px, 14.0);
+  char text[kSidecarMaxBytes];
+  std::size_t n = format_sidecar(blurred, text, sizeof text);
+  ASSERT_GT(n, 0U);
+  auto parsed = parse_sidecar(text, n, "mem.json");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_TRUE(parsed.value().has_motion_blur);
+  EXPECT_NEAR(parsed.value().motion_blur_px[0], blurred.motion_blur_px[0], 1e-9);
+  EXPECT_NEAR(parsed.value().motion_blur_px[1], blurred.motion_blur_px[1], 1e-9);
+  EXPECT_EQ(parsed.value().jpeg_quality, 90);  // the render object still closes after the streak
+
+  const Sidecar sharp = rendered_sidecar(false);
+  EXPECT_FALSE(sharp.has_motion_blur);
+  n = format_sidecar(sharp, text, sizeof text);
+  ASSERT_GT(n, 0U);
+  EXPECT_EQ(std::strstr(text, "motion_blur_px"), nullptr);
+  parsed = parse_sidecar(text, n, "mem.json");
+  ASSERT_TRUE(parsed.ok());
+  EXPECT_FALSE(parsed.value().has_motion_blur);
+}
+
 TEST(Sidecar, FileRoundTrip) {
   const Sidecar s = rendered_sidecar(false);
   const std::string path = ::testing::TempDir() + "sidecar_round_trip.json";
@@ -126,6 +153,9 @@ TEST(Sidecar, ErrorsNameTheField) {
        "hard_cases"},
       {"{\"corners\": [null,null,null,null,null,null,null,null,null,null,null,null], \"instrument2\": {}}",
        "instrument2.corners"},
+      {"{\"corners\": [null,null,null,null,null,null,null,null,null,null,null,null], "
+       "\"render\": {\"motion_blur_px\": [3]}}",
+       "render.motion_blur_px"},
   };
   for (const Case& c : cases) {
     const auto parsed = parse_sidecar(c.text, std::strlen(c.text), "bad.json");

@@ -54,6 +54,12 @@ struct Sidecar {
   double tissue_depth_mm = 0.0;
   int jpeg_quality = 0;           // 0 = raw frame
   int supersample = 0;
+  // The motion blur's full streak (px, image; GroundTruth::motion_blur_*):
+  // the image is the mean over this streak centred on the truth's image.
+  // Written with the render settings when the frame has motion blur, so
+  // that a reading of the streak can be checked against it.
+  bool has_motion_blur = false;
+  std::array<double, 2> motion_blur_px{};
   bool has_second = false;
   SidecarInstrument second;
 };
