@@ -47,7 +47,7 @@ bool exists(const std::string& path) {
 }
 
 // Two rendered frames (PPM) with their sidecars in a fresh directory.
-std::string make_dataset(const char* name) {
+std::string make_dataset(const char* name, std::uint32_t hard_cases = 0U) {
   const std::string dir = ::testing::TempDir() + name;
   mkdir(dir.c_str(), 0755);
   ModelSetup setup;
@@ -62,6 +62,7 @@ std::string make_dataset(const char* name) {
     render::SceneSpec spec;
     spec.r = setup.instrument.geometry().nominal_pose(joints[i][0], joints[i][1], joints[i][2]);
     spec.seed = static_cast<std::uint64_t>(i + 3);
+    spec.hard_cases = hard_cases;
     render::GroundTruth truth;
     EXPECT_TRUE(renderer->render(spec, out, truth).ok());
     char stem[32];
@@ -165,6 +166,23 @@ TEST(VisionCommands, EvaluatePoolsSeveralDatasets) {
   testing::internal::CaptureStdout();
   EXPECT_EQ(run({"evaluate", first, "/nonexistent-dir"}), kExitConfig);
   EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
+}
+
+// With sidecars that carry the motion blur's streak, evaluate reports how
+// well the image fit read it; without blur there is no such line.
+TEST(VisionCommands, EvaluateReportsTheStreakReadingUnderMotionBlur) {
+  const std::string blurred = make_dataset("vision_cli_blur", render::kHardMotionBlur);
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"evaluate", blurred}), kExitOk);
+  const std::string summary = testing::internal::GetCapturedStdout();
+  EXPECT_NE(summary.find("motion-blur streak read on "), std::string::npos) << summary;
+  EXPECT_NE(summary.find(" of 2 blurred frames (length error median "), std::string::npos) << summary;
+  EXPECT_NE(summary.find(") and on 0 of 0 others"), std::string::npos) << summary;
+  const std::string sharp = make_dataset("vision_cli_sharp");
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"evaluate", sharp}), kExitOk);
+  const std::string plain = testing::internal::GetCapturedStdout();
+  EXPECT_EQ(plain.find("motion-blur streak"), std::string::npos) << plain;
 }
 
 // evaluate's line of frame success per hard case: a frame counts under each

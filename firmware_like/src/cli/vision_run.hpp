@@ -68,6 +68,9 @@ struct EstimateResult {
   bool encoder_disagrees = false;  // demoted one level: beyond the encoders' accuracy (solver::check_against_encoders)
   bool extraction_ok = false;
   const char* extraction_error = "";
+  // The motion-blur streak the kept image fit read (px, image; its sign is
+  // arbitrary; zero: none read, ImageFitSummary::streak_px).
+  solver::Vec2 streak_px = solver::Vec2::Zero();
   StageTimes times{};
   double total_us = 0.0;
 };
