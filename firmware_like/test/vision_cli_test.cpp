@@ -89,7 +89,7 @@ TEST(VisionCommands, UsageErrorsAndHelp) {
   EXPECT_EQ(run({"evaluate", "/nonexistent-dir"}), kExitConfig);
   EXPECT_EQ(run({"train-colors"}), kExitUsage);
   EXPECT_EQ(run({"estimate", "--guided-rounds", "5", "x.jpg"}), kExitUsage);
-  EXPECT_EQ(run({"estimate", "--fallback-seeds", "6", "x.jpg"}), kExitUsage);
+  EXPECT_EQ(run({"estimate", "--fallback-seeds", "10", "x.jpg"}), kExitUsage);
   EXPECT_EQ(run({"evaluate", "--fallback-seeds", "-1", "/tmp"}), kExitUsage);
 }
 

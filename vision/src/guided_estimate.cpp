@@ -99,7 +99,21 @@ struct SeedRule {
   bool coarse_start = true;  // the fit's first iterations widened
   // Its fit read no fewer boundaries than out's (GuidedOptions::start_unmoved).
   bool no_fewer_boundaries = false;
+  // Against a fit-confirmed out, clearly better: a better quality, or the
+  // image's clear word (prefer_fit_rms_ratio), not a lower residual alone
+  // (GuidedOptions::bend_seed_step_rad).
+  bool clearly_better = false;
 };
+
+// SeedRule::clearly_better's test.
+bool clearly_better(const GuidedResult& candidate, const GuidedResult& current, const GuidedOptions& options) noexcept {
+  if (current.rounds_kept == 0) {
+    return true;  // nothing confirmed to hold against
+  }
+  const ImageFitSummary& fit = candidate.fit;
+  return fit.rms_px < options.prefer_fit_rms_ratio * current.fit.rms_px && fit.boundaries >= current.fit.boundaries &&
+         fit.silhouette_readings >= current.fit.silhouette_readings;
+}
 
 // The rounds from a seed; the result replaces `out` when better and meets
 // `rule` (else the extractor's corners are put back). True when it was kept.
@@ -121,7 +135,8 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
                           std::fabs(out.estimate.r[solver::kLambda] - rule.near_lambda_mm);
   const bool read_enough =
       !rule.no_fewer_boundaries || out.rounds_kept == 0 || tried.fit.boundaries >= out.fit.boundaries;
-  if (nearer && read_enough && better(tried, out, options)) {
+  const bool clear = !rule.clearly_better || clearly_better(tried, out, options);
+  if (nearer && read_enough && clear && better(tried, out, options)) {
     out = tried;
     return true;
   }
@@ -133,11 +148,12 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
 }
 
 // Which of the start's variants the fallback seeds tried (GuidedResult's
-// unmoved_tried and insertion_tried), and the start's shaft fit when the
-// start seed made it (the base-rim seed needs the same one).
+// unmoved_tried, insertion_tried and bend_tried), and the start's shaft fit
+// when the start seed made it (the base-rim seed needs the same one).
 struct SeedsTried {
   bool unmoved = false;
   bool insertion = false;
+  bool bend = false;
   bool start_shaft_fitted = false;  // fit_channel_to_shaft was run from `start`
   bool start_shaft_ok = false;      // ... and succeeded: start_shafted holds its pose
   solver::PoseVector start_shafted = solver::PoseVector::Zero();
@@ -157,11 +173,16 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
   // regions (from_regions), when seed 0 did not give a valid estimate;
   // seeds 2 and 3: the start moved forth and back along the insertion
   // (insertion_seed_step_mm), their results kept against a fit-confirmed
-  // one only when nearer to the start's insertion.
+  // one only when nearer to the start's insertion; seeds 4 to 7: the
+  // start's theta, then its phi, moved forth and back (bend_seed_step_rad),
+  // their results kept against a fit-confirmed one only when clearly
+  // better.
   constexpr int kStartSeed = 0;
   constexpr int kRegionsSeed = 1;
   constexpr int kInsertionForthSeed = 2;
-  constexpr int kSeedIndices = 4;
+  constexpr int kInsertionBackSeed = 3;
+  constexpr int kBendSeed = 4;  // 4, 5: theta +, -; 6, 7: phi +, -
+  constexpr int kSeedIndices = 8;
   int seeds_tried = 0;
   SeedsTried tried{};
   for (int seed_index = 0; seed_index < kSeedIndices; ++seed_index) {
@@ -170,7 +191,8 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
     }
     solver::PoseVector seed_r = start;
     SeedRule rule;
-    const bool insertion_seed = seed_index >= kInsertionForthSeed;
+    const bool insertion_seed = seed_index == kInsertionForthSeed || seed_index == kInsertionBackSeed;
+    const bool bend_seed = seed_index >= kBendSeed;
     if (seed_index == kStartSeed) {
       if (!options.start_seed || !start.allFinite()) {
         continue;
@@ -179,6 +201,14 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
       if (!options.from_regions || !extractor.pose_from_regions(camera, model, seed_r).ok()) {
         continue;
       }
+    } else if (bend_seed) {
+      if (!options.start_seed || !(options.bend_seed_step_rad > 0.0) || !start.allFinite()) {
+        continue;
+      }
+      const int bend_index = seed_index - kBendSeed;  // 0..3
+      const int joint = bend_index < 2 ? solver::kTheta : solver::kPhi;
+      seed_r[joint] += bend_index % 2 == 0 ? options.bend_seed_step_rad : -options.bend_seed_step_rad;
+      rule.clearly_better = true;
     } else {
       if (!options.start_seed || !(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
         continue;
@@ -220,11 +250,13 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
     }
     ++seeds_tried;
     tried.insertion = tried.insertion || insertion_seed;
+    tried.bend = tried.bend || bend_seed;
     if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, rule)) {
       out.from_start = seed_index == kStartSeed;
       out.from_regions = seed_index == kRegionsSeed;
       out.from_unmoved = false;
       out.from_insertion = insertion_seed;
+      out.from_bend = bend_seed;
     }
     if (seed_index == kStartSeed && options.class_fit && options.start_unmoved &&
         out.estimate.quality != solver::EstimateQuality::Valid && seeds_tried < options.fallback_seeds) {
@@ -237,6 +269,7 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
         out.from_unmoved = true;
         out.from_regions = false;
         out.from_insertion = false;
+        out.from_bend = false;
       }
     }
   }
@@ -378,6 +411,7 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   // After every seed: a kept result's flags come from its own rounds.
   out.unmoved_tried = tried.unmoved;
   out.insertion_tried = tried.insertion;
+  out.bend_tried = tried.bend;
   return out;
 }
 

@@ -84,7 +84,7 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
     const char* field;
   } bad[] = {
       {"loop:\n  classify_step: 3\n", "loop.classify_step"},
-      {"loop:\n  fallback_seeds: 6\n", "loop.fallback_seeds"},
+      {"loop:\n  fallback_seeds: 10\n", "loop.fallback_seeds"},
       {"loop:\n  encoder_check_bend_rad: -0.1\n", "loop.encoder_check_bend_rad"},
       {"loop:\n  encoder_check_lambda_mm: nan\n", "loop.encoder_check_lambda_mm"},
   };

@@ -20,8 +20,9 @@ constexpr OptionSpec kGuidedRoundsOption{"guided-rounds", "N",
                                          "corners, the paper's pipeline)"};
 constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
                                           "image fits from other seeds (the prior's pose, the same without its class fit, "
-                                          "the regions' pose, the prior's pose moved +/- 2 mm along the insertion) on a "
-                                          "frame not yet valid, 0..5 (default 5; the loop's loop.fallback_seeds: 1)"};
+                                          "the regions' pose, the prior's pose moved +/- 2 mm along the insertion, then "
+                                          "with its theta and phi moved +/- 0.2 rad) on a frame not yet valid, 0..9 "
+                                          "(default 9; the loop's loop.fallback_seeds: 1)"};
 
 struct ModelSetup {
   solver::CameraModel camera;

@@ -50,14 +50,14 @@ struct GuidedOptions {
   // silhouette points with a residual below prefer_fit_rms_ratio times the
   // current's); else valid over degraded; at the same quality, a
   // fit-confirmed one over stage 4's, then the lower fit residual
-  // (docs/vision.md). Bounded: at most `fallback_seeds` (0..5)
+  // (docs/vision.md). Bounded: at most `fallback_seeds` (0..9)
   // seeds per frame, only on frames not yet valid (each about 1-3 ms at PAL,
   // docs/vision.md).
   bool prefer_fit_confirmed = true;   // the first of those rules (false: off)
   double prefer_fit_rms_ratio = 0.7;  // the second (0: off)
   bool start_seed = true;
   bool from_regions = true;
-  int fallback_seeds = 5;
+  int fallback_seeds = 9;
   // Each fallback seed's channel pose is first fitted to the shaft's
   // silhouette (`shaft_fit`: FeatureExtractor::fit_channel_to_shaft), then
   // the seed is moved onto the class image (`class_fit`:
@@ -82,13 +82,27 @@ struct GuidedOptions {
   // when still not valid, the start is tried moved by
   // +insertion_seed_step_mm and then -insertion_seed_step_mm along the
   // insertion (shaft fit and class fit as for the start), each counted as
-  // one of the `fallback_seeds` (the last two; a seed not available, such
+  // one of the `fallback_seeds` (the 4th and 5th; a seed not available, such
   // as the regions' pose, leaves its count to the next); their result is
   // kept only if better (the rule above) and, against a fit-confirmed
   // result, its insertion nearer to the start's, so that a seed cannot
   // carry the fit two stripes along (0: off, and off with start_seed;
   // docs/vision.md, "Insertion seeds").
   double insertion_seed_step_mm = 2.0;
+  // The encoders' bend is known to +/- 0.2 rad (model.md's coarse prior),
+  // and from a start that far off the coarse fit can hold the tip's stripes
+  // on the wrong side of the bend. So after the insertion seeds, when still
+  // not valid, the start is tried with theta moved by +bend_seed_step_rad
+  // and -bend_seed_step_rad, then phi likewise (shaft fit and class fit as
+  // for the start), each counted as one of the `fallback_seeds` (the 6th to
+  // the 9th). Their result is kept only if better (the rule above) and,
+  // against a fit-confirmed result, clearly so: a better quality, or a fit
+  // that read no less with a residual below prefer_fit_rms_ratio times the
+  // current's. Four more seeds are four more chances for a lower residual
+  // at a wrong pose; the plain "lower residual" rule, measured, lost a
+  // frame for every two it gained (0: off, and off with start_seed;
+  // docs/vision.md, "Bend seeds").
+  double bend_seed_step_rad = 0.2;
   // A valid result is checked against the shaft: when the shaft's fit moves
   // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
   // tried again from that channel pose (coarse start) and the better result
@@ -126,7 +140,7 @@ struct GuidedOptions {
   bool base_rim_seed = true;
 };
 constexpr int kMaxGuidedRounds = 4;
-constexpr int kMaxFallbackSeeds = 5;
+constexpr int kMaxFallbackSeeds = 9;
 
 struct GuidedResult {
   solver::Estimate estimate{};
@@ -138,6 +152,8 @@ struct GuidedResult {
   bool from_unmoved = false;      // ... and that result was kept (from_start is then true too)
   bool from_insertion = false;    // the rounds started from the start moved along the insertion
   bool insertion_tried = false;   // the start was also tried moved along the insertion
+  bool from_bend = false;         // the rounds started from the start with its bend moved (bend_seed_step_rad)
+  bool bend_tried = false;        // the start was also tried with its bend moved
   bool shaft_rechecked = false;   // a valid result was tried again from the shaft's channel pose
   bool alias_checked = false;     // the result was tried again two stripes along (alias_check)
   bool from_alias = false;        // ... and that result was kept
