@@ -878,7 +878,7 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
 // The encoders' insertion is known to +/- 3 mm, most of a stripe: from
 // such a start the coarse fit can settle with its boundaries a stripe from
 // their own, or read too few of them. The start moved by 2 mm along the
-// insertion (GuidedOptions::insertion_seed_step_mm, the last two
+// insertion (GuidedOptions::insertion_seed_step_mm, the 4th and 5th
 // fallback seeds) gives these frames back: hard frames 8 and 16 (an
 // occluder; haze and noise), through the set's JPEG step; and hard frame
 // 60, where no other seed gives a pose: the seed's insertion is compared
