@@ -45,7 +45,7 @@ struct LoopSettings {
   double encoder_check_bend_rad = 0.5;  // |theta (cos phi, sin phi) - theirs|
   int outlier_rounds = 2;              // re-solves without corners far from the model (0..4; solver::EstimateOptions)
   int guided_rounds = 1;               // model-guided corner rounds after the first solve (0..4; 0: stage 4's corners)
-  int fallback_seeds = 1;              // image fits from other seeds on a frame not yet valid (0..5; vision::GuidedOptions)
+  int fallback_seeds = 1;              // image fits from other seeds on a frame not yet valid (0..9; vision::GuidedOptions)
   bool shaft_recheck = false;          // a valid frame tried again from the shaft's channel pose (vision::GuidedOptions)
   bool alias_check = false;            // a result 3 mm off the encoders' insertion tried two stripes back (vision::GuidedOptions)
   bool base_rim_seed = true;           // no fit kept: the channel from the shaft, the insertion from the base's rim (vision::GuidedOptions)
