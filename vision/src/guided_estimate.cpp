@@ -99,8 +99,9 @@ struct SeedRule {
   bool coarse_start = true;  // the fit's first iterations widened
   // Its fit read no fewer boundaries than out's (GuidedOptions::start_unmoved).
   bool no_fewer_boundaries = false;
-  // Against a fit-confirmed out, clearly better: a better quality, or the
-  // image's clear word (prefer_fit_rms_ratio), not a lower residual alone
+  // Against a fit-confirmed out, clearly better: no less read, with a
+  // residual below prefer_fit_rms_ratio times out's, whatever the
+  // qualities; not a lower residual or a better quality alone
   // (GuidedOptions::bend_seed_step_rad).
   bool clearly_better = false;
 };

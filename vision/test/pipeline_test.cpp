@@ -934,8 +934,8 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
 // the insertion 40 mm, the tube bent 100 deg), frame 144 of seed 1
 // (motion blur) and frame 7 of seed 6 (an occluder). Against a
 // fit-confirmed result a bend seed's must be clearly better (the image's
-// word, not a lower residual alone): lab frames 18 and 44 of seeds 2 and 3
-// turned valid and wrong under the plain rule.
+// word, not a lower residual or a better quality alone): lab frames 18 and
+// 44 of seeds 2 and 3 turned valid and wrong when a better quality sufficed.
 TEST(Pipeline, TheStartWithItsBendMovedServesAFrameTheOtherSeedsMiss) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);

@@ -295,7 +295,8 @@ int cmd_evaluate(int argc, char** argv) {
           ++streak_read_blurred;
           streak_length_errors.push_back(std::fabs(result.streak_px.norm() - true_streak.norm()));
           // The sign is arbitrary: the angle between the two lines, 0..90 deg.
-          const double cosine = std::fabs(result.streak_px.dot(true_streak)) / (result.streak_px.norm() * true_streak.norm());
+          const double cosine =
+              std::fabs(result.streak_px.dot(true_streak)) / (result.streak_px.norm() * true_streak.norm());
           streak_direction_errors.push_back(std::acos(std::min(1.0, cosine)) * 180.0 / solver::kPi);
         }
       } else if (truth.has_render) {  // rendered without blur: a streak read there is a false one

@@ -96,12 +96,13 @@ struct GuidedOptions {
   // and -bend_seed_step_rad, then phi likewise (shaft fit and class fit as
   // for the start), each counted as one of the `fallback_seeds` (the 6th to
   // the 9th). Their result is kept only if better (the rule above) and,
-  // against a fit-confirmed result, clearly so: a better quality, or a fit
-  // that read no less with a residual below prefer_fit_rms_ratio times the
-  // current's. Four more seeds are four more chances for a lower residual
-  // at a wrong pose; the plain "lower residual" rule, measured, lost a
-  // frame for every two it gained (0: off, and off with start_seed;
-  // docs/vision.md, "Bend seeds").
+  // against a fit-confirmed result, clearly so: its fit read no fewer
+  // boundaries and silhouette points with a residual below
+  // prefer_fit_rms_ratio times the current's, whatever the qualities.
+  // Four more seeds are four more chances for a lower residual at a wrong
+  // pose: the plain rule, measured, lost a frame for every two it gained,
+  // and a better quality alone turned two lab frames valid and wrong (0:
+  // off, and off with start_seed; docs/vision.md, "Bend seeds").
   double bend_seed_step_rad = 0.2;
   // A valid result is checked against the shaft: when the shaft's fit moves
   // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
