@@ -71,6 +71,15 @@ int rank(solver::EstimateQuality q) noexcept {
 // prefer_fit_rms_ratio times the current's (docs/vision.md). Otherwise when
 // it is of a better quality; at the same quality, when the current one was
 // not confirmed by a fit, or had a higher image-fit residual.
+// The image's clear word for a candidate fit over the current one: it read
+// at least as many boundaries and silhouette points, with a residual below
+// prefer_fit_rms_ratio times the current's.
+bool fit_clearly_better(const ImageFitSummary& fit, const ImageFitSummary& current,
+                        const GuidedOptions& options) noexcept {
+  return fit.rms_px < options.prefer_fit_rms_ratio * current.rms_px && fit.boundaries >= current.boundaries &&
+         fit.silhouette_readings >= current.silhouette_readings;
+}
+
 bool better(const GuidedResult& candidate, const GuidedResult& current, const GuidedOptions& options) noexcept {
   if (candidate.rounds_kept == 0) {
     return false;
@@ -80,8 +89,7 @@ bool better(const GuidedResult& candidate, const GuidedResult& current, const Gu
       fit.silhouette_readings >= options.min_valid_fit_silhouette_readings) {
     return true;
   }
-  if (current.rounds_kept > 0 && fit.rms_px < options.prefer_fit_rms_ratio * current.fit.rms_px &&
-      fit.boundaries >= current.fit.boundaries && fit.silhouette_readings >= current.fit.silhouette_readings) {
+  if (current.rounds_kept > 0 && fit_clearly_better(fit, current.fit, options)) {
     return true;
   }
   const int a = rank(candidate.estimate.quality);
@@ -99,22 +107,12 @@ struct SeedRule {
   bool coarse_start = true;  // the fit's first iterations widened
   // Its fit read no fewer boundaries than out's (GuidedOptions::start_unmoved).
   bool no_fewer_boundaries = false;
-  // Against a fit-confirmed out, clearly better: no less read, with a
-  // residual below prefer_fit_rms_ratio times out's, whatever the
-  // qualities; not a lower residual or a better quality alone
-  // (GuidedOptions::bend_seed_step_rad).
+  // Against a fit-confirmed out, the image's clear word
+  // (fit_clearly_better), whatever the qualities; not a lower residual or a
+  // better quality alone (GuidedOptions::bend_seed_step_rad).
   bool clearly_better = false;
 };
 
-// SeedRule::clearly_better's test.
-bool clearly_better(const GuidedResult& candidate, const GuidedResult& current, const GuidedOptions& options) noexcept {
-  if (current.rounds_kept == 0) {
-    return true;  // nothing confirmed to hold against
-  }
-  const ImageFitSummary& fit = candidate.fit;
-  return fit.rms_px < options.prefer_fit_rms_ratio * current.fit.rms_px && fit.boundaries >= current.fit.boundaries &&
-         fit.silhouette_readings >= current.fit.silhouette_readings;
-}
 
 // The rounds from a seed; the result replaces `out` when better and meets
 // `rule` (else the extractor's corners are put back). True when it was kept.
@@ -136,7 +134,7 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
                           std::fabs(out.estimate.r[solver::kLambda] - rule.near_lambda_mm);
   const bool read_enough =
       !rule.no_fewer_boundaries || out.rounds_kept == 0 || tried.fit.boundaries >= out.fit.boundaries;
-  const bool clear = !rule.clearly_better || clearly_better(tried, out, options);
+  const bool clear = !rule.clearly_better || out.rounds_kept == 0 || fit_clearly_better(tried.fit, out.fit, options);
   if (nearer && read_enough && clear && better(tried, out, options)) {
     out = tried;
     return true;
