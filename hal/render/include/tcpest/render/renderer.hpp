@@ -100,7 +100,7 @@ struct GroundTruth {
   std::uint64_t seed = 0U;
   // The motion blur's full streak (px, image; kHardMotionBlur, zero
   // without): the image is the mean over the streak centred on the
-  // truth's (mid-exposure) image. Not written to the sidecar.
+  // truth's (mid-exposure) image. In the sidecar as render.motion_blur_px.
   double motion_blur_dx_px = 0.0;
   double motion_blur_dy_px = 0.0;
 };
