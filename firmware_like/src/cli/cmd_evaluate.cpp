@@ -88,6 +88,35 @@ struct DatasetTally {
   long found_ok = 0;
 };
 
+// The motion-blur streak the image fit read, against the sidecars' (when
+// they carry it): how often it is read on blurred frames, how well, and
+// how often on frames rendered without blur (a false reading).
+struct StreakTally {
+  int blurred_frames = 0;
+  int read_blurred = 0;
+  int sharp_frames = 0;
+  int read_sharp = 0;
+  std::vector<double> length_errors_px, direction_errors_deg;
+
+  void add(const render::Sidecar& truth, const solver::Vec2& read_px) {
+    const bool read = read_px.norm() > 0.0;
+    if (truth.has_motion_blur) {
+      ++blurred_frames;
+      const solver::Vec2 true_px(truth.motion_blur_px[0], truth.motion_blur_px[1]);
+      if (read && true_px.norm() > 0.0) {
+        ++read_blurred;
+        length_errors_px.push_back(std::fabs(read_px.norm() - true_px.norm()));
+        // The sign is arbitrary: the angle between the two lines, 0..90 deg.
+        const double cosine = std::fabs(read_px.dot(true_px)) / (read_px.norm() * true_px.norm());
+        direction_errors_deg.push_back(std::acos(std::min(1.0, cosine)) * 180.0 / solver::kPi);
+      }
+    } else if (truth.has_render) {
+      ++sharp_frames;
+      read_sharp += read ? 1 : 0;
+    }
+  }
+};
+
 double median_of(std::vector<double>& v) noexcept {
   if (v.empty()) {
     return 0.0;
@@ -183,10 +212,7 @@ int cmd_evaluate(int argc, char** argv) {
   HardCaseTally by_case;  // frame success per hard case
   std::vector<double> errors, tcp_errors, degraded_tcp_errors, stage[4], stages_total, solve_times;
   double tcp_sq[3] = {0.0, 0.0, 0.0};
-  // The motion-blur streak read by the image fit against the sidecars' (when
-  // they carry it): how often it is read, and how well.
-  int blurred_frames = 0, streak_read_blurred = 0, streak_read_sharp = 0, sharp_frames = 0;
-  std::vector<double> streak_length_errors, streak_direction_errors;
+  StreakTally streaks;
   bool sequence = false;
   for (std::size_t set = 0U; set < dataset_count; ++set) {
     DatasetTally& tally = datasets[set];
@@ -287,22 +313,7 @@ int cmd_evaluate(int argc, char** argv) {
         tally.successes += success ? 1 : 0;
         by_case.add(truth.hard_cases, success);
       }
-      const bool streak_read = result.streak_px.norm() > 0.0;
-      if (truth.has_motion_blur) {
-        ++blurred_frames;
-        const solver::Vec2 true_streak(truth.motion_blur_px[0], truth.motion_blur_px[1]);
-        if (streak_read && true_streak.norm() > 0.0) {
-          ++streak_read_blurred;
-          streak_length_errors.push_back(std::fabs(result.streak_px.norm() - true_streak.norm()));
-          // The sign is arbitrary: the angle between the two lines, 0..90 deg.
-          const double cosine =
-              std::fabs(result.streak_px.dot(true_streak)) / (result.streak_px.norm() * true_streak.norm());
-          streak_direction_errors.push_back(std::acos(std::min(1.0, cosine)) * 180.0 / solver::kPi);
-        }
-      } else if (truth.has_render) {  // rendered without blur: a streak read there is a false one
-        ++sharp_frames;
-        streak_read_sharp += streak_read ? 1 : 0;
-      }
+      streaks.add(truth, result.streak_px);
       for (int s = 0; s < 4; ++s) {
         stage[s].push_back(result.times.stage_us[s]);
       }
@@ -391,11 +402,11 @@ int cmd_evaluate(int argc, char** argv) {
   if (case_line[0] != '\0') {
     std::printf("%s\n", case_line);
   }
-  if (blurred_frames > 0) {
+  if (streaks.blurred_frames > 0) {
     std::printf("motion-blur streak read on %d of %d blurred frames (length error median %.2f px, direction error "
                 "median %.1f deg) and on %d of %d others\n",
-                streak_read_blurred, blurred_frames, median_of(streak_length_errors),
-                median_of(streak_direction_errors), streak_read_sharp, sharp_frames);
+                streaks.read_blurred, streaks.blurred_frames, median_of(streaks.length_errors_px),
+                median_of(streaks.direction_errors_deg), streaks.read_sharp, streaks.sharp_frames);
   }
   std::printf("valid estimates: %d; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n", valid_estimates,
               median_of(tcp_errors), std::sqrt(tcp_sq[0] / n_tcp), std::sqrt(tcp_sq[1] / n_tcp),
