@@ -46,6 +46,7 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
     }
     out.estimate = again;
     out.rounds_kept = round + 1;
+    out.fitted_r = fitted;
   }
   if (out.rounds_kept == 0) {
     extractor.restore_stage4_corners();
@@ -367,6 +368,7 @@ bool try_base_rim(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
   estimate.quality = solver::EstimateQuality::Degraded;
   out.estimate = estimate;
   out.rounds_kept = 1;
+  out.fitted_r = seed_r;
   out.from_base_rim = true;
   return true;
 }

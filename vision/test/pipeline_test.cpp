@@ -536,6 +536,54 @@ solver::PoseVector with_channel_play(const solver::InstrumentModel& model, const
   return r;
 }
 
+// With a round kept, the guided result keeps the pose its corners were read
+// at. With the channel away from its CAD pose (a play of about 1.5 sd), that
+// pose's TCP lies nearer the truth than the solve's of eq. 8, whose cubic
+// penalty holds the channel towards CAD (docs/solver.md, "The image fit's
+// pose and the TCP"); the predicted corners of a boundary not read are that
+// pose's limb points (within 0.3 px: refine_corners takes them from the
+// silhouette beside the circle).
+TEST(Pipeline, TheGuidedResultKeepsThePoseItsCornersWereReadAt) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  solver::PoseEstimator estimator(f.camera, f.model);
+  const double poses[3][3] = {{25.0, 30.0, 40.0}, {20.0, -60.0, -50.0}, {35.0, 60.0, 80.0}};
+  double fit_error_mm = 0.0;
+  double solve_error_mm = 0.0;
+  int predicted = 0;
+  for (const auto& q : poses) {
+    const solver::PoseVector true_r = with_channel_play(f.model, q);
+    const ImageView image = f.render_r(true_r);
+    const solver::PoseVector prior = f.model.geometry().nominal_pose(q[0] + 1.0, solver::deg_to_rad(q[1]) + 0.05,
+                                                                     solver::deg_to_rad(q[2]) - 0.05);
+    ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
+    const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, true,
+                                                solver::SolveMode::Adaptive, prior, GuidedOptions{});
+    ASSERT_GE(guided.rounds_kept, 1) << "pose " << q[0] << " " << q[1] << " " << q[2];
+    ASSERT_TRUE(guided.fitted_r.allFinite());
+    const solver::Vec3 true_tcp = f.model.tcp(true_r);
+    const double fit_mm = (f.model.tcp(guided.fitted_r) - true_tcp).norm();
+    EXPECT_LT(fit_mm, 1.0) << "pose " << q[0] << " " << q[1] << " " << q[2];
+    fit_error_mm += fit_mm;
+    solve_error_mm += (f.model.tcp(guided.estimate.r) - true_tcp).norm();
+    solver::CornerSet at_fit;
+    f.model.corners(f.camera, guided.fitted_r, at_fit);
+    for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
+      for (std::size_t side = 0U; side < 2U; ++side) {
+        const std::size_t k = 2U * j + side;
+        const Corner& c = fx->result().corners[k];
+        if (!fx->result().boundary_measured[j] && c.found && at_fit.present[k]) {
+          ++predicted;
+          EXPECT_LT(std::hypot(c.pixel.x - at_fit.pixel[k].x(), c.pixel.y - at_fit.pixel[k].y()), 0.3) << "k " << k;
+        }
+      }
+    }
+  }
+  EXPECT_GE(predicted, 2);
+  EXPECT_LT(fit_error_mm, solve_error_mm);
+}
+
 // The shaft's silhouette gives the channel's pose: from the CAD pose (the
 // true one moved by a play of about 1.5 sd), x_ch, y_ch, psi and mu come
 // near the truth, and the joints are not touched.
@@ -1453,6 +1501,9 @@ TEST(Pipeline, TheBaseRimServesATubeSeenEndOnBehindTheShaft) {
     const GuidedRun without = guided_run(f, estimator, image, prior, options);
     expect_success_only_with(with, without, 2, scene.seed);
     EXPECT_TRUE(with.guided.from_base_rim) << "seed " << scene.seed;
+    // The pose its corners were read at: the start with the rim's insertion.
+    EXPECT_TRUE(with.guided.fitted_r.allFinite()) << "seed " << scene.seed;
+    EXPECT_GT(with.guided.fitted_r[solver::kLambda], 0.0) << "seed " << scene.seed;
     EXPECT_EQ(with.guided.estimate.quality, solver::EstimateQuality::Degraded) << "seed " << scene.seed;
     EXPECT_TRUE(with.fx->result().boundary_measured[0]) << "seed " << scene.seed;
     EXPECT_FALSE(without.guided.from_base_rim) << "seed " << scene.seed;

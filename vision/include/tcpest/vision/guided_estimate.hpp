@@ -146,6 +146,11 @@ constexpr int kMaxFallbackSeeds = 9;
 struct GuidedResult {
   solver::Estimate estimate{};
   int rounds_kept = 0;            // rounds whose corners and pose were kept
+  // With a round kept: the pose the kept corners were read at (the image
+  // fit's, or the base-rim seed's), before the solve of eq. 8 re-estimates
+  // r from those corners under the channel's penalty (docs/solver.md,
+  // "The image fit's pose and the TCP").
+  solver::PoseVector fitted_r = solver::PoseVector::Zero();
   ImageFitSummary fit{};          // of the last fit tried
   bool from_regions = false;      // the rounds started from pose_from_regions
   bool from_start = false;        // the rounds started from the start pose (start_seed)
