@@ -117,10 +117,18 @@ TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
   EXPECT_NE(summary.find("valid estimates: "), std::string::npos) << summary;
   EXPECT_NE(summary.find("degraded estimates: "), std::string::npos) << summary;
   EXPECT_NE(summary.find("over 5 mm: "), std::string::npos) << summary;
+  // ... and on the same frames the TCP of the pose the corners were read at.
+  EXPECT_NE(summary.find("the image fit's pose instead ("), std::string::npos) << summary;
+  EXPECT_EQ(summary.find("the image fit's pose instead (0 of the valid"), std::string::npos) << summary;
   EXPECT_EQ(run({"evaluate", "--no-prior", "--max", "1", dir}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--true-prior", "--max", "1", dir}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--true-prior", "--no-prior", dir}), kExitUsage);
+  // Without a model-guided round there is no image fit's pose to compare.
+  testing::internal::CaptureStdout();
   EXPECT_EQ(run({"evaluate", "--fallback-seeds", "0", "--guided-rounds", "0", dir}), kExitOk);
+  const std::string unguided = testing::internal::GetCapturedStdout();
+  EXPECT_NE(unguided.find("the image fit's pose instead (0 of the valid, 0 of the degraded"), std::string::npos)
+      << unguided;
   const std::string model = dir + "/colors.json";
   ASSERT_EQ(run({"train-colors", "--sidecars", dir, "--out", model}), kExitOk);
   // The trained model is readable and close to the shipped one.

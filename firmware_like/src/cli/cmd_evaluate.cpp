@@ -129,6 +129,35 @@ double median_of(std::vector<double>& v) noexcept {
 // protocol's status 1): how far off those are is part of the result.
 constexpr double kDegradedFarMm = 5.0;
 
+// TCP errors against the sidecars, by the estimate's status: of the valid
+// ones the median and the RMS per axis, of the degraded ones the median,
+// the 90th percentile and how many lie beyond kDegradedFarMm.
+struct TcpTally {
+  std::vector<double> valid_mm, degraded_mm;
+  double valid_sq_mm2[3] = {0.0, 0.0, 0.0};
+
+  void add(EstimateStatus status, const solver::Vec3& error_mm) {
+    if (status == EstimateStatus::Valid) {
+      valid_mm.push_back(error_mm.norm());
+      for (int c = 0; c < 3; ++c) {
+        valid_sq_mm2[c] += error_mm[c] * error_mm[c];
+      }
+    } else if (status == EstimateStatus::Degraded) {
+      degraded_mm.push_back(error_mm.norm());
+    }
+  }
+  double valid_rms_mm(int axis) const noexcept {
+    return valid_mm.empty() ? 0.0 : std::sqrt(valid_sq_mm2[axis] / static_cast<double>(valid_mm.size()));
+  }
+  long degraded_far() const noexcept {
+    long far = 0;
+    for (const double e_mm : degraded_mm) {
+      far += e_mm > kDegradedFarMm ? 1 : 0;
+    }
+    return far;
+  }
+};
+
 }  // namespace
 
 int cmd_evaluate(int argc, char** argv) {
@@ -208,11 +237,14 @@ int cmd_evaluate(int argc, char** argv) {
   }
   std::vector<std::uint8_t> pixels;
   long visible = 0, found_ok = 0, found_total = 0, wrong = 0, mislabelled = 0;
-  int frames = 0, frames_with_visible = 0, successes = 0, unreadable = 0, valid_estimates = 0;
+  int frames = 0, frames_with_visible = 0, successes = 0, unreadable = 0;
   HardCaseTally by_case;  // frame success per hard case
-  std::vector<double> errors, tcp_errors, degraded_tcp_errors, stage[4], stages_total, solve_times;
-  double tcp_sq[3] = {0.0, 0.0, 0.0};
+  std::vector<double> errors, stage[4], stages_total, solve_times;
   StreakTally streaks;
+  // The solve's TCP (what the robot receives), and on the same frames, where
+  // a model-guided round was kept, the TCP of the pose the corners were read
+  // at (docs/solver.md, "The image fit's pose and the TCP").
+  TcpTally solve_tcp, fit_tcp;
   bool sequence = false;
   for (std::size_t set = 0U; set < dataset_count; ++set) {
     DatasetTally& tally = datasets[set];
@@ -321,18 +353,12 @@ int cmd_evaluate(int argc, char** argv) {
                              result.times.stage_us[3]);
       solve_times.push_back(result.times.solve_us);
       double tcp_err = -1.0;
-      if (result.status == EstimateStatus::Valid && truth.instrument.has_tcp) {
-        ++valid_estimates;
-        const solver::Vec3 diff = result.tcp - truth.instrument.tcp;
-        tcp_err = diff.norm();
-        tcp_errors.push_back(tcp_err);
-        for (int c = 0; c < 3; ++c) {
-          tcp_sq[c] += diff[c] * diff[c];
-        }
-      }
-      if (result.status == EstimateStatus::Degraded && truth.instrument.has_tcp) {
+      if (result.status != EstimateStatus::None && truth.instrument.has_tcp) {
         tcp_err = (result.tcp - truth.instrument.tcp).norm();
-        degraded_tcp_errors.push_back(tcp_err);
+        solve_tcp.add(result.status, result.tcp - truth.instrument.tcp);
+        if (result.guided_rounds > 0) {
+          fit_tcp.add(result.status, result.fit_tcp - truth.instrument.tcp);
+        }
       }
       if (csv != nullptr) {
         solver::CornerSet model;
@@ -370,7 +396,6 @@ int cmd_evaluate(int argc, char** argv) {
     std::fprintf(stderr, "tcpest evaluate: writing %s failed\n", args.value("corners-csv"));
     return kExitFailure;
   }
-  const double n_tcp = tcp_errors.empty() ? 1.0 : static_cast<double>(tcp_errors.size());
   const auto percent = [](long part, long whole) noexcept {
     return whole > 0 ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;
   };
@@ -408,17 +433,18 @@ int cmd_evaluate(int argc, char** argv) {
                 streaks.read_blurred, streaks.blurred_frames, median_of(streaks.length_errors_px),
                 median_of(streaks.direction_errors_deg), streaks.read_sharp, streaks.sharp_frames);
   }
-  std::printf("valid estimates: %d; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n", valid_estimates,
-              median_of(tcp_errors), std::sqrt(tcp_sq[0] / n_tcp), std::sqrt(tcp_sq[1] / n_tcp),
-              std::sqrt(tcp_sq[2] / n_tcp));
-  long degraded_far = 0;
-  for (const double e_mm : degraded_tcp_errors) {
-    degraded_far += e_mm > kDegradedFarMm ? 1 : 0;
-  }
-  const std::size_t degraded_estimates = degraded_tcp_errors.size();
+  std::printf("valid estimates: %zu; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n",
+              solve_tcp.valid_mm.size(), median_of(solve_tcp.valid_mm), solve_tcp.valid_rms_mm(0),
+              solve_tcp.valid_rms_mm(1), solve_tcp.valid_rms_mm(2));
   std::printf("degraded estimates: %zu; TCP error median %.2f mm, 90th percentile %.2f mm, over %.0f mm: %ld\n",
-              degraded_estimates, median_of(degraded_tcp_errors), quantile_of(degraded_tcp_errors, 0.9),
-              kDegradedFarMm, degraded_far);
+              solve_tcp.degraded_mm.size(), median_of(solve_tcp.degraded_mm), quantile_of(solve_tcp.degraded_mm, 0.9),
+              kDegradedFarMm, solve_tcp.degraded_far());
+  std::printf("the image fit's pose instead (%zu of the valid, %zu of the degraded: those with a round kept): valid "
+              "TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm; degraded median %.2f mm, 90th percentile "
+              "%.2f mm, over %.0f mm: %ld\n",
+              fit_tcp.valid_mm.size(), fit_tcp.degraded_mm.size(), median_of(fit_tcp.valid_mm), fit_tcp.valid_rms_mm(0),
+              fit_tcp.valid_rms_mm(1), fit_tcp.valid_rms_mm(2), median_of(fit_tcp.degraded_mm),
+              quantile_of(fit_tcp.degraded_mm, 0.9), kDegradedFarMm, fit_tcp.degraded_far());
   std::printf("median time: stage 1 %.0f us, stage 2 %.0f us, stage 3 %.0f us, stage 4 %.0f us, stages 1-4 %.0f us, "
               "solver %.0f us\n",
               median_of(stage[0]), median_of(stage[1]), median_of(stage[2]), median_of(stage[3]),

@@ -292,6 +292,9 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
     out.r = estimate.r;
     out.tcp = setup_.instrument.tcp(estimate.r);
   }
+  if (guided.rounds_kept > 0) {
+    out.fit_tcp = setup_.instrument.tcp(guided.fitted_r);
+  }
   if (estimate.quality == solver::EstimateQuality::Valid) {
     previous_r_ = estimate.r;
     have_previous_ = true;

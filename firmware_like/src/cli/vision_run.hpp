@@ -62,6 +62,10 @@ struct EstimateResult {
   EstimateStatus status = EstimateStatus::None;
   solver::PoseVector r = solver::PoseVector::Zero();
   solver::Vec3 tcp = solver::Vec3::Zero();
+  // With a model-guided round kept (guided_rounds > 0): the TCP of the pose
+  // the corners were read at (vision::GuidedResult::fitted_r), for
+  // comparison with `tcp` (evaluate; docs/solver.md).
+  solver::Vec3 fit_tcp = solver::Vec3::Zero();
   solver::SolveSummary summary{};
   int corners_rejected = 0;  // dropped as disagreeing with the model at the estimate
   int guided_rounds = 0;     // model-guided rounds kept (0: stage 4's corners)
