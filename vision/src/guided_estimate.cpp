@@ -63,15 +63,6 @@ int rank(solver::EstimateQuality q) noexcept {
   return 0;
 }
 
-// A fallback result (always confirmed by an image fit) replaces the current
-// one when the image speaks for it clearly, whatever the two qualities
-// (the solve's quality can differ for the channel's penalty alone, eq. 8):
-// the current one was not confirmed by a fit (stage 4's corners alone) and
-// the candidate's fit has a valid estimate's support; or the candidate's
-// fit read at least as much of the image with a residual below
-// prefer_fit_rms_ratio times the current's (docs/vision.md). Otherwise when
-// it is of a better quality; at the same quality, when the current one was
-// not confirmed by a fit, or had a higher image-fit residual.
 // The image's clear word for a candidate fit over the current one: it read
 // at least as many boundaries and silhouette points, with a residual below
 // prefer_fit_rms_ratio times the current's.
@@ -81,6 +72,15 @@ bool fit_clearly_better(const ImageFitSummary& fit, const ImageFitSummary& curre
          fit.silhouette_readings >= current.silhouette_readings;
 }
 
+// A fallback result (always confirmed by an image fit) replaces the current
+// one when the image speaks for it clearly, whatever the two qualities
+// (the solve's quality can differ for the channel's penalty alone, eq. 8):
+// the current one was not confirmed by a fit (stage 4's corners alone) and
+// the candidate's fit has a valid estimate's support; or the candidate's
+// fit read at least as much of the image with a residual below
+// prefer_fit_rms_ratio times the current's (docs/vision.md). Otherwise when
+// it is of a better quality; at the same quality, when the current one was
+// not confirmed by a fit, or had a higher image-fit residual.
 bool better(const GuidedResult& candidate, const GuidedResult& current, const GuidedOptions& options) noexcept {
   if (candidate.rounds_kept == 0) {
     return false;
@@ -113,7 +113,6 @@ struct SeedRule {
   // better quality alone (GuidedOptions::bend_seed_step_rad).
   bool clearly_better = false;
 };
-
 
 // The rounds from a seed; the result replaces `out` when better and meets
 // `rule` (else the extractor's corners are put back). True when it was kept.
