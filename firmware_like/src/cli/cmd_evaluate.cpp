@@ -158,6 +158,193 @@ struct TcpTally {
   }
 };
 
+// One frame's corners against its truth: the visible ones, those found
+// within the tolerance (their errors appended to `errors_px`), and of all
+// the corners reported those beyond it, wrongly labelled (within the
+// tolerance of another k's truth, and nearer to it than to its own) or
+// misplaced (the rest).
+struct CornerScore {
+  int visible = 0;
+  int found_ok = 0;
+  long found = 0;
+  long wrong = 0;
+  long mislabelled = 0;
+};
+
+CornerScore score_corners(const render::Sidecar& truth, const EstimateResult& result, const vision::Extraction& e,
+                          double tolerance_px, std::vector<double>& errors_px) {
+  CornerScore score;
+  for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+    const bool is_visible = truth.instrument.corner_visible[k];
+    if (is_visible) {
+      ++score.visible;
+    }
+    if (!corner_reported(result, e, k)) {
+      continue;
+    }
+    ++score.found;
+    const bool has_truth = truth.instrument.corner_present[k];
+    const double err = has_truth ? std::hypot(e.corners[k].pixel.x - truth.instrument.corners[k].x(),
+                                              e.corners[k].pixel.y - truth.instrument.corners[k].y())
+                                 : 1e9;
+    if (err <= tolerance_px) {
+      if (is_visible) {
+        ++score.found_ok;
+        errors_px.push_back(err);
+      }
+      continue;
+    }
+    ++score.wrong;
+    for (std::size_t other = 0U; other < static_cast<std::size_t>(solver::kNumCorners); ++other) {
+      if (other == k || !truth.instrument.corner_present[other]) {
+        continue;
+      }
+      const double to_other = std::hypot(e.corners[k].pixel.x - truth.instrument.corners[other].x(),
+                                         e.corners[k].pixel.y - truth.instrument.corners[other].y());
+      if (to_other <= tolerance_px && to_other < err) {
+        ++score.mislabelled;
+        break;
+      }
+    }
+  }
+  return score;
+}
+
+// The frame's rows of --corners-csv: truth, detection and the model at the
+// estimate, per corner index. Pooled: the image named with its directory
+// (the same names recur).
+void write_corner_rows(FILE* csv, const char* dir, bool pooled, const render::Sidecar& truth,
+                       const EstimateResult& result, const vision::Extraction& e, const ModelSetup& setup) {
+  solver::CornerSet model;
+  if (result.status != EstimateStatus::None) {
+    setup.instrument.corners(setup.camera, result.r, model);
+  }
+  for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
+    const bool found = corner_reported(result, e, k);
+    const bool has_truth = truth.instrument.corner_present[k];
+    const double tu = has_truth ? truth.instrument.corners[k].x() : std::nan("");
+    const double tv = has_truth ? truth.instrument.corners[k].y() : std::nan("");
+    const double u = found ? e.corners[k].pixel.x : std::nan("");
+    const double v = found ? e.corners[k].pixel.y : std::nan("");
+    std::fprintf(csv, "%s%s%s,%zu,%d,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%.3f,%s,%.3f,%.3f\n", pooled ? dir : "",
+                 pooled ? "/" : "", truth.image, k, truth.instrument.corner_visible[k] ? 1 : 0, tu, tv, found ? 1 : 0,
+                 u, v, found ? e.corners[k].confidence : 0.0, std::hypot(u - tu, v - tv), to_string(result.status),
+                 model.present[k] ? model.pixel[k].x() : std::nan(""),
+                 model.present[k] ? model.pixel[k].y() : std::nan(""));
+  }
+}
+
+// Everything scored over all the datasets, and its report.
+struct EvaluateTotals {
+  int frames = 0;
+  int unreadable = 0;
+  int frames_with_visible = 0;
+  int successes = 0;
+  long visible = 0;
+  long found_ok = 0;
+  long found_total = 0;
+  long wrong = 0;
+  long mislabelled = 0;
+  HardCaseTally by_case;  // frame success per hard case
+  std::vector<double> errors_px, stage_us[4], stages_total_us, solve_us;
+  StreakTally streaks;
+  // The solve's TCP (what the robot receives), and on the same frames, where
+  // a model-guided round was kept, the TCP of the pose the corners were read
+  // at (docs/solver.md, "The image fit's pose and the TCP").
+  TcpTally solve_tcp, fit_tcp;
+
+  // Adds one frame; returns its TCP error (mm; -1 without a pose or a true TCP).
+  double add(const render::Sidecar& truth, const EstimateResult& result, const CornerScore& score,
+             DatasetTally& dataset) {
+    ++frames;
+    visible += score.visible;
+    found_ok += score.found_ok;
+    found_total += score.found;
+    wrong += score.wrong;
+    mislabelled += score.mislabelled;
+    dataset.visible += score.visible;
+    dataset.found_ok += score.found_ok;
+    if (score.visible > 0) {
+      ++frames_with_visible;
+      ++dataset.frames_with_visible;
+      const bool success = score.found_ok * 10 >= score.visible * 8;
+      successes += success ? 1 : 0;
+      dataset.successes += success ? 1 : 0;
+      by_case.add(truth.hard_cases, success);
+    }
+    streaks.add(truth, result.streak_px);
+    for (int s = 0; s < 4; ++s) {
+      stage_us[s].push_back(result.times.stage_us[s]);
+    }
+    stages_total_us.push_back(result.times.stage_us[0] + result.times.stage_us[1] + result.times.stage_us[2] +
+                              result.times.stage_us[3]);
+    solve_us.push_back(result.times.solve_us);
+    if (result.status == EstimateStatus::None || !truth.instrument.has_tcp) {
+      return -1.0;
+    }
+    solve_tcp.add(result.status, result.tcp - truth.instrument.tcp);
+    if (result.guided_rounds > 0) {
+      fit_tcp.add(result.status, result.fit_tcp - truth.instrument.tcp);
+    }
+    return (result.tcp - truth.instrument.tcp).norm();
+  }
+
+  void print(const std::vector<DatasetTally>& datasets, double tolerance_px) {
+    const auto percent = [](long part, long whole) noexcept {
+      return whole > 0 ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;
+    };
+    if (datasets.size() > 1U) {
+      for (const DatasetTally& t : datasets) {
+        std::printf("dataset %s: frame success %.1f %% of %d frames, corners found %.2f %% of %ld visible\n",
+                    t.dir.c_str(), percent(t.successes, t.frames_with_visible), t.frames_with_visible,
+                    percent(t.found_ok, t.visible), t.visible);
+      }
+      std::printf("pooled over %zu datasets: %d images scored (%d unreadable), %ld visible corners\n",
+                  datasets.size(), frames, unreadable, visible);
+    } else {
+      std::printf("dataset %s: %d images scored (%d unreadable), %ld visible corners\n", datasets[0].dir.c_str(),
+                  frames, unreadable, visible);
+    }
+    std::printf("corners found within %.1f px and correctly labelled: %.2f %% of visible\n", tolerance_px,
+                percent(found_ok, visible));
+    std::printf("median corner error (found ones): %.3f px\n", median_of(errors_px));
+    std::printf("found corners farther than %.1f px from their truth: %.2f %% of %ld found (wrongly labelled, i.e. "
+                "another corner's: %.2f %%; misplaced: %.2f %%)\n",
+                tolerance_px, percent(wrong, found_total), found_total, percent(mislabelled, found_total),
+                percent(wrong - mislabelled, found_total));
+    std::printf("frame success (>= 80 %% of visible corners found and labelled): %.1f %% of %d frames\n",
+                percent(successes, frames_with_visible), frames_with_visible);
+    char case_line[512];
+    format_hard_case_tally(by_case, case_line, sizeof case_line);
+    if (case_line[0] != '\0') {
+      std::printf("%s\n", case_line);
+    }
+    if (streaks.blurred_frames > 0) {
+      std::printf("motion-blur streak read on %d of %d blurred frames (length error median %.2f px, direction error "
+                  "median %.1f deg) and on %d of %d others\n",
+                  streaks.read_blurred, streaks.blurred_frames, median_of(streaks.length_errors_px),
+                  median_of(streaks.direction_errors_deg), streaks.read_sharp, streaks.sharp_frames);
+    }
+    std::printf("valid estimates: %zu; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n",
+                solve_tcp.valid_mm.size(), median_of(solve_tcp.valid_mm), solve_tcp.valid_rms_mm(0),
+                solve_tcp.valid_rms_mm(1), solve_tcp.valid_rms_mm(2));
+    std::printf("degraded estimates: %zu; TCP error median %.2f mm, 90th percentile %.2f mm, over %.0f mm: %ld\n",
+                solve_tcp.degraded_mm.size(), median_of(solve_tcp.degraded_mm),
+                quantile_of(solve_tcp.degraded_mm, 0.9), kDegradedFarMm, solve_tcp.degraded_far());
+    std::printf("the image fit's pose instead (%zu of the valid, %zu of the degraded: those with a round kept): valid "
+                "TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm; degraded median %.2f mm, 90th percentile "
+                "%.2f mm, over %.0f mm: %ld\n",
+                fit_tcp.valid_mm.size(), fit_tcp.degraded_mm.size(), median_of(fit_tcp.valid_mm),
+                fit_tcp.valid_rms_mm(0), fit_tcp.valid_rms_mm(1), fit_tcp.valid_rms_mm(2),
+                median_of(fit_tcp.degraded_mm), quantile_of(fit_tcp.degraded_mm, 0.9), kDegradedFarMm,
+                fit_tcp.degraded_far());
+    std::printf("median time: stage 1 %.0f us, stage 2 %.0f us, stage 3 %.0f us, stage 4 %.0f us, stages 1-4 %.0f "
+                "us, solver %.0f us\n",
+                median_of(stage_us[0]), median_of(stage_us[1]), median_of(stage_us[2]), median_of(stage_us[3]),
+                median_of(stages_total_us), median_of(solve_us));
+  }
+};
+
 }  // namespace
 
 int cmd_evaluate(int argc, char** argv) {
@@ -236,22 +423,14 @@ int cmd_evaluate(int argc, char** argv) {
     std::fprintf(csv, "image,k,visible,truth_u,truth_v,found,u,v,confidence,error_px,status,model_u,model_v\n");
   }
   std::vector<std::uint8_t> pixels;
-  long visible = 0, found_ok = 0, found_total = 0, wrong = 0, mislabelled = 0;
-  int frames = 0, frames_with_visible = 0, successes = 0, unreadable = 0;
-  HardCaseTally by_case;  // frame success per hard case
-  std::vector<double> errors, stage[4], stages_total, solve_times;
-  StreakTally streaks;
-  // The solve's TCP (what the robot receives), and on the same frames, where
-  // a model-guided round was kept, the TCP of the pose the corners were read
-  // at (docs/solver.md, "The image fit's pose and the TCP").
-  TcpTally solve_tcp, fit_tcp;
-  bool sequence = false;
+  EvaluateTotals totals;
   for (std::size_t set = 0U; set < dataset_count; ++set) {
     DatasetTally& tally = datasets[set];
     const std::string& dir = tally.dir;
     pipeline.reset_sequence();  // a dataset is a sequence of its own
     for (const std::string& name : sidecars[set]) {
-      if (static_cast<unsigned long long>(frames) + static_cast<unsigned long long>(unreadable) >= max_images) {
+      if (static_cast<unsigned long long>(totals.frames) + static_cast<unsigned long long>(totals.unreadable) >=
+          max_images) {
         break;
       }
       std::string sidecar_path = dir;
@@ -261,7 +440,7 @@ int cmd_evaluate(int argc, char** argv) {
       if (!parsed.ok()) {
         parsed.error().format(error, sizeof error);
         std::fprintf(stderr, "tcpest evaluate: %s\n", error);
-        ++unreadable;
+        ++totals.unreadable;
         continue;
       }
       const render::Sidecar& truth = parsed.value();
@@ -271,16 +450,15 @@ int cmd_evaluate(int argc, char** argv) {
       ImageView view;
       if (!reader.read(image_path.c_str(), pixels, view, error, sizeof error)) {
         std::fprintf(stderr, "tcpest evaluate: %s: %s\n", image_path.c_str(), error);
-        ++unreadable;
+        ++totals.unreadable;
         continue;
       }
       if (view.width != setup.camera.width() || view.height != setup.camera.height()) {
         std::fprintf(stderr, "tcpest evaluate: %s: size differs from the calibration\n", image_path.c_str());
-        ++unreadable;
+        ++totals.unreadable;
         continue;
       }
-      sequence = std::strcmp(truth.set, "seq") == 0;
-      if (!sequence) {
+      if (std::strcmp(truth.set, "seq") != 0) {
         pipeline.reset_sequence();  // independent images
       }
       // The true joints: r's lambda, phi, theta (the channel's pose is not a
@@ -295,100 +473,18 @@ int cmd_evaluate(int argc, char** argv) {
       }
       const EstimateResult result = pipeline.process(view, prior);
       const vision::Extraction& e = pipeline.extractor().result();
-      ++frames;
-      int frame_visible = 0, frame_ok = 0;
-      for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
-        const bool is_visible = truth.instrument.corner_visible[k];
-        const bool found = corner_reported(result, e, k);
-        if (is_visible) {
-          ++frame_visible;
-        }
-        if (!found) {
-          continue;
-        }
-        ++found_total;
-        const bool has_truth = truth.instrument.corner_present[k];
-        const double err = has_truth ? std::hypot(e.corners[k].pixel.x - truth.instrument.corners[k].x(),
-                                                  e.corners[k].pixel.y - truth.instrument.corners[k].y())
-                                     : 1e9;
-        if (err <= tolerance_px) {
-          if (is_visible) {
-            ++frame_ok;
-            errors.push_back(err);
-          }
-        } else {
-          ++wrong;
-          // Mislabelled: it is another corner (within the tolerance of another
-          // k's truth, and nearer to it than to its own); else misplaced.
-          for (std::size_t other = 0U; other < static_cast<std::size_t>(solver::kNumCorners); ++other) {
-            if (other == k || !truth.instrument.corner_present[other]) {
-              continue;
-            }
-            const double to_other = std::hypot(e.corners[k].pixel.x - truth.instrument.corners[other].x(),
-                                               e.corners[k].pixel.y - truth.instrument.corners[other].y());
-            if (to_other <= tolerance_px && to_other < err) {
-              ++mislabelled;
-              break;
-            }
-          }
-        }
-      }
-      visible += frame_visible;
-      found_ok += frame_ok;
-      tally.visible += frame_visible;
-      tally.found_ok += frame_ok;
-      if (frame_visible > 0) {
-        ++frames_with_visible;
-        ++tally.frames_with_visible;
-        const bool success = frame_ok * 10 >= frame_visible * 8;
-        successes += success ? 1 : 0;
-        tally.successes += success ? 1 : 0;
-        by_case.add(truth.hard_cases, success);
-      }
-      streaks.add(truth, result.streak_px);
-      for (int s = 0; s < 4; ++s) {
-        stage[s].push_back(result.times.stage_us[s]);
-      }
-      stages_total.push_back(result.times.stage_us[0] + result.times.stage_us[1] + result.times.stage_us[2] +
-                             result.times.stage_us[3]);
-      solve_times.push_back(result.times.solve_us);
-      double tcp_err = -1.0;
-      if (result.status != EstimateStatus::None && truth.instrument.has_tcp) {
-        tcp_err = (result.tcp - truth.instrument.tcp).norm();
-        solve_tcp.add(result.status, result.tcp - truth.instrument.tcp);
-        if (result.guided_rounds > 0) {
-          fit_tcp.add(result.status, result.fit_tcp - truth.instrument.tcp);
-        }
-      }
+      const CornerScore score = score_corners(truth, result, e, tolerance_px, totals.errors_px);
+      const double tcp_err = totals.add(truth, result, score, tally);
       if (csv != nullptr) {
-        solver::CornerSet model;
-        if (result.status != EstimateStatus::None) {
-          setup.instrument.corners(setup.camera, result.r, model);
-        }
-        for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
-          const bool found = corner_reported(result, e, k);
-          const bool has_truth = truth.instrument.corner_present[k];
-          const double tu = has_truth ? truth.instrument.corners[k].x() : std::nan("");
-          const double tv = has_truth ? truth.instrument.corners[k].y() : std::nan("");
-          const double u = found ? e.corners[k].pixel.x : std::nan("");
-          const double v = found ? e.corners[k].pixel.y : std::nan("");
-          // Pooled: the image named with its directory (the same names recur).
-          std::fprintf(csv, "%s%s%s,%zu,%d,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%.3f,%s,%.3f,%.3f\n", pooled ? dir.c_str() : "",
-                       pooled ? "/" : "", truth.image, k,
-                       truth.instrument.corner_visible[k] ? 1 : 0, tu, tv, found ? 1 : 0, u, v,
-                       found ? e.corners[k].confidence : 0.0, std::hypot(u - tu, v - tv), to_string(result.status),
-                       model.present[k] ? model.pixel[k].x() : std::nan(""),
-                       model.present[k] ? model.pixel[k].y() : std::nan(""));
-        }
+        write_corner_rows(csv, dir.c_str(), pooled, truth, result, e, setup);
       }
       if (verbose) {
         // Pooled: the image named with its directory, as in the corner rows.
         std::printf("%s%s%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
                     pooled ? dir.c_str() : "", pooled ? "/" : "", truth.image, to_string(result.status),
-                    frame_visible, frame_ok, e.corner_count,
+                    score.visible, score.found_ok, e.corner_count,
                     result.extraction_ok ? "extraction ok" : "extraction: ",
-                    result.extraction_ok ? "" : result.extraction_error,
-                    tcp_err, stages_total.back());
+                    result.extraction_ok ? "" : result.extraction_error, tcp_err, totals.stages_total_us.back());
       }
     }
   }
@@ -396,60 +492,8 @@ int cmd_evaluate(int argc, char** argv) {
     std::fprintf(stderr, "tcpest evaluate: writing %s failed\n", args.value("corners-csv"));
     return kExitFailure;
   }
-  const auto percent = [](long part, long whole) noexcept {
-    return whole > 0 ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;
-  };
-  if (pooled) {
-    for (const DatasetTally& t : datasets) {
-      std::printf("dataset %s: frame success %.1f %% of %d frames, corners found %.2f %% of %ld visible\n",
-                  t.dir.c_str(), percent(t.successes, t.frames_with_visible), t.frames_with_visible,
-                  percent(t.found_ok, t.visible), t.visible);
-    }
-    std::printf("pooled over %zu datasets: %d images scored (%d unreadable), %ld visible corners\n", dataset_count,
-                frames, unreadable, visible);
-  } else {
-    std::printf("dataset %s: %d images scored (%d unreadable), %ld visible corners\n", datasets[0].dir.c_str(), frames,
-                unreadable, visible);
-  }
-  std::printf("corners found within %.1f px and correctly labelled: %.2f %% of visible\n", tolerance_px,
-              visible > 0 ? 100.0 * static_cast<double>(found_ok) / static_cast<double>(visible) : 0.0);
-  std::printf("median corner error (found ones): %.3f px\n", median_of(errors));
-  const auto share = [found_total](long n) noexcept {
-    return found_total > 0 ? 100.0 * static_cast<double>(n) / static_cast<double>(found_total) : 0.0;
-  };
-  std::printf("found corners farther than %.1f px from their truth: %.2f %% of %ld found (wrongly labelled, i.e. "
-              "another corner's: %.2f %%; misplaced: %.2f %%)\n",
-              tolerance_px, share(wrong), found_total, share(mislabelled), share(wrong - mislabelled));
-  std::printf("frame success (>= 80 %% of visible corners found and labelled): %.1f %% of %d frames\n",
-              frames_with_visible > 0 ? 100.0 * successes / frames_with_visible : 0.0, frames_with_visible);
-  char case_line[512];
-  format_hard_case_tally(by_case, case_line, sizeof case_line);
-  if (case_line[0] != '\0') {
-    std::printf("%s\n", case_line);
-  }
-  if (streaks.blurred_frames > 0) {
-    std::printf("motion-blur streak read on %d of %d blurred frames (length error median %.2f px, direction error "
-                "median %.1f deg) and on %d of %d others\n",
-                streaks.read_blurred, streaks.blurred_frames, median_of(streaks.length_errors_px),
-                median_of(streaks.direction_errors_deg), streaks.read_sharp, streaks.sharp_frames);
-  }
-  std::printf("valid estimates: %zu; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n",
-              solve_tcp.valid_mm.size(), median_of(solve_tcp.valid_mm), solve_tcp.valid_rms_mm(0),
-              solve_tcp.valid_rms_mm(1), solve_tcp.valid_rms_mm(2));
-  std::printf("degraded estimates: %zu; TCP error median %.2f mm, 90th percentile %.2f mm, over %.0f mm: %ld\n",
-              solve_tcp.degraded_mm.size(), median_of(solve_tcp.degraded_mm), quantile_of(solve_tcp.degraded_mm, 0.9),
-              kDegradedFarMm, solve_tcp.degraded_far());
-  std::printf("the image fit's pose instead (%zu of the valid, %zu of the degraded: those with a round kept): valid "
-              "TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm; degraded median %.2f mm, 90th percentile "
-              "%.2f mm, over %.0f mm: %ld\n",
-              fit_tcp.valid_mm.size(), fit_tcp.degraded_mm.size(), median_of(fit_tcp.valid_mm), fit_tcp.valid_rms_mm(0),
-              fit_tcp.valid_rms_mm(1), fit_tcp.valid_rms_mm(2), median_of(fit_tcp.degraded_mm),
-              quantile_of(fit_tcp.degraded_mm, 0.9), kDegradedFarMm, fit_tcp.degraded_far());
-  std::printf("median time: stage 1 %.0f us, stage 2 %.0f us, stage 3 %.0f us, stage 4 %.0f us, stages 1-4 %.0f us, "
-              "solver %.0f us\n",
-              median_of(stage[0]), median_of(stage[1]), median_of(stage[2]), median_of(stage[3]),
-              median_of(stages_total), median_of(solve_times));
-  return frames > 0 ? kExitOk : kExitFailure;
+  totals.print(datasets, tolerance_px);
+  return totals.frames > 0 ? kExitOk : kExitFailure;
 }
 
 }  // namespace cli
