@@ -79,13 +79,46 @@ bool list_sidecars(const std::string& dir, std::vector<std::string>& sidecars) {
   return true;
 }
 
-// One directory's share of the pooled score (printed when several are).
-struct DatasetTally {
-  std::string dir;
+// One frame's corners against its truth: the visible ones, those found
+// within the tolerance (their errors appended to `errors_px`), and of all
+// the corners reported those beyond it, wrongly labelled (within the
+// tolerance of another k's truth, and nearer to it than to its own) or
+// misplaced (the rest).
+struct CornerScore {
+  int visible = 0;
+  int found_ok = 0;
+  long found = 0;
+  long wrong = 0;
+  long mislabelled = 0;
+};
+
+// Corners found and frames succeeded, over a dataset or all of them. A
+// frame succeeds when at least 80 % of its visible corners are found
+// (the hard set's criterion); one without visible corners is not counted.
+struct SuccessTally {
   int frames_with_visible = 0;
   int successes = 0;
   long visible = 0;
   long found_ok = 0;
+
+  // Adds a frame; true when it has visible corners and succeeded.
+  bool add(const CornerScore& score) noexcept {
+    visible += score.visible;
+    found_ok += score.found_ok;
+    if (score.visible == 0) {
+      return false;
+    }
+    ++frames_with_visible;
+    const bool success = score.found_ok * 10 >= score.visible * 8;
+    successes += success ? 1 : 0;
+    return success;
+  }
+};
+
+// One directory's share of the pooled score (printed when several are).
+struct DatasetTally {
+  std::string dir;
+  SuccessTally corners;
 };
 
 // The motion-blur streak the image fit read, against the sidecars' (when
@@ -158,19 +191,7 @@ struct TcpTally {
   }
 };
 
-// One frame's corners against its truth: the visible ones, those found
-// within the tolerance (their errors appended to `errors_px`), and of all
-// the corners reported those beyond it, wrongly labelled (within the
-// tolerance of another k's truth, and nearer to it than to its own) or
-// misplaced (the rest).
-struct CornerScore {
-  int visible = 0;
-  int found_ok = 0;
-  long found = 0;
-  long wrong = 0;
-  long mislabelled = 0;
-};
-
+// Scores one frame's reported corners (CornerScore above).
 CornerScore score_corners(const render::Sidecar& truth, const EstimateResult& result, const vision::Extraction& e,
                           double tolerance_px, std::vector<double>& errors_px) {
   CornerScore score;
@@ -238,10 +259,7 @@ void write_corner_rows(FILE* csv, const char* dir, bool pooled, const render::Si
 struct EvaluateTotals {
   int frames = 0;
   int unreadable = 0;
-  int frames_with_visible = 0;
-  int successes = 0;
-  long visible = 0;
-  long found_ok = 0;
+  SuccessTally corners;
   long found_total = 0;
   long wrong = 0;
   long mislabelled = 0;
@@ -257,19 +275,12 @@ struct EvaluateTotals {
   double add(const render::Sidecar& truth, const EstimateResult& result, const CornerScore& score,
              DatasetTally& dataset) {
     ++frames;
-    visible += score.visible;
-    found_ok += score.found_ok;
     found_total += score.found;
     wrong += score.wrong;
     mislabelled += score.mislabelled;
-    dataset.visible += score.visible;
-    dataset.found_ok += score.found_ok;
+    const bool success = corners.add(score);
+    static_cast<void>(dataset.corners.add(score));  // the same verdict as `success`
     if (score.visible > 0) {
-      ++frames_with_visible;
-      ++dataset.frames_with_visible;
-      const bool success = score.found_ok * 10 >= score.visible * 8;
-      successes += success ? 1 : 0;
-      dataset.successes += success ? 1 : 0;
       by_case.add(truth.hard_cases, success);
     }
     streaks.add(truth, result.streak_px);
@@ -296,24 +307,24 @@ struct EvaluateTotals {
     if (datasets.size() > 1U) {
       for (const DatasetTally& t : datasets) {
         std::printf("dataset %s: frame success %.1f %% of %d frames, corners found %.2f %% of %ld visible\n",
-                    t.dir.c_str(), percent(t.successes, t.frames_with_visible), t.frames_with_visible,
-                    percent(t.found_ok, t.visible), t.visible);
+                    t.dir.c_str(), percent(t.corners.successes, t.corners.frames_with_visible),
+                    t.corners.frames_with_visible, percent(t.corners.found_ok, t.corners.visible), t.corners.visible);
       }
       std::printf("pooled over %zu datasets: %d images scored (%d unreadable), %ld visible corners\n",
-                  datasets.size(), frames, unreadable, visible);
+                  datasets.size(), frames, unreadable, corners.visible);
     } else {
       std::printf("dataset %s: %d images scored (%d unreadable), %ld visible corners\n", datasets[0].dir.c_str(),
-                  frames, unreadable, visible);
+                  frames, unreadable, corners.visible);
     }
     std::printf("corners found within %.1f px and correctly labelled: %.2f %% of visible\n", tolerance_px,
-                percent(found_ok, visible));
+                percent(corners.found_ok, corners.visible));
     std::printf("median corner error (found ones): %.3f px\n", median_of(errors_px));
     std::printf("found corners farther than %.1f px from their truth: %.2f %% of %ld found (wrongly labelled, i.e. "
                 "another corner's: %.2f %%; misplaced: %.2f %%)\n",
                 tolerance_px, percent(wrong, found_total), found_total, percent(mislabelled, found_total),
                 percent(wrong - mislabelled, found_total));
     std::printf("frame success (>= 80 %% of visible corners found and labelled): %.1f %% of %d frames\n",
-                percent(successes, frames_with_visible), frames_with_visible);
+                percent(corners.successes, corners.frames_with_visible), corners.frames_with_visible);
     char case_line[512];
     format_hard_case_tally(by_case, case_line, sizeof case_line);
     if (case_line[0] != '\0') {
