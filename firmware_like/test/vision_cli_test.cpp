@@ -6,8 +6,10 @@
 #include <sys/stat.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli/commands.hpp"
@@ -174,6 +176,103 @@ TEST(VisionCommands, EvaluatePoolsSeveralDatasets) {
   testing::internal::CaptureStdout();
   EXPECT_EQ(run({"evaluate", first, "/nonexistent-dir"}), kExitConfig);
   EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
+}
+
+namespace {
+
+// The "frames not succeeding" line that a --corners-csv file implies: per
+// image, the visible corners, those found within 1.5 px, those reported
+// at all, and the estimate's status; a frame fails below 80 % found.
+std::string failing_line_from_rows(const std::string& csv) {
+  struct Frame {
+    int visible = 0;
+    int found_ok = 0;
+    int reported = 0;
+    std::string status;
+  };
+  std::vector<std::pair<std::string, Frame>> frames;
+  std::FILE* f = std::fopen(csv.c_str(), "r");
+  EXPECT_NE(f, nullptr);
+  if (f == nullptr) {
+    return "";
+  }
+  char line[512];
+  bool header = true;
+  while (std::fgets(line, sizeof line, f) != nullptr) {
+    if (header) {
+      header = false;
+      continue;
+    }
+    // image,k,visible,truth_u,truth_v,found,u,v,confidence,error_px,status,...
+    std::vector<std::string> fields;
+    std::string field;
+    for (const char* c = line; *c != '\0' && *c != '\n'; ++c) {
+      if (*c == ',') {
+        fields.push_back(field);
+        field.clear();
+      } else {
+        field += *c;
+      }
+    }
+    fields.push_back(field);
+    EXPECT_GE(fields.size(), 11U);
+    if (fields.size() < 11U) {
+      break;
+    }
+    if (frames.empty() || frames.back().first != fields[0]) {
+      frames.emplace_back(fields[0], Frame{});
+    }
+    Frame& frame = frames.back().second;
+    const bool visible = fields[2] == "1";
+    const bool found = fields[5] == "1";
+    frame.visible += visible ? 1 : 0;
+    frame.reported += found ? 1 : 0;
+    frame.found_ok += visible && found && std::strtod(fields[9].c_str(), nullptr) <= 1.5 ? 1 : 0;
+    frame.status = fields[10];
+  }
+  std::fclose(f);
+  int failing = 0, none = 0, none_no_corner = 0, degraded = 0, valid = 0;
+  for (const auto& named : frames) {
+    const Frame& frame = named.second;
+    if (frame.visible == 0 || frame.found_ok * 10 >= frame.visible * 8) {
+      continue;
+    }
+    ++failing;
+    none += frame.status == "none" ? 1 : 0;
+    none_no_corner += frame.status == "none" && frame.reported == 0 ? 1 : 0;
+    degraded += frame.status == "degraded" ? 1 : 0;
+    valid += frame.status == "valid" ? 1 : 0;
+  }
+  char out[160];
+  std::snprintf(out, sizeof out,
+                "frames not succeeding: %d (no estimate %d, of which %d report no corner; degraded %d; valid %d)\n",
+                failing, none, none_no_corner, degraded, valid);
+  return out;
+}
+
+}  // namespace
+
+// evaluate counts the frames that do not succeed by the estimate's status,
+// and among those without a pose the ones with no corner at all: the same
+// counts as the corner rows give, with guided rounds and with stage 4's
+// corners alone (most frames fail there).
+TEST(VisionCommands, EvaluateCountsTheFramesThatDoNotSucceedByStatus) {
+  const std::string lab = make_dataset("vision_cli_failing_lab");
+  const std::string hard =
+      make_dataset("vision_cli_failing_hard", render::kHardOccluder | render::kHardMotionBlur | render::kHardHaze);
+  const std::string csv = lab + "/failing.csv";
+  for (const bool guided : {true, false}) {
+    testing::internal::CaptureStdout();
+    EXPECT_EQ(run({"evaluate", "--corners-csv", csv, "--guided-rounds", guided ? "1" : "0", "--fallback-seeds",
+                   guided ? "9" : "0", lab, hard}),
+              kExitOk);
+    const std::string summary = testing::internal::GetCapturedStdout();
+    const std::string expected = failing_line_from_rows(csv);
+    EXPECT_NE(summary.find(expected), std::string::npos) << expected << summary;
+    if (!guided) {
+      EXPECT_EQ(expected.find("frames not succeeding: 0 "), std::string::npos) << expected;
+    }
+  }
 }
 
 // With sidecars that carry the motion blur's streak, evaluate reports how

@@ -264,6 +264,14 @@ struct EvaluateTotals {
   long wrong = 0;
   long mislabelled = 0;
   HardCaseTally by_case;  // frame success per hard case
+  // The frames with visible corners that did not succeed, by the estimate's
+  // status; of those without a pose, the ones that reported no corner at
+  // all (stage 4 found nothing and no seed's image fit held: the reading
+  // failed, not the choice among results).
+  int failed_none = 0;
+  int failed_none_no_corner = 0;
+  int failed_degraded = 0;
+  int failed_valid = 0;
   std::vector<double> errors_px, stage_us[4], stages_total_us, solve_us;
   StreakTally streaks;
   // The solve's TCP (what the robot receives), and on the same frames, where
@@ -282,6 +290,16 @@ struct EvaluateTotals {
     static_cast<void>(dataset.corners.add(score));  // the same verdict as `success`
     if (score.visible > 0) {
       by_case.add(truth.hard_cases, success);
+      if (!success) {
+        switch (result.status) {
+          case EstimateStatus::None:
+            ++failed_none;
+            failed_none_no_corner += score.found == 0 ? 1 : 0;
+            break;
+          case EstimateStatus::Degraded: ++failed_degraded; break;
+          case EstimateStatus::Valid: ++failed_valid; break;
+        }
+      }
     }
     streaks.add(truth, result.streak_px);
     for (int s = 0; s < 4; ++s) {
@@ -325,6 +343,9 @@ struct EvaluateTotals {
                 percent(wrong - mislabelled, found_total));
     std::printf("frame success (>= 80 %% of visible corners found and labelled): %.1f %% of %d frames\n",
                 percent(corners.successes, corners.frames_with_visible), corners.frames_with_visible);
+    std::printf("frames not succeeding: %d (no estimate %d, of which %d report no corner; degraded %d; valid %d)\n",
+                corners.frames_with_visible - corners.successes, failed_none, failed_none_no_corner, failed_degraded,
+                failed_valid);
     char case_line[512];
     format_hard_case_tally(by_case, case_line, sizeof case_line);
     if (case_line[0] != '\0') {
