@@ -822,6 +822,280 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
   return streak_px.allFinite();
 }
 
+// The pose fit's readings of one iteration (bounded by kMaxReadings: fixed
+// sample counts) and where the model puts each.
+struct FitReadings {
+  std::array<Reading, kMaxReadings> readings{};
+  std::array<solver::Vec2, kMaxReadings> predicted{};
+  int count = 0;
+
+  // A reading: what the model point is, read along `direction` at
+  // `offset_px` from its prediction `at`.
+  void push(Reading rd, const solver::Vec2& direction, double offset_px, const solver::Vec2& at) noexcept {
+    rd.direction = direction;
+    rd.offset_px = offset_px;
+    readings[static_cast<std::size_t>(count)] = rd;
+    predicted[static_cast<std::size_t>(count)] = at;
+    ++count;
+  }
+};
+
+// The weak prior around the fit's start (mm, mm, rad, rad, mm, rad, rad):
+// it keeps directions the image does not observe (e.g. a tube seen end-on)
+// where they were.
+constexpr double kFitPriorSd[solver::kNumParams] = {3.0, 3.0, 0.1, 0.1, 5.0, 0.5, 0.5};
+// The finite-difference steps of the fit's rows, in r's units.
+constexpr double kFitStepH[solver::kNumParams] = {1e-3, 1e-3, 1e-5, 1e-5, 1e-3, 1e-5, 1e-5};
+
+// The image point of the boundary circle cf (radius_mm) at angle_rad, and
+// its arc's image normal towards the tip (cf2: the circle kDsMm further).
+// False where it does not project, or where the arc runs along the tube (a
+// reading across it slides).
+bool arc_point(const solver::CameraModel& camera, const solver::CentrelineFrame& cf,
+               const solver::CentrelineFrame& cf2, double radius_mm, double angle_rad, solver::Vec2& p,
+               solver::Vec2& normal, double& px_per_mm) noexcept {
+  const auto point_at = [&](const solver::CentrelineFrame& c, double angle) noexcept {
+    return solver::Vec3(c.position + radius_mm * (std::cos(angle) * c.normal + std::sin(angle) * c.binormal));
+  };
+  solver::Vec2 p_s, p_a;
+  if (!camera.project(point_at(cf, angle_rad), p) || !camera.project(point_at(cf2, angle_rad), p_s) ||
+      !camera.project(point_at(cf, angle_rad + 1e-4), p_a)) {
+    return false;
+  }
+  const solver::Vec2 along = (p_s - p) / kDsMm;  // px per mm along the tube
+  px_per_mm = along.norm();
+  const solver::Vec2 tangent = p_a - p;
+  if (!(px_per_mm > 0.5) || !(tangent.norm() > 0.0)) {
+    return false;
+  }
+  normal = solver::Vec2(-tangent.y(), tangent.x());
+  normal.normalize();
+  if (normal.dot(along) < 0.0) {
+    normal = -normal;
+  }
+  return normal.dot(along) >= 0.5 * px_per_mm;
+}
+
+// What one iteration of the pose fit read on the boundary arcs.
+struct ArcReadout {
+  int readings = 0;                               // the arc readings kept
+  bool smeared = false;                           // ImageFitSummary::smeared
+  std::array<int, kNumBoundaries> on_boundary{};  // ... of them per boundary
+};
+
+// The boundary arcs at the frames f, each point read across its arc within
+// window_mm; `streak_px`: the streak read in an earlier iteration (zero on
+// a sharp frame). A reading whose colour change is clear only a few samples
+// away (a smear) is set aside, and kept only when the smear is the frame's
+// (motion blur), not one stripe's: a large share of many readings.
+ArcReadout read_fit_arcs(const Refiner& refiner, const ExtractorConfig& config, const solver::CameraModel& camera,
+                         const solver::InstrumentModel& model, const solver::PoseFrames& f, double window_mm,
+                         const solver::Vec2& streak_px, FitReadings& fit) noexcept {
+  const double radius = model.geometry().radius_mm;
+  std::array<Reading, kMaxSmearedReadings> smeared{};
+  std::array<solver::Vec2, kMaxSmearedReadings> smeared_at{};
+  std::array<int, kNumBoundaries> sharp_on{};
+  std::array<int, kNumBoundaries> smeared_on{};
+  int smeared_count = 0;
+  int arc_readings = 0;
+  for (int j = 0; j < kNumBoundaries; ++j) {
+    const BoundaryColours colours = colours_of(config, j);
+    if (!colours.usable || j == 0) {  // the base arc: behind the shaft in most views (docs/vision.md)
+      continue;
+    }
+    const double s_j = model.geometry().boundaries_mm[static_cast<std::size_t>(j)];
+    const solver::CentrelineFrame cf = model.centreline(f, s_j);
+    const solver::CentrelineFrame cf2 = model.centreline(f, s_j + kDsMm);
+    double base = 0.0;
+    double limb_half = 0.0;
+    if (!solver::circle_limb_angles(cf, radius, base, limb_half)) {
+      continue;
+    }
+    const double half = solver::kPi - limb_half;
+    int on_this = 0;
+    for (int i = 0; i < kFitArcSamples; ++i) {
+      const double u = -config.refine_arc_span + 2.0 * config.refine_arc_span * i / (kFitArcSamples - 1.0);
+      const double a = base + solver::kPi + u * half;
+      solver::Vec2 p;
+      solver::Vec2 normal;
+      double px_per_mm = 0.0;
+      if (!arc_point(camera, cf, cf2, radius, a, p, normal, px_per_mm)) {
+        continue;
+      }
+      Reading rd;
+      rd.arc = true;
+      rd.boundary = j;
+      rd.angle_rad = a;
+      double tau = 0.0;
+      const Crossing read =
+          refiner.crossing(p, normal, window_mm * px_per_mm, colours, config.refine_smear_clear_reach, tau);
+      if (colours.margin && read != Crossing::kNone) {
+        // The tip arc (j = 0 is not read): under the streak read in an
+        // earlier iteration (zero on a sharp frame), refine_smear_tip_bias.
+        tau += config.refine_smear_tip_bias * std::fabs(streak_px.dot(normal));
+      }
+      if (read == Crossing::kSharp) {
+        fit.push(rd, normal, tau, p);
+        ++on_this;
+      } else if (read == Crossing::kSmeared && smeared_count < kMaxSmearedReadings) {
+        rd.direction = normal;
+        rd.offset_px = tau;
+        smeared[static_cast<std::size_t>(smeared_count)] = rd;
+        smeared_at[static_cast<std::size_t>(smeared_count)] = p;
+        ++smeared_count;
+        ++smeared_on[static_cast<std::size_t>(j)];
+      }
+    }
+    sharp_on[static_cast<std::size_t>(j)] = on_this;
+    arc_readings += on_this;
+  }
+  ArcReadout out;
+  const int all_arcs = arc_readings + smeared_count;
+  out.smeared = smeared_count > 0 && all_arcs >= config.refine_smear_min_arc_readings &&
+                static_cast<double>(smeared_count) >= config.refine_smear_share * static_cast<double>(all_arcs);
+  if (out.smeared) {
+    for (int i = 0; i < smeared_count; ++i) {
+      const Reading& rd = smeared[static_cast<std::size_t>(i)];
+      fit.push(rd, rd.direction, rd.offset_px, smeared_at[static_cast<std::size_t>(i)]);
+    }
+    arc_readings = all_arcs;
+  }
+  out.readings = arc_readings;
+  for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
+    out.on_boundary[j] = sharp_on[j] + (out.smeared ? smeared_on[j] : 0);
+  }
+  return out;
+}
+
+// The boundaries the arcs read (3 readings or more), and the longest run
+// of consecutive colour boundaries read (ImageFitSummary::boundary_run).
+void count_read_boundaries(const std::array<int, kNumBoundaries>& on_boundary, int& boundaries,
+                           int& boundary_run) noexcept {
+  boundaries = 0;
+  boundary_run = 0;
+  int run = 0;
+  for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
+    const bool read_j = on_boundary[j] >= 3;
+    boundaries += read_j ? 1 : 0;
+    if (j >= 1U && j + 1U < static_cast<std::size_t>(kNumBoundaries)) {  // the colour boundaries
+      run = read_j ? run + 1 : 0;
+      boundary_run = std::max(boundary_run, run);
+    }
+  }
+}
+
+// What one iteration of the pose fit read on the silhouette.
+struct SilhouetteReadout {
+  int readings = 0;  // on the striped section (ImageFitSummary::silhouette_readings)
+  int plain = 0;     // ... of them where the peak's centre reads too (plain_silhouette_readings)
+};
+
+// Silhouette readings at the frames f within edge_window_px: both sides
+// along the striped section, and the shaft's just before the base up to the
+// channel exit (lambda_mm; not counted: the striped section must be seen
+// for itself).
+SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorConfig& config,
+                                      const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                                      const solver::PoseFrames& f, double edge_window_px, double lambda_mm,
+                                      FitReadings& fit) noexcept {
+  SilhouetteReadout out;
+  const auto read_silhouette = [&](bool shaft, double s, std::size_t side) noexcept {
+    solver::Vec2 point;
+    solver::Vec2 normal;
+    const bool at = shaft ? shaft_silhouette_at(camera, model, f, s, side, point, normal) && camera.in_image(point)
+                          : silhouette_at(camera, model, f, s, side, point, normal);
+    double e = 0.0;
+    bool outer_end = false;
+    if (!at || !refiner.edge_across(point, normal, edge_window_px, e, outer_end)) {
+      return false;
+    }
+    // What the peak's centre would give, for the validity rule (GuidedOptions).
+    double peak_e = 0.0;
+    out.plain += !shaft && (!outer_end || refiner.edge(point, normal, edge_window_px, peak_e)) ? 1 : 0;
+    Reading rd;
+    rd.shaft = shaft;
+    rd.s_mm = s;
+    rd.side = side;
+    fit.push(rd, normal, e, point);
+    return true;
+  };
+  const double bend_length_mm = model.geometry().bend_length_mm;
+  for (std::size_t side = 0U; side < 2U; ++side) {
+    for (int i = 0; i < kFitSilhouetteSamples; ++i) {
+      const double s = bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
+      out.readings += read_silhouette(false, s, side) ? 1 : 0;
+    }
+    for (int i = 0; i < kFitShaftSamples && config.refine_shaft_readings; ++i) {
+      const double back = kFitShaftFirstMm + kFitShaftStepMm * i;
+      if (back > lambda_mm - 1.0) {
+        break;  // the shaft starts at the channel exit
+      }
+      static_cast<void>(read_silhouette(true, back, side));  // a missing shaft reading is no failure
+    }
+  }
+  return out;
+}
+
+// One robust step of the pose fit from its readings at x: Tukey weights at
+// the readings' robust scale (MAD), finite-difference rows, the weak prior
+// around `start`. False when the normal equations do not solve. rms_px: the
+// weighted residual; largest_move_px: the largest move of a read model point
+// along its reading direction under the step (the convergence test).
+bool fit_step(const FitReadings& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
+              const solver::PoseVector& x, const solver::PoseVector& start,
+              Eigen::Matrix<double, solver::kNumParams, 1>& delta, double& rms_px, double& largest_move_px) noexcept {
+  const int n = fit.count;
+  std::array<double, kMaxReadings> work{};
+  for (int i = 0; i < n; ++i) {
+    work[static_cast<std::size_t>(i)] = std::fabs(fit.readings[static_cast<std::size_t>(i)].offset_px);
+  }
+  RobustNormalEquations<solver::kNumParams> equations(tukey_cut_px(work.data(), n, 0.3));
+  const auto& g = model.geometry();
+  std::array<solver::PoseFrames, solver::kNumParams> shifted{};
+  std::array<std::array<solver::CentrelineFrame, kNumBoundaries>, solver::kNumParams> shifted_boundaries{};
+  for (int k = 0; k < solver::kNumParams; ++k) {
+    const auto kk = static_cast<std::size_t>(k);
+    solver::PoseVector xk = x;
+    xk[k] += kFitStepH[k];
+    shifted[kk] = model.frames(xk);
+    for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
+      shifted_boundaries[kk][j] = model.centreline(shifted[kk], g.boundaries_mm[j]);
+    }
+  }
+  std::array<Eigen::Matrix<double, solver::kNumParams, 1>, kMaxReadings> rows{};  // d(reading)/dr, px per unit
+  int used = 0;
+  for (int i = 0; i < n; ++i) {
+    const Reading& rd = fit.readings[static_cast<std::size_t>(i)];
+    const double v = rd.offset_px;
+    const double w = equations.weight(v);
+    if (!(w > 0.0)) {
+      continue;
+    }
+    Eigen::Matrix<double, solver::kNumParams, 1> row;
+    bool ok = true;
+    for (int k = 0; k < solver::kNumParams && ok; ++k) {
+      solver::Vec2 pk;
+      ok = predict(camera, model, shifted[static_cast<std::size_t>(k)], shifted_boundaries[static_cast<std::size_t>(k)],
+                   rd, pk);
+      row[k] = rd.direction.dot(pk - fit.predicted[static_cast<std::size_t>(i)]) / kFitStepH[k];
+    }
+    if (!ok || !row.allFinite()) {
+      continue;
+    }
+    rows[static_cast<std::size_t>(used++)] = row;
+    equations.add(row, v, w);
+  }
+  rms_px = equations.rms_px();
+  if (!equations.solve(kFitPriorSd, x - start, delta)) {
+    return false;
+  }
+  largest_move_px = 0.0;
+  for (int i = 0; i < used; ++i) {
+    largest_move_px = std::max(largest_move_px, std::fabs(rows[static_cast<std::size_t>(i)].dot(delta)));
+  }
+  return true;
+}
+
 }  // namespace
 
 Status<VisionError> FeatureExtractor::pose_from_regions(const solver::CameraModel& camera,
@@ -971,18 +1245,9 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
     return Status<VisionError>::failure(VisionError::BadImage);
   }
-  const auto& g = model.geometry();
-  const double radius = g.radius_mm;
-  // A weak prior around the start keeps directions the image does not
-  // observe (e.g. a tube seen end-on) where they were.
-  const solver::PoseVector start = r;
-  const double prior_sd[solver::kNumParams] = {3.0, 3.0, 0.1, 0.1, 5.0, 0.5, 0.5};
-  const double step_h[solver::kNumParams] = {1e-3, 1e-3, 1e-5, 1e-5, 1e-3, 1e-5, 1e-5};
+  const solver::PoseVector start = r;  // the weak prior's centre (kFitPriorSd)
   solver::PoseVector x = r;
-  std::array<Reading, kMaxReadings> readings{};
-  std::array<solver::Vec2, kMaxReadings> predicted{};
-  std::array<double, kMaxReadings> work{};
-  std::array<Eigen::Matrix<double, solver::kNumParams, 1>, kMaxReadings> rows{};  // d(reading)/dr, px per unit
+  FitReadings fit;
   double rms = 0.0;
   const int iterations =
       std::min(std::max(config_.refine_fit_iterations, 1) + (coarse_start ? kCoarseIterations : 0), kMaxFitIterations);
@@ -993,8 +1258,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   for (int it = 0; it < iterations; ++it) {
     const solver::PoseFrames f = model.frames(x);
     Refiner refiner(image, colors_, config_, camera, model, f);
-    int n = 0;
-    int arc_readings = 0;
+    fit.count = 0;
     // From a coarse start (a pose from the regions) the first iterations
     // search wider windows and may see fewer boundaries.
     const bool coarse_it = coarse_start && it < kCoarseIterations;
@@ -1002,114 +1266,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     const double window_mm =
         coarse_it ? config_.refine_coarse_search_mm : (fine_it == 0 ? config_.refine_search_mm : 0.6);
     const double edge_window_px = coarse_it ? config_.refine_coarse_edge_search_px : config_.refine_edge_search_px;
-    // A reading: what the model point is, read along `direction` at `offset_px`
-    // from its prediction `at` (bounded by kMaxReadings: fixed sample counts).
-    const auto push_reading = [&](Reading rd, const solver::Vec2& direction, double offset_px,
-                                  const solver::Vec2& at) noexcept {
-      rd.direction = direction;
-      rd.offset_px = offset_px;
-      readings[static_cast<std::size_t>(n)] = rd;
-      predicted[static_cast<std::size_t>(n)] = at;
-      ++n;
-    };
-    // Boundary arcs: read across the arc (its image normal, towards the tip).
-    // A reading whose colour change is clear only a few samples away (a
-    // smear) is set aside, and kept below only if the frame shows the smear.
-    std::array<Reading, kMaxSmearedReadings> smeared{};
-    std::array<solver::Vec2, kMaxSmearedReadings> smeared_at{};
-    std::array<int, kNumBoundaries> sharp_on{};
-    std::array<int, kNumBoundaries> smeared_on{};
-    int smeared_count = 0;
-    for (int j = 0; j < kNumBoundaries; ++j) {
-      const BoundaryColours colours = colours_of(config_, j);
-      if (!colours.usable || j == 0) {  // the base arc: behind the shaft in most views (docs/vision.md)
-        continue;
-      }
-      const double s_j = g.boundaries_mm[static_cast<std::size_t>(j)];
-      const solver::CentrelineFrame cf = model.centreline(f, s_j);
-      const solver::CentrelineFrame cf2 = model.centreline(f, s_j + kDsMm);
-      double base = 0.0;
-      double limb_half = 0.0;
-      if (!solver::circle_limb_angles(cf, radius, base, limb_half)) {
-        continue;
-      }
-      const double half = solver::kPi - limb_half;
-      int on_this = 0;
-      for (int i = 0; i < kFitArcSamples; ++i) {
-        const double u = -config_.refine_arc_span + 2.0 * config_.refine_arc_span * i / (kFitArcSamples - 1.0);
-        const double a = base + solver::kPi + u * half;
-        const auto point_at = [&](const solver::CentrelineFrame& c, double angle) noexcept {
-          return solver::Vec3(c.position + radius * (std::cos(angle) * c.normal + std::sin(angle) * c.binormal));
-        };
-        solver::Vec2 p, p_s, p_a;
-        if (!camera.project(point_at(cf, a), p) || !camera.project(point_at(cf2, a), p_s) ||
-            !camera.project(point_at(cf, a + 1e-4), p_a)) {
-          continue;
-        }
-        const solver::Vec2 along = (p_s - p) / kDsMm;  // px per mm along the tube
-        const double px_per_mm = along.norm();
-        const solver::Vec2 tangent = p_a - p;
-        if (!(px_per_mm > 0.5) || !(tangent.norm() > 0.0)) {
-          continue;
-        }
-        solver::Vec2 normal(-tangent.y(), tangent.x());
-        normal.normalize();
-        if (normal.dot(along) < 0.0) {
-          normal = -normal;
-        }
-        if (normal.dot(along) < 0.5 * px_per_mm) {
-          continue;  // the arc runs along the tube here: a reading across it slides
-        }
-        Reading rd;
-        rd.arc = true;
-        rd.boundary = j;
-        rd.angle_rad = a;
-        double tau = 0.0;
-        const Crossing read =
-            refiner.crossing(p, normal, window_mm * px_per_mm, colours, config_.refine_smear_clear_reach, tau);
-        if (colours.margin && read != Crossing::kNone) {
-          // The tip arc (j = 0 is not read): under the streak read in an
-          // earlier iteration (zero on a sharp frame), refine_smear_tip_bias.
-          tau += config_.refine_smear_tip_bias * std::fabs(streak_px.dot(normal));
-        }
-        if (read == Crossing::kSharp) {
-          push_reading(rd, normal, tau, p);
-          ++on_this;
-        } else if (read == Crossing::kSmeared && smeared_count < kMaxSmearedReadings) {
-          rd.direction = normal;
-          rd.offset_px = tau;
-          smeared[static_cast<std::size_t>(smeared_count)] = rd;
-          smeared_at[static_cast<std::size_t>(smeared_count)] = p;
-          ++smeared_count;
-          ++smeared_on[static_cast<std::size_t>(j)];
-        }
-      }
-      sharp_on[static_cast<std::size_t>(j)] = on_this;
-      arc_readings += on_this;
-    }
-    // The smear is the frame's (motion blur), not one stripe's: the smeared
-    // readings are kept when they are a large share of many.
-    const int all_arcs = arc_readings + smeared_count;
-    summary.smeared = smeared_count > 0 && all_arcs >= config_.refine_smear_min_arc_readings &&
-                      static_cast<double>(smeared_count) >= config_.refine_smear_share * static_cast<double>(all_arcs);
-    if (summary.smeared) {
-      for (int i = 0; i < smeared_count; ++i) {
-        const Reading& rd = smeared[static_cast<std::size_t>(i)];
-        push_reading(rd, rd.direction, rd.offset_px, smeared_at[static_cast<std::size_t>(i)]);
-      }
-      arc_readings = all_arcs;
-    }
+    const ArcReadout arcs = read_fit_arcs(refiner, config_, camera, model, f, window_mm, streak_px, fit);
+    summary.smeared = arcs.smeared;
     int boundaries = 0;
-    int boundary_run = 0;  // ImageFitSummary::boundary_run
-    int run = 0;
-    for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
-      const bool read_j = sharp_on[j] + (summary.smeared ? smeared_on[j] : 0) >= 3;
-      boundaries += read_j ? 1 : 0;
-      if (j >= 1U && j + 1U < static_cast<std::size_t>(kNumBoundaries)) {  // the colour boundaries
-        run = read_j ? run + 1 : 0;
-        boundary_run = std::max(boundary_run, run);
-      }
-    }
+    int boundary_run = 0;
+    count_read_boundaries(arcs.on_boundary, boundaries, boundary_run);
     // Under a streak of refine_streak_min_px and more, the silhouette is
     // read at its plateau's outer end where the smear across it is large
     // (Refiner::edge_across). Read once per fit: at the first iteration
@@ -1129,48 +1290,12 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     }
     summary.streak_px = streak_px;
     refiner.use_streak(summary.streak_px);
-    // Silhouette readings: both sides along the striped section, and the
-    // shaft's just before the base (not counted in the acceptance: the
-    // striped section must be seen for itself).
-    int plain_readings = 0;
-    const auto read_silhouette = [&](bool shaft, double s, std::size_t side) noexcept {
-      solver::Vec2 point;
-      solver::Vec2 normal;
-      const bool at = shaft ? shaft_silhouette_at(camera, model, f, s, side, point, normal) && camera.in_image(point)
-                            : silhouette_at(camera, model, f, s, side, point, normal);
-      double e = 0.0;
-      bool outer_end = false;
-      if (!at || !refiner.edge_across(point, normal, edge_window_px, e, outer_end)) {
-        return false;
-      }
-      // What the peak's centre would give, for the validity rule (GuidedOptions).
-      double peak_e = 0.0;
-      plain_readings += !shaft && (!outer_end || refiner.edge(point, normal, edge_window_px, peak_e)) ? 1 : 0;
-      Reading rd;
-      rd.shaft = shaft;
-      rd.s_mm = s;
-      rd.side = side;
-      push_reading(rd, normal, e, point);
-      return true;
-    };
-    int silhouette_readings = 0;
-    for (std::size_t side = 0U; side < 2U; ++side) {
-      for (int i = 0; i < kFitSilhouetteSamples; ++i) {
-        const double s = g.bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
-        silhouette_readings += read_silhouette(false, s, side) ? 1 : 0;
-      }
-      for (int i = 0; i < kFitShaftSamples && config_.refine_shaft_readings; ++i) {
-        const double back = kFitShaftFirstMm + kFitShaftStepMm * i;
-        if (back > x[solver::kLambda] - 1.0) {
-          break;  // the shaft starts at the channel exit
-        }
-        static_cast<void>(read_silhouette(true, back, side));  // a missing shaft reading is no failure
-      }
-    }
+    const SilhouetteReadout silhouette =
+        read_fit_silhouette(refiner, config_, camera, model, f, edge_window_px, x[solver::kLambda], fit);
     summary.iterations = it + 1;
-    summary.arc_readings = arc_readings;
-    summary.silhouette_readings = silhouette_readings;
-    summary.plain_silhouette_readings = plain_readings;
+    summary.arc_readings = arcs.readings;
+    summary.silhouette_readings = silhouette.readings;
+    summary.plain_silhouette_readings = silhouette.plain;
     summary.boundaries = boundaries;
     summary.boundary_run = boundary_run;
     // A fine iteration needs 2 boundaries' arcs, and no silhouette reading:
@@ -1180,62 +1305,19 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     // (refine_one_boundary_min_silhouette: an occluder hiding the others).
     // A coarse one, from a rough seed, needs the silhouette.
     const bool arcs_hold = boundaries >= 2 ||
-                           (boundaries == 1 && plain_readings >= config_.refine_one_boundary_min_silhouette);
-    if ((!coarse_it && !arcs_hold) || (coarse_it && silhouette_readings < 10)) {
+                           (boundaries == 1 && silhouette.plain >= config_.refine_one_boundary_min_silhouette);
+    if ((!coarse_it && !arcs_hold) || (coarse_it && silhouette.readings < 10)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
-    // Robust scale (MAD) and Tukey weights.
-    for (int i = 0; i < n; ++i) {
-      work[static_cast<std::size_t>(i)] = std::fabs(readings[static_cast<std::size_t>(i)].offset_px);
-    }
-    RobustNormalEquations<solver::kNumParams> equations(tukey_cut_px(work.data(), n, 0.3));
-    std::array<solver::PoseFrames, solver::kNumParams> shifted{};
-    std::array<std::array<solver::CentrelineFrame, kNumBoundaries>, solver::kNumParams> shifted_boundaries{};
-    for (int k = 0; k < solver::kNumParams; ++k) {
-      const auto kk = static_cast<std::size_t>(k);
-      solver::PoseVector xk = x;
-      xk[k] += step_h[k];
-      shifted[kk] = model.frames(xk);
-      for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
-        shifted_boundaries[kk][j] = model.centreline(shifted[kk], g.boundaries_mm[j]);
-      }
-    }
-    int used = 0;
-    for (int i = 0; i < n; ++i) {
-      const Reading& rd = readings[static_cast<std::size_t>(i)];
-      const double v = rd.offset_px;
-      const double w = equations.weight(v);
-      if (!(w > 0.0)) {
-        continue;
-      }
-      Eigen::Matrix<double, solver::kNumParams, 1> row;
-      bool ok = true;
-      for (int k = 0; k < solver::kNumParams && ok; ++k) {
-        solver::Vec2 pk;
-        ok = predict(camera, model, shifted[static_cast<std::size_t>(k)], shifted_boundaries[static_cast<std::size_t>(k)],
-                     rd, pk);
-        row[k] = rd.direction.dot(pk - predicted[static_cast<std::size_t>(i)]) / step_h[k];
-      }
-      if (!ok || !row.allFinite()) {
-        continue;
-      }
-      rows[static_cast<std::size_t>(used++)] = row;
-      equations.add(row, v, w);
-    }
-    rms = equations.rms_px();
     Eigen::Matrix<double, solver::kNumParams, 1> delta;
-    if (!equations.solve(prior_sd, x - start, delta)) {
+    double largest_move_px = 0.0;
+    if (!fit_step(fit, camera, model, x, start, delta, rms, largest_move_px)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     x += delta;
     // Converged when the step moves no model point read by more than
     // refine_fit_tolerance_px along its reading direction.
-    double largest_move = 0.0;
-    for (int i = 0; i < used; ++i) {
-      largest_move = std::max(largest_move, std::fabs(rows[static_cast<std::size_t>(i)].dot(delta)));
-    }
-    const bool small = largest_move < config_.refine_fit_tolerance_px;
-    if (small && !coarse_it) {
+    if (largest_move_px < config_.refine_fit_tolerance_px && !coarse_it) {
       summary.converged = true;
       break;
     }
