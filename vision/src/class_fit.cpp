@@ -44,6 +44,147 @@ constexpr double kKnownChannelSdRad = 0.03;
 
 int colour_index(PixelClass c) noexcept { return c == PixelClass::Yellow ? 1 : 0; }
 
+constexpr int kParams = solver::kNumParams;
+constexpr int kRows = kMaxSamples + kMaxCoverage + kParams;  // samples, coverage points, prior
+using ClassResiduals = Eigen::Matrix<double, kRows, 1>;
+// Steps of about a pixel: the distance image is piecewise linear.
+constexpr double kStepH[kParams] = {0.05, 0.05, 0.002, 0.002, 0.05, 0.004, 0.004};
+
+// Coverage points: the class image's coloured pixels on a grid whose step
+// gives at most about kMaxCoverage of them (from the regions' total area).
+struct Coverage {
+  std::array<solver::Vec2, kMaxCoverage> at{};
+  std::array<int, kMaxCoverage> colour{};  // colour_index
+  int count = 0;
+};
+
+Coverage coverage_points(const RegionSet& regions, const std::uint8_t* cls, int width, int height) noexcept {
+  Coverage out;
+  double coloured = 0.0;
+  for (const Region& region : regions.regions) {
+    coloured += static_cast<double>(region.area);
+  }
+  const int step = std::max(2, static_cast<int>(std::ceil(1.2 * std::sqrt(coloured / kMaxCoverage))));
+  for (int y = step / 2; y < height && out.count < kMaxCoverage; y += step) {
+    for (int x = step / 2; x < width && out.count < kMaxCoverage; x += step) {
+      const std::uint8_t c =
+          cls[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)];
+      if (c == static_cast<std::uint8_t>(PixelClass::Blue) || c == static_cast<std::uint8_t>(PixelClass::Yellow)) {
+        out.at[static_cast<std::size_t>(out.count)] = solver::Vec2(x, y);
+        out.colour[static_cast<std::size_t>(out.count)] = colour_index(static_cast<PixelClass>(c));
+        ++out.count;
+      }
+    }
+  }
+  return out;
+}
+
+// Stripe sample i at the frames f: a point on the tube's surface (3 along
+// each stripe, 12 around), its outward normal, and its marker's index.
+int stripe_sample(const solver::InstrumentModel& model, const solver::PoseFrames& f, int i, solver::Vec3& point,
+                  solver::Vec3& normal) noexcept {
+  const auto& g = model.geometry();
+  const int m = i / (kStepsAlong * kStepsAround);
+  const int along = (i / kStepsAround) % kStepsAlong;
+  const int around = i % kStepsAround;
+  const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
+  const double s1 = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
+  const double s = s0 + (s1 - s0) * (0.2 + 0.3 * along);
+  const double a = 6.283185307179586 * around / kStepsAround;
+  const solver::CentrelineFrame c = model.centreline(f, s);
+  normal = std::cos(a) * c.normal + std::sin(a) * c.binormal;
+  point = c.position + g.radius_mm * normal;
+  return m;
+}
+
+// A coarse look around the seed r (the encoders' joints are off by up to a
+// few mm and 0.2 rad): the best of a 3 x 3 x 3 grid in lambda, phi and
+// theta, by the mean residual per sample (a pose that shows fewer samples
+// is not cheaper for that) plus the prior's rows as they are. 27
+// evaluations of the cost, no derivatives. False when no grid pose shows
+// kMinSamples.
+template <typename Cost>
+bool coarse_grid_start(const Cost& residuals, const solver::PoseVector& r, solver::PoseVector& x) noexcept {
+  double cost = 0.0;
+  bool have_start = false;
+  for (int g_index = 0; g_index < kGridPoints * kGridPoints * kGridPoints; ++g_index) {
+    // The grid index's three digits (base kGridPoints), each -1, 0 or +1.
+    const int digit_lambda = g_index % kGridPoints - 1;
+    const int digit_phi = (g_index / kGridPoints) % kGridPoints - 1;
+    const int digit_theta = g_index / (kGridPoints * kGridPoints) - 1;
+    solver::PoseVector trial = r;
+    trial[solver::kLambda] += kGridLambdaMm * static_cast<double>(digit_lambda);
+    trial[solver::kPhi] += kGridAngleRad * static_cast<double>(digit_phi);
+    trial[solver::kTheta] += kGridAngleRad * static_cast<double>(digit_theta);
+    ClassResiduals et;
+    double wt = 0.0;
+    residuals(trial, et, wt);
+    const double trial_cost = et.head(kMaxSamples + kMaxCoverage).squaredNorm() / std::max(wt, 1.0) +
+                              et.tail(kParams).squaredNorm() / kMaxSamples;
+    if (wt >= kMinSamples && (!have_start || trial_cost < cost)) {
+      have_start = true;
+      cost = trial_cost;
+      x = trial;
+    }
+  }
+  return have_start;
+}
+
+// A damped Gauss-Newton descent of the residuals from x (forward
+// differences, at most kClassFitIterations steps, each with up to 6
+// dampings); it ends where no step lowers the cost, or hardly. False on a
+// non-finite step.
+template <typename Cost>
+bool descend(const Cost& residuals, solver::PoseVector& x) noexcept {
+  ClassResiduals e;
+  double weight_sum = 0.0;
+  residuals(x, e, weight_sum);
+  double cost = e.squaredNorm();
+  double damping = 1e-2;
+  for (int it = 0; it < FeatureExtractor::kClassFitIterations; ++it) {
+    Eigen::Matrix<double, kRows, kParams> jac;
+    for (int k = 0; k < kParams; ++k) {
+      solver::PoseVector xk = x;
+      xk[k] += kStepH[k];
+      ClassResiduals ek;
+      double wk = 0.0;
+      residuals(xk, ek, wk);
+      jac.col(k) = (ek - e) / kStepH[k];
+    }
+    const Eigen::Matrix<double, kParams, kParams> jtj = jac.transpose() * jac;
+    const Eigen::Matrix<double, kParams, 1> grad = jac.transpose() * e;
+    bool improved = false;
+    bool converged = false;
+    for (int attempt = 0; attempt < 6 && !improved; ++attempt) {
+      Eigen::Matrix<double, kParams, kParams> normal = jtj;
+      normal.diagonal() *= 1.0 + damping;
+      const Eigen::Matrix<double, kParams, 1> delta = normal.ldlt().solve(-grad);
+      if (!delta.allFinite()) {
+        return false;
+      }
+      const solver::PoseVector trial = x + delta;
+      ClassResiduals et;
+      double wt = 0.0;
+      residuals(trial, et, wt);
+      const double trial_cost = et.squaredNorm();
+      if (trial_cost < cost && wt >= kMinSamples) {
+        converged = cost - trial_cost < 1e-3 * cost;
+        x = trial;
+        e = et;
+        cost = trial_cost;
+        damping = std::max(damping * 0.3, 1e-4);
+        improved = true;
+      } else {
+        damping *= 10.0;
+      }
+    }
+    if (!improved || converged) {
+      break;  // no step lowers the cost (a minimum at this damping), or hardly
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 void FeatureExtractor::compute_class_distances() noexcept {
@@ -155,69 +296,27 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   if (!class_distance_ready_) {
     compute_class_distances();
   }
-  const auto& g = model.geometry();
   const solver::PoseVector start = r;
-  constexpr int kParams = solver::kNumParams;
-  constexpr int kRows = kMaxSamples + kMaxCoverage + kParams;
   // With the channel's pose from the shaft (fit_channel_to_shaft), it is
   // held within about that fit's accuracy.
   const double channel_mm = channel_known ? kKnownChannelSdMm : 3.0;
   const double channel_rad = channel_known ? kKnownChannelSdRad : 0.1;
   const double prior_sd[kParams] = {channel_mm, channel_mm, channel_rad, channel_rad, 5.0, 0.5, 0.5};
-  // Steps of about a pixel: the distance image is piecewise linear.
-  const double step_h[kParams] = {0.05, 0.05, 0.002, 0.002, 0.05, 0.004, 0.004};
-  using Residuals = Eigen::Matrix<double, kRows, 1>;
-  const auto sample = [&](const solver::PoseFrames& f, int i, solver::Vec3& point, solver::Vec3& normal) noexcept {
-    const int m = i / (kStepsAlong * kStepsAround);
-    const int along = (i / kStepsAround) % kStepsAlong;
-    const int around = i % kStepsAround;
-    const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
-    const double s1 = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
-    const double s = s0 + (s1 - s0) * (0.2 + 0.3 * along);
-    const double a = 6.283185307179586 * around / kStepsAround;
-    const solver::CentrelineFrame c = model.centreline(f, s);
-    normal = std::cos(a) * c.normal + std::sin(a) * c.binormal;
-    point = c.position + g.radius_mm * normal;
-    return m;
-  };
-  // Coverage points: the class image on a grid whose step gives at most
-  // about kMaxCoverage coloured points (from the regions' total area).
-  std::array<solver::Vec2, kMaxCoverage> coverage{};
-  std::array<int, kMaxCoverage> coverage_colour{};
-  int coverage_count = 0;
-  {
-    double coloured = 0.0;
-    for (const Region& region : result_.regions.regions) {
-      coloured += static_cast<double>(region.area);
-    }
-    const int step = std::max(2, static_cast<int>(std::ceil(1.2 * std::sqrt(coloured / kMaxCoverage))));
-    const std::uint8_t* cls = classes_.get();
-    for (int y = step / 2; y < height_ && coverage_count < kMaxCoverage; y += step) {
-      for (int x = step / 2; x < width_ && coverage_count < kMaxCoverage; x += step) {
-        const std::uint8_t c = cls[static_cast<std::size_t>(y) * static_cast<std::size_t>(width_) +
-                                   static_cast<std::size_t>(x)];
-        if (c == static_cast<std::uint8_t>(PixelClass::Blue) || c == static_cast<std::uint8_t>(PixelClass::Yellow)) {
-          coverage[static_cast<std::size_t>(coverage_count)] = solver::Vec2(x, y);
-          coverage_colour[static_cast<std::size_t>(coverage_count)] = colour_index(static_cast<PixelClass>(c));
-          ++coverage_count;
-        }
-      }
-    }
-  }
+  const Coverage coverage = coverage_points(result_.regions, classes_.get(), width_, height_);
   // Every sample counts with a weight that grows from 0 where the surface
   // grazes the line of sight to 1 where it faces the camera: a smooth cost,
   // whatever the view (a tube seen end-on shows only grazing surface).
   std::array<solver::Vec2, kMaxSamples> projected{};
   std::array<int, kMaxSamples> projected_colour{};
   double cap_px = kCapPx;
-  const auto residuals = [&](const solver::PoseVector& at, Residuals& out, double& weight_sum) noexcept {
+  const auto residuals = [&](const solver::PoseVector& at, ClassResiduals& out, double& weight_sum) noexcept {
     out.setZero();
     weight_sum = 0.0;
     int n_projected = 0;
     const solver::PoseFrames f = model.frames(at);
     for (int i = 0; i < kMaxSamples; ++i) {
       solver::Vec3 point, normal;
-      const int m = sample(f, i, point, normal);
+      const int m = stripe_sample(model, f, i, point, normal);
       const double depth = point.norm();
       const double facing = depth > 0.0 ? -normal.dot(point) / depth : 0.0;
       const double w = std::min(1.0, std::max(0.0, (facing - kFacingMin) / kFacingRamp));
@@ -234,12 +333,12 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
         ++n_projected;
       }
     }
-    for (int q = 0; q < coverage_count; ++q) {
+    for (int q = 0; q < coverage.count; ++q) {
       double best_sq = kCoverageCapPx * kCoverageCapPx;
       for (int i = 0; i < n_projected; ++i) {
-        if (projected_colour[static_cast<std::size_t>(i)] == coverage_colour[static_cast<std::size_t>(q)]) {
+        if (projected_colour[static_cast<std::size_t>(i)] == coverage.colour[static_cast<std::size_t>(q)]) {
           best_sq = std::min(best_sq,
-                             (projected[static_cast<std::size_t>(i)] - coverage[static_cast<std::size_t>(q)]).squaredNorm());
+                             (projected[static_cast<std::size_t>(i)] - coverage.at[static_cast<std::size_t>(q)]).squaredNorm());
         }
       }
       out[kMaxSamples + q] = std::sqrt(best_sq);
@@ -248,37 +347,8 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
       out[kMaxSamples + kMaxCoverage + k] = kPriorWeightPx * (at[k] - start[k]) / prior_sd[k];
     }
   };
-  // A coarse look around the seed first (the encoders' joints are off by up
-  // to a few mm and 0.2 rad): the best of a 3 x 3 x 3 grid in lambda, phi and
-  // theta starts the descent. 27 evaluations of the cost, no derivatives.
   solver::PoseVector x = r;
-  Residuals e;
-  double weight_sum = 0.0;
-  double cost = 0.0;
-  bool have_start = false;
-  for (int g_index = 0; g_index < kGridPoints * kGridPoints * kGridPoints; ++g_index) {
-    // The grid index's three digits (base kGridPoints), each -1, 0 or +1.
-    const int digit_lambda = g_index % kGridPoints - 1;
-    const int digit_phi = (g_index / kGridPoints) % kGridPoints - 1;
-    const int digit_theta = g_index / (kGridPoints * kGridPoints) - 1;
-    solver::PoseVector trial = r;
-    trial[solver::kLambda] += kGridLambdaMm * static_cast<double>(digit_lambda);
-    trial[solver::kPhi] += kGridAngleRad * static_cast<double>(digit_phi);
-    trial[solver::kTheta] += kGridAngleRad * static_cast<double>(digit_theta);
-    Residuals et;
-    double wt = 0.0;
-    residuals(trial, et, wt);
-    // Mean per sample (a pose that shows fewer samples is not cheaper for
-    // that), plus the prior's rows as they are.
-    const double trial_cost = et.head(kMaxSamples + kMaxCoverage).squaredNorm() / std::max(wt, 1.0) +
-                              et.tail(kParams).squaredNorm() / kMaxSamples;
-    if (wt >= kMinSamples && (!have_start || trial_cost < cost)) {
-      have_start = true;
-      cost = trial_cost;
-      x = trial;
-    }
-  }
-  if (!have_start) {
+  if (!coarse_grid_start(residuals, r, x)) {
     return Status<VisionError>::failure(VisionError::NoInstrument);
   }
   // Two descents: the first with distances capped at kCapPx (a wide basin:
@@ -289,50 +359,8 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   // the wrong ones (docs/vision.md, "Fallback seeds").
   for (int phase = 0; phase < 2; ++phase) {
     cap_px = phase == 0 ? kCapPx : kFineCapPx;
-    residuals(x, e, weight_sum);
-    cost = e.squaredNorm();
-    double damping = 1e-2;
-    for (int it = 0; it < kClassFitIterations; ++it) {
-      Eigen::Matrix<double, kRows, kParams> jac;
-      for (int k = 0; k < kParams; ++k) {
-        solver::PoseVector xk = x;
-        xk[k] += step_h[k];
-        Residuals ek;
-        double wk = 0.0;
-        residuals(xk, ek, wk);
-        jac.col(k) = (ek - e) / step_h[k];
-      }
-      const Eigen::Matrix<double, kParams, kParams> jtj = jac.transpose() * jac;
-      const Eigen::Matrix<double, kParams, 1> grad = jac.transpose() * e;
-      bool improved = false;
-      bool converged = false;
-      for (int attempt = 0; attempt < 6 && !improved; ++attempt) {
-        Eigen::Matrix<double, kParams, kParams> normal = jtj;
-        normal.diagonal() *= 1.0 + damping;
-        const Eigen::Matrix<double, kParams, 1> delta = normal.ldlt().solve(-grad);
-        if (!delta.allFinite()) {
-          return Status<VisionError>::failure(VisionError::NoInstrument);
-        }
-        const solver::PoseVector trial = x + delta;
-        Residuals et;
-        double wt = 0.0;
-        residuals(trial, et, wt);
-        const double trial_cost = et.squaredNorm();
-        if (trial_cost < cost && wt >= kMinSamples) {
-          converged = cost - trial_cost < 1e-3 * cost;
-          x = trial;
-          e = et;
-          cost = trial_cost;
-          weight_sum = wt;
-          damping = std::max(damping * 0.3, 1e-4);
-          improved = true;
-        } else {
-          damping *= 10.0;
-        }
-      }
-      if (!improved || converged) {
-        break;  // no step lowers the cost (a minimum at this damping), or hardly
-      }
+    if (!descend(residuals, x)) {
+      return Status<VisionError>::failure(VisionError::NoInstrument);
     }
   }
   if (!x.allFinite()) {
@@ -340,6 +368,8 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   }
   // The cost reported with the wide cap, whatever the last descent used.
   cap_px = kCapPx;
+  ClassResiduals e;
+  double weight_sum = 0.0;
   residuals(x, e, weight_sum);
   cost_px = e.head(kMaxSamples).sum() / std::max(weight_sum, 1.0);
   r = x;
