@@ -327,12 +327,28 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
   image_ = image;
   const int step = classify_step_for(config_.classify_step, width_, height_);
   step_ = step;
+  std::int32_t run_count = 0;
+  if (!classify_and_label(image, step, run_count)) {
+    out.too_many_regions = true;
+    return Status<VisionError>::failure(VisionError::TooManyRuns);
+  }
+  out.run_count = run_count;
+  bool overflow = false;
+  const std::size_t candidate_count = accumulate_candidates(run_count, step, overflow);
+  const std::size_t kept = finish_candidates(candidate_count, step);
+  if (overflow) {
+    out.too_many_regions = true;
+  }
+  select_regions(kept);
+  return ok_status<VisionError>();
+}
+
+bool FeatureExtractor::classify_and_label(const ImageView& image, int step, std::int32_t& run_count) noexcept {
   // The grid: pixels (step * gx, step * gy), which stand for the step x step
   // block starting there.
   const int grid_width = (width_ + step - 1) / step;
   const int grid_height = (height_ + step - 1) / step;
   const auto row_bytes = static_cast<std::size_t>(width_);
-  std::int32_t run_count = 0;
   std::int32_t prev_begin = 0;
   std::int32_t prev_end = 0;
   for (int gy = 0; gy < grid_height; ++gy) {
@@ -361,38 +377,44 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
       }
     }
     if (!cut_runs(grid_classes, grid_width, gy, run_count)) {
-      out.too_many_regions = true;
-      return Status<VisionError>::failure(VisionError::TooManyRuns);
+      return false;
     }
-    // 8-connectivity with the previous row: runs overlap when
-    // [x0 - 1, x1] and [p.x0, p.x1) intersect.
-    std::int32_t p = prev_begin;
-    for (std::int32_t i = row_begin; i < run_count; ++i) {
-      const Run& cur = runs_[idx(i)];
-      while (p < prev_end && runs_[idx(p)].x1 < cur.x0) {
-        ++p;
-      }
-      for (std::int32_t q = p; q < prev_end && runs_[idx(q)].x0 <= cur.x1; ++q) {
-        if (runs_[idx(q)].cls != cur.cls) {
-          continue;
-        }
-        const std::int32_t a = find_root(i);
-        const std::int32_t b = find_root(q);
-        if (a != b) {
-          // The lower index becomes the root: parents point backwards.
-          if (a < b) {
-            runs_[idx(b)].parent = a;
-          } else {
-            runs_[idx(a)].parent = b;
-          }
-        }
-      }
-    }
+    join_with_previous_row(row_begin, run_count, prev_begin, prev_end);
     prev_begin = row_begin;
     prev_end = run_count;
   }
-  out.run_count = run_count;
+  return true;
+}
 
+void FeatureExtractor::join_with_previous_row(std::int32_t row_begin, std::int32_t row_end, std::int32_t prev_begin,
+                                              std::int32_t prev_end) noexcept {
+  // 8-connectivity with the previous row: runs overlap when
+  // [x0 - 1, x1] and [p.x0, p.x1) intersect.
+  std::int32_t p = prev_begin;
+  for (std::int32_t i = row_begin; i < row_end; ++i) {
+    const Run& cur = runs_[idx(i)];
+    while (p < prev_end && runs_[idx(p)].x1 < cur.x0) {
+      ++p;
+    }
+    for (std::int32_t q = p; q < prev_end && runs_[idx(q)].x0 <= cur.x1; ++q) {
+      if (runs_[idx(q)].cls != cur.cls) {
+        continue;
+      }
+      const std::int32_t a = find_root(i);
+      const std::int32_t b = find_root(q);
+      if (a != b) {
+        // The lower index becomes the root: parents point backwards.
+        if (a < b) {
+          runs_[idx(b)].parent = a;
+        } else {
+          runs_[idx(a)].parent = b;
+        }
+      }
+    }
+  }
+}
+
+std::size_t FeatureExtractor::accumulate_candidates(std::int32_t run_count, int step, bool& overflow) noexcept {
   // Moments per component, accumulated per run in closed form.
   // Areas per component first (indexed by root), so that only components of
   // at least the minimum area take one of the kMaxCandidates slots.
@@ -405,7 +427,7 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
   // Areas in pixels: a grid point stands for step x step pixels.
   const std::int32_t cell_area = step * step;
   std::size_t candidate_count = 0U;
-  bool overflow = false;
+  overflow = false;
   for (std::int32_t i = 0; i < run_count; ++i) {
     const std::int32_t root = find_root(i);
     std::int32_t slot = -1;
@@ -430,38 +452,44 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
     } else {
       slot = region_of_root_[idx(root)];
     }
-    if (slot < 0) {
-      continue;
+    if (slot >= 0) {
+      add_run_moments(runs_[idx(i)], candidates_[static_cast<std::size_t>(slot)]);
     }
-    const Run& r = runs_[idx(i)];
-    Region& reg = candidates_[static_cast<std::size_t>(slot)];
-    const double n = static_cast<double>(r.x1 - r.x0);
-    const double a = static_cast<double>(r.x0);
-    const double b = static_cast<double>(r.x1 - 1);
-    const double y = static_cast<double>(r.y);
-    const double sx = n * (a + b) * 0.5;
-    // sum of x^2 over a..b
-    const double sxx = (b * (b + 1.0) * (2.0 * b + 1.0) - (a - 1.0) * a * (2.0 * a - 1.0)) / 6.0;
-    // Raw sums are kept in the covariance fields until the end (see below).
-    reg.area += r.x1 - r.x0;
-    reg.centroid.x += sx;
-    reg.centroid.y += n * y;
-    reg.cov_xx += sxx;
-    reg.cov_xy += sx * y;
-    reg.cov_yy += n * y * y;
-    if (r.x0 < reg.x_min) {
-      reg.x_min = r.x0;
-    }
-    if (r.x1 - 1 > reg.x_max) {
-      reg.x_max = r.x1 - 1;
-    }
-    reg.y_max = r.y;  // rows are visited in order
   }
+  return candidate_count;
+}
+
+void FeatureExtractor::add_run_moments(const Run& r, Region& reg) noexcept {
+  const double n = static_cast<double>(r.x1 - r.x0);
+  const double a = static_cast<double>(r.x0);
+  const double b = static_cast<double>(r.x1 - 1);
+  const double y = static_cast<double>(r.y);
+  const double sx = n * (a + b) * 0.5;
+  // sum of x^2 over a..b
+  const double sxx = (b * (b + 1.0) * (2.0 * b + 1.0) - (a - 1.0) * a * (2.0 * a - 1.0)) / 6.0;
+  // Raw sums are kept in the covariance fields until the end (finish_candidates).
+  reg.area += r.x1 - r.x0;
+  reg.centroid.x += sx;
+  reg.centroid.y += n * y;
+  reg.cov_xx += sxx;
+  reg.cov_xy += sx * y;
+  reg.cov_yy += n * y * y;
+  if (r.x0 < reg.x_min) {
+    reg.x_min = r.x0;
+  }
+  if (r.x1 - 1 > reg.x_max) {
+    reg.x_max = r.x1 - 1;
+  }
+  reg.y_max = r.y;  // rows are visited in order
+}
+
+std::size_t FeatureExtractor::finish_candidates(std::size_t candidate_count, int step) noexcept {
   // Raw sums to centroid and central moments (grid units), then pixels: a
   // grid point (gx, gy) is pixel (step gx, step gy) and stands for a step x
   // step cell, whose footprint variance step^2 / 12 the scaled 1/12 gives.
   std::size_t kept = 0U;
   const auto scale = static_cast<double>(step);
+  const std::int32_t cell_area = step * step;
   const std::int32_t last_x = width_ - 1;
   const std::int32_t last_y = height_ - 1;
   for (std::size_t i = 0U; i < candidate_count; ++i) {
@@ -486,11 +514,7 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
     candidates_[kept] = reg;
     ++kept;
   }
-  if (overflow) {
-    out.too_many_regions = true;
-  }
-  select_regions(kept);
-  return ok_status<VisionError>();
+  return kept;
 }
 
 void FeatureExtractor::select_regions(std::size_t candidate_count) noexcept {

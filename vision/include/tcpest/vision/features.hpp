@@ -467,6 +467,19 @@ class FeatureExtractor {
   // grasper after marker 5 is bright.
   double orientation_log(const Interpretation& hyp) const noexcept;
   void select_regions(std::size_t candidate_count) noexcept;
+  // Stage 1's steps (find_regions): the grid's classes and runs, joined into
+  // 8-connected components (false: the runs overflowed); the joins of a
+  // row's runs [row_begin, row_end) with the previous row's of the same
+  // class; the components of at least the minimum area into candidates_,
+  // with their raw moment sums (`overflow`: more than kMaxCandidates); one
+  // run's sums; and the sums turned into pixel moments and shapes, the
+  // candidates still large enough first (returns how many).
+  bool classify_and_label(const ImageView& image, int step, std::int32_t& run_count) noexcept;
+  void join_with_previous_row(std::int32_t row_begin, std::int32_t row_end, std::int32_t prev_begin,
+                              std::int32_t prev_end) noexcept;
+  std::size_t accumulate_candidates(std::int32_t run_count, int step, bool& overflow) noexcept;
+  static void add_run_moments(const Run& r, Region& reg) noexcept;
+  std::size_t finish_candidates(std::size_t candidate_count, int step) noexcept;
 
   ExtractorConfig config_{};
   ColorModel colors_{};
