@@ -80,6 +80,122 @@ struct Node {
   double log_posterior = kNegligible;
 };
 
+using RegionList = StaticVector<Region, kMaxRegions>;
+using Children = StaticVector<std::size_t, kMaxChildren>;
+
+// The skeleton's direction at the last link of a hypothesis (unit vector in
+// the image), once it has one.
+struct Heading {
+  bool known = false;
+  double x = 0.0;
+  double y = 0.0;
+};
+
+// The children of `parent` at the next level: the unused regions of colour
+// `want` adjacent to it whose link keeps the skeleton's turn from `heading`
+// below max_link_angle_rad (at most kMaxChildren).
+void collect_children(const RegionList& regions, const ExtractorConfig& config, const Region& parent, PixelClass want,
+                      std::uint64_t used, const Heading& heading, Children& children) noexcept {
+  for (std::size_t c = 0U; c < regions.size() && !children.full(); ++c) {
+    if (((used >> c) & 1ULL) != 0ULL) {
+      continue;
+    }
+    const Region& cand = regions[c];
+    if (cand.cls != want || !adjacent(parent, cand, config)) {
+      continue;
+    }
+    if (heading.known) {
+      const double dx = cand.centroid.x - parent.centroid.x;
+      const double dy = cand.centroid.y - parent.centroid.y;
+      const double d = std::hypot(dx, dy);
+      if (!(d > 0.0) || (dx * heading.x + dy * heading.y) / d < std::cos(config.max_link_angle_rad)) {
+        continue;
+      }
+    }
+    static_cast<void>(children.push_back(c));  // bounded by the loop condition
+  }
+}
+
+// The node of highest posterior p(S|M_i) p(d|M_i) under the level's prior:
+// a child, or a virtual node merging two of them (none: index[0] < 0).
+Node best_child(const RegionList& regions, const Children& children, const Region& parent,
+                const MarkerPrior& prior) noexcept {
+  Node chosen;
+  for (std::size_t a = 0U; a < children.size(); ++a) {
+    const Region& ra = regions[children[a]];
+    const double lp = shape_log(ra, prior) + distance_log(ra, parent, prior);
+    if (lp > chosen.log_posterior) {
+      chosen.region = ra;
+      chosen.index = {{static_cast<std::int16_t>(children[a]), -1}};
+      chosen.log_posterior = lp;
+    }
+    // Virtual nodes: this child merged with another one of the level.
+    for (std::size_t b = a + 1U; b < children.size(); ++b) {
+      Region merged = ra;
+      merged.merge(regions[children[b]]);
+      const double lpm = shape_log(merged, prior) + distance_log(merged, parent, prior);
+      if (lpm > chosen.log_posterior) {
+        chosen.region = merged;
+        chosen.index = {{static_cast<std::int16_t>(children[a]), static_cast<std::int16_t>(children[b])}};
+        chosen.log_posterior = lpm;
+      }
+    }
+  }
+  return chosen;
+}
+
+// One hypothesis: from the root region (merged with `partner` when it is
+// another region) at level `start`, grown towards the tip level by level
+// while a chosen node's posterior and the level reward stay above zero.
+// Returns its score (before the orientation cue).
+double grow_hypothesis(const RegionList& regions, const ExtractorConfig& config, const MarkerPriors& priors,
+                       std::size_t root, std::size_t partner, int start, Interpretation& hyp) noexcept {
+  hyp = Interpretation{};
+  std::uint64_t used = (1ULL << root) | (1ULL << partner);
+  Node current;
+  current.region = regions[root];
+  current.index = {{static_cast<std::int16_t>(root), -1}};
+  if (partner != root) {
+    current.region.merge(regions[partner]);
+    current.index[1] = static_cast<std::int16_t>(partner);
+  }
+  current.log_posterior = shape_log(current.region, priors.marker[static_cast<std::size_t>(start)]);
+  double score = current.log_posterior + config.level_reward;
+  hyp.markers[static_cast<std::size_t>(start)] =
+      MarkerObservation{true, current.region, current.index, current.log_posterior};
+  hyp.first_marker = start;
+  hyp.last_marker = start;
+  hyp.found_count = 1;
+  Heading heading;
+  for (int level = start + 1; level < kNumMarkers; ++level) {
+    const MarkerPrior& prior = priors.marker[static_cast<std::size_t>(level)];
+    // Children: adjacent, right colour, unused, turn below the limit.
+    Children children;
+    collect_children(regions, config, current.region, level_class(config, level), used, heading, children);
+    const Node chosen = best_child(regions, children, current.region, prior);
+    if (chosen.index[0] < 0 || chosen.log_posterior + config.level_reward < 0.0) {
+      break;  // the remaining levels are empty
+    }
+    const double dx = chosen.region.centroid.x - current.region.centroid.x;
+    const double dy = chosen.region.centroid.y - current.region.centroid.y;
+    const double d = std::hypot(dx, dy);
+    if (d > 0.0) {
+      heading = Heading{true, dx / d, dy / d};
+    }
+    used |= 1ULL << static_cast<unsigned>(chosen.index[0]);
+    if (chosen.index[1] >= 0) {
+      used |= 1ULL << static_cast<unsigned>(chosen.index[1]);
+    }
+    score += chosen.log_posterior + config.level_reward;
+    hyp.markers[static_cast<std::size_t>(level)] =
+        MarkerObservation{true, chosen.region, chosen.index, chosen.log_posterior};
+    hyp.last_marker = level;
+    ++hyp.found_count;
+    current = chosen;
+  }
+  return score;
+}
+
 }  // namespace
 
 const char* to_string(PriorSource s) noexcept {
@@ -116,89 +232,7 @@ Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noex
         continue;
       }
       Interpretation hyp{};
-      std::uint64_t used = (1ULL << root) | (1ULL << partner);
-      Node current;
-      current.region = regions[root];
-      current.index = {{static_cast<std::int16_t>(root), -1}};
-      if (partner != root) {
-        current.region.merge(regions[partner]);
-        current.index[1] = static_cast<std::int16_t>(partner);
-      }
-      current.log_posterior = shape_log(current.region, priors.marker[static_cast<std::size_t>(start)]);
-      double score = current.log_posterior + config_.level_reward;
-      hyp.markers[static_cast<std::size_t>(start)] =
-          MarkerObservation{true, current.region, current.index, current.log_posterior};
-      hyp.first_marker = start;
-      hyp.last_marker = start;
-      hyp.found_count = 1;
-      bool has_direction = false;
-      double dir_x = 0.0, dir_y = 0.0;
-      for (int level = start + 1; level < kNumMarkers; ++level) {
-        const PixelClass want = level_class(config_, level);
-        const MarkerPrior& prior = priors.marker[static_cast<std::size_t>(level)];
-        // Children: adjacent, right colour, unused, turn below the limit.
-        StaticVector<std::size_t, kMaxChildren> children;
-        for (std::size_t c = 0U; c < n && !children.full(); ++c) {
-          if (((used >> c) & 1ULL) != 0ULL) {
-            continue;
-          }
-          const Region& cand = regions[c];
-          if (cand.cls != want || !adjacent(current.region, cand, config_)) {
-            continue;
-          }
-          if (has_direction) {
-            const double dx = cand.centroid.x - current.region.centroid.x;
-            const double dy = cand.centroid.y - current.region.centroid.y;
-            const double d = std::hypot(dx, dy);
-            if (!(d > 0.0) || (dx * dir_x + dy * dir_y) / d < std::cos(config_.max_link_angle_rad)) {
-              continue;
-            }
-          }
-          static_cast<void>(children.push_back(c));  // bounded by the loop condition
-        }
-        Node chosen;
-        for (std::size_t a = 0U; a < children.size(); ++a) {
-          const Region& ra = regions[children[a]];
-          const double lp = shape_log(ra, prior) + distance_log(ra, current.region, prior);
-          if (lp > chosen.log_posterior) {
-            chosen.region = ra;
-            chosen.index = {{static_cast<std::int16_t>(children[a]), -1}};
-            chosen.log_posterior = lp;
-          }
-          // Virtual nodes: this child merged with another one of the level.
-          for (std::size_t b = a + 1U; b < children.size(); ++b) {
-            Region merged = ra;
-            merged.merge(regions[children[b]]);
-            const double lpm = shape_log(merged, prior) + distance_log(merged, current.region, prior);
-            if (lpm > chosen.log_posterior) {
-              chosen.region = merged;
-              chosen.index = {{static_cast<std::int16_t>(children[a]), static_cast<std::int16_t>(children[b])}};
-              chosen.log_posterior = lpm;
-            }
-          }
-        }
-        if (chosen.index[0] < 0 || chosen.log_posterior + config_.level_reward < 0.0) {
-          break;  // the remaining levels are empty
-        }
-        const double dx = chosen.region.centroid.x - current.region.centroid.x;
-        const double dy = chosen.region.centroid.y - current.region.centroid.y;
-        const double d = std::hypot(dx, dy);
-        if (d > 0.0) {
-          dir_x = dx / d;
-          dir_y = dy / d;
-          has_direction = true;
-        }
-        used |= 1ULL << static_cast<unsigned>(chosen.index[0]);
-        if (chosen.index[1] >= 0) {
-          used |= 1ULL << static_cast<unsigned>(chosen.index[1]);
-        }
-        score += chosen.log_posterior + config_.level_reward;
-        hyp.markers[static_cast<std::size_t>(level)] =
-            MarkerObservation{true, chosen.region, chosen.index, chosen.log_posterior};
-        hyp.last_marker = level;
-        ++hyp.found_count;
-        current = chosen;
-      }
+      double score = grow_hypothesis(regions, config_, priors, root, partner, start, hyp);
       score += orientation_log(hyp);
       if (score > best_score) {
         best_score = score;
