@@ -703,19 +703,25 @@ bool change_width(const ImageView& image, const solver::Vec2& p, const solver::V
   return true;
 }
 
-// The motion-blur streak (px, image; its sign is arbitrary) read on the
-// stripe boundaries' visible arcs at the frames f: at kStreakArcPoints of
-// each arc the change's width w along the arc's image normal n, then
-// M = b b^T from w^2 - kStreakSharpWidthPx^2 = n^T M n by linear least
-// squares, once more without the widths far off the first fit (a vessel or
-// a highlight beside the arc); the streak is M's main axis. False with
-// fewer than kMinStreakWidths widths or a singular fit.
-bool read_streak(const ImageView& image, const ExtractorConfig& config, const solver::CameraModel& camera,
-                 const solver::InstrumentModel& model, const solver::PoseFrames& f, solver::Vec2& streak_px) noexcept {
-  const auto& g = model.geometry();
-  std::array<Eigen::Vector3d, kMaxStreakWidths> rows{};  // (nx^2, 2 nx ny, ny^2)
-  std::array<double, kMaxStreakWidths> excess{};         // w^2 - sharp width^2
+// The widths the streak is read from: per width, the row (nx^2, 2 nx ny,
+// ny^2) of its normal and its excess w^2 - the sharp width^2 (px^2).
+struct StreakWidths {
+  std::array<Eigen::Vector3d, kMaxStreakWidths> rows{};
+  std::array<double, kMaxStreakWidths> excess{};
   int count = 0;
+
+  void add(const solver::Vec2& n, double width_sq, double sharp_px) noexcept {
+    const auto k = static_cast<std::size_t>(count++);
+    rows[k] = Eigen::Vector3d(n.x() * n.x(), 2.0 * n.x() * n.y(), n.y() * n.y());
+    excess[k] = width_sq - sharp_px * sharp_px;
+  }
+};
+
+// The colour changes' widths across the inner boundaries' visible arcs
+// (kStreakArcPoints per boundary).
+void arc_widths(const ImageView& image, const ExtractorConfig& config, const solver::CameraModel& camera,
+                const solver::InstrumentModel& model, const solver::PoseFrames& f, StreakWidths& widths) noexcept {
+  const auto& g = model.geometry();
   for (int j = 1; j < kNumBoundaries - 1; ++j) {
     if (!colours_of(config, j).usable) {
       continue;
@@ -727,7 +733,7 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
       continue;
     }
     const double half = solver::kPi - limb_half;
-    for (int i = 0; i < kStreakArcPoints && count < kMaxStreakArcWidths; ++i) {
+    for (int i = 0; i < kStreakArcPoints && widths.count < kMaxStreakArcWidths; ++i) {
       const double u = -kStreakArcSpan + 2.0 * kStreakArcSpan * i / (kStreakArcPoints - 1.0);
       const double a = base + solver::kPi + u * half;
       const auto point_at = [&](double angle) noexcept {
@@ -747,20 +753,24 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
       if (!change_width(image, p, n, ChangeProfile::kStripeChroma, width_sq)) {
         continue;
       }
-      const auto k = static_cast<std::size_t>(count++);
-      rows[k] = Eigen::Vector3d(n.x() * n.x(), 2.0 * n.x() * n.y(), n.y() * n.y());
-      excess[k] = width_sq - kStreakSharpWidthPx * kStreakSharpWidthPx;
+      widths.add(n, width_sq, kStreakSharpWidthPx);
     }
   }
-  // The silhouette across each blue stripe's middle, both sides: the
-  // arcs' normals run along the tube, these across it.
+}
+
+// The silhouette's widths across each blue stripe's middle, both sides: the
+// arcs' normals run along the tube, these across it.
+void silhouette_widths(const ImageView& image, const ExtractorConfig& config, const solver::CameraModel& camera,
+                       const solver::InstrumentModel& model, const solver::PoseFrames& f,
+                       StreakWidths& widths) noexcept {
+  const auto& g = model.geometry();
   for (int m = 0; m < kNumMarkers; ++m) {
     const auto mm = static_cast<std::size_t>(m);
     if (config.marker_classes[mm] != PixelClass::Blue) {
       continue;
     }
     const double s_mid_mm = 0.5 * (g.boundaries_mm[mm] + g.boundaries_mm[mm + 1U]);
-    for (std::size_t side = 0U; side < 2U && count < kMaxStreakWidths; ++side) {
+    for (std::size_t side = 0U; side < 2U && widths.count < kMaxStreakWidths; ++side) {
       solver::Vec2 point;
       solver::Vec2 normal;
       double width_sq = 0.0;
@@ -768,32 +778,35 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
           !change_width(image, point, normal, ChangeProfile::kRed, width_sq)) {
         continue;
       }
-      const auto k = static_cast<std::size_t>(count++);
-      rows[k] = Eigen::Vector3d(normal.x() * normal.x(), 2.0 * normal.x() * normal.y(), normal.y() * normal.y());
-      excess[k] = width_sq - kStreakSilhouetteSharpWidthPx * kStreakSilhouetteSharpWidthPx;
+      widths.add(normal, width_sq, kStreakSilhouetteSharpWidthPx);
     }
   }
-  if (count < kMinStreakWidths) {
-    return false;
-  }
+}
+
+// The symmetric 2 x 2 streak tensor M = b b^T (entries m00, m01, m11) in
+// least squares over the widths' excesses, w^2 - sharp^2 = n^T M n: a
+// second pass without the widths beyond 2.5 x the median residual + 1
+// px^2. False when the normals do not turn enough (a straight arc).
+bool fit_streak_tensor(const StreakWidths& widths, Eigen::Vector3d& m) noexcept {
+  const int count = widths.count;
   std::array<bool, kMaxStreakWidths> keep{};
   keep.fill(true);
   std::array<double, kMaxStreakWidths> residual{};
   std::array<double, kMaxStreakWidths> work{};
-  Eigen::Vector3d m = Eigen::Vector3d::Zero();  // M's entries (m00, m01, m11)
+  m = Eigen::Vector3d::Zero();
   for (int pass = 0; pass < 2; ++pass) {
     Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
     Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
     for (int i = 0; i < count; ++i) {
       const auto k = static_cast<std::size_t>(i);
       if (keep[k]) {
-        normal += rows[k] * rows[k].transpose();
-        rhs += rows[k] * excess[k];
+        normal += widths.rows[k] * widths.rows[k].transpose();
+        rhs += widths.rows[k] * widths.excess[k];
       }
     }
     const Eigen::LDLT<Eigen::Matrix3d> ldlt(normal);
     if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-9)) {
-      return false;  // the normals do not turn enough (a straight arc)
+      return false;
     }
     m = ldlt.solve(rhs);
     if (!m.allFinite()) {
@@ -802,7 +815,7 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
     if (pass == 0) {
       for (int i = 0; i < count; ++i) {
         const auto k = static_cast<std::size_t>(i);
-        residual[k] = std::fabs(rows[k].dot(m) - excess[k]);
+        residual[k] = std::fabs(widths.rows[k].dot(m) - widths.excess[k]);
         work[k] = residual[k];
       }
       const double cut = 2.5 * median_of(work.data(), count) + 1.0;  // px^2
@@ -810,6 +823,28 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
         keep[static_cast<std::size_t>(i)] = residual[static_cast<std::size_t>(i)] <= cut;
       }
     }
+  }
+  return true;
+}
+
+// The motion-blur streak (px, image; its sign is arbitrary) read on the
+// stripe boundaries' visible arcs at the frames f: at kStreakArcPoints of
+// each arc the change's width w along the arc's image normal n, then
+// M = b b^T from w^2 - kStreakSharpWidthPx^2 = n^T M n by linear least
+// squares, once more without the widths far off the first fit (a vessel or
+// a highlight beside the arc); the streak is M's main axis. False with
+// fewer than kMinStreakWidths widths or a singular fit.
+bool read_streak(const ImageView& image, const ExtractorConfig& config, const solver::CameraModel& camera,
+                 const solver::InstrumentModel& model, const solver::PoseFrames& f, solver::Vec2& streak_px) noexcept {
+  StreakWidths widths;
+  arc_widths(image, config, camera, model, f, widths);
+  silhouette_widths(image, config, camera, model, f, widths);
+  if (widths.count < kMinStreakWidths) {
+    return false;
+  }
+  Eigen::Vector3d m;  // M's entries (m00, m01, m11)
+  if (!fit_streak_tensor(widths, m)) {
+    return false;
   }
   Eigen::Matrix2d bb;
   bb << m(0), m(1), m(1), m(2);
@@ -1460,6 +1495,113 @@ bool shaft_cross_section(const ImageView& image, const solver::Vec2& a, const so
   return best_found;
 }
 
+// The shaft fit's parameters: the channel's pose x_ch, y_ch, psi, mu.
+constexpr int kShaftParams = 4;
+constexpr double kShaftPriorSd[kShaftParams] = {3.0, 3.0, 0.1, 0.1};  // mm, mm, rad, rad
+constexpr double kShaftStepH[kShaftParams] = {1e-3, 1e-3, 1e-5, 1e-5};
+
+// One iteration's shaft readings: per reading, the distance before the base
+// (mm), the side, the model's silhouette point and outward normal, and the
+// image edge's offset from it along that normal (px).
+struct ShaftReadings {
+  std::array<double, kMaxShaftReadings> back{};
+  std::array<std::size_t, kMaxShaftReadings> sides{};
+  std::array<solver::Vec2, kMaxShaftReadings> normals{};
+  std::array<solver::Vec2, kMaxShaftReadings> predicted{};
+  std::array<double, kMaxShaftReadings> offsets{};
+  int count = 0;
+  std::array<int, 2> per_side{};
+};
+
+// The shaft's cross-sections at the frames f from 1 mm before the base back
+// to 3 mm after the channel exit (lambda_mm; the shaft near the camera
+// leaves the image or is out of focus), within window_px; with
+// `to_gradient_peak`, each end moved from the threshold's crossing to the
+// colour-gradient peak's centre (the silhouette readings' rule).
+void read_shaft(const ImageView& image, const Refiner& refiner, const solver::CameraModel& camera,
+                const solver::InstrumentModel& model, const solver::PoseFrames& f, double lambda_mm, double window_px,
+                double neutral_chroma, bool to_gradient_peak, ShaftReadings& out) noexcept {
+  const double first_mm = 1.0;
+  const double last_mm = std::max(first_mm, lambda_mm - 3.0);
+  out.count = 0;
+  out.per_side = {};
+  for (int i = 0; i < kShaftSamples; ++i) {
+    const double bk = first_mm + (last_mm - first_mm) * i / (kShaftSamples - 1.0);
+    std::array<solver::Vec2, 2> point{};
+    std::array<solver::Vec2, 2> normal{};
+    if (!shaft_silhouette_at(camera, model, f, bk, 0U, point[0], normal[0]) ||
+        !shaft_silhouette_at(camera, model, f, bk, 1U, point[1], normal[1])) {
+      continue;
+    }
+    double t0 = 0.0;
+    double t1 = 0.0;
+    if (!shaft_cross_section(image, point[0], point[1], window_px, neutral_chroma, t0, t1)) {
+      continue;
+    }
+    // Each end's distance from its model point along the line, as a
+    // distance along that side's outward normal (straight edge).
+    const double width = (point[1] - point[0]).norm();
+    const solver::Vec2 d = (point[1] - point[0]) / width;
+    const double along[2] = {t0, t1 - width};
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      const auto k = static_cast<std::size_t>(out.count++);
+      out.back[k] = bk;
+      out.sides[k] = side;
+      out.normals[k] = normal[side];
+      out.predicted[k] = point[side];
+      out.offsets[k] = along[side] * d.dot(normal[side]);
+      double e = 0.0;
+      if (to_gradient_peak &&
+          refiner.edge(point[side] + out.offsets[k] * normal[side], normal[side], kShaftEdgeRefinePx, e)) {
+        out.offsets[k] += e;
+      }
+      ++out.per_side[side];
+    }
+  }
+}
+
+// One robust step of the shaft fit from its readings at x (Tukey weights at
+// the readings' MAD scale, finite-difference rows, the weak prior around
+// `start`): the channel's pose change. False when the normal equations do
+// not solve; rms_px: the weighted residual.
+bool shaft_step(const ShaftReadings& readings, const solver::CameraModel& camera,
+                const solver::InstrumentModel& model, const solver::PoseVector& x, const solver::PoseVector& start,
+                Eigen::Matrix<double, kShaftParams, 1>& delta, double& rms_px) noexcept {
+  const int n = readings.count;
+  std::array<double, kMaxShaftReadings> work{};
+  for (int i = 0; i < n; ++i) {
+    work[static_cast<std::size_t>(i)] = std::fabs(readings.offsets[static_cast<std::size_t>(i)]);
+  }
+  RobustNormalEquations<kShaftParams> equations(tukey_cut_px(work.data(), n, 1.0));
+  std::array<solver::PoseFrames, kShaftParams> shifted{};
+  for (int k = 0; k < kShaftParams; ++k) {
+    solver::PoseVector xk = x;
+    xk[k] += kShaftStepH[k];
+    shifted[static_cast<std::size_t>(k)] = model.frames(xk);
+  }
+  for (int i = 0; i < n; ++i) {
+    const auto q = static_cast<std::size_t>(i);
+    const double w = equations.weight(readings.offsets[q]);
+    if (!(w > 0.0)) {
+      continue;
+    }
+    Eigen::Matrix<double, kShaftParams, 1> row;
+    bool ok = true;
+    for (int k = 0; k < kShaftParams && ok; ++k) {
+      const solver::CircleLimbs limbs =
+          model.shaft_limbs(camera, shifted[static_cast<std::size_t>(k)], readings.back[q]);
+      ok = limbs.present[readings.sides[q]];
+      row[k] = readings.normals[q].dot(limbs.pixel[readings.sides[q]] - readings.predicted[q]) / kShaftStepH[k];
+    }
+    if (!ok || !row.allFinite()) {
+      continue;
+    }
+    equations.add(row, readings.offsets[q], w);
+  }
+  rms_px = equations.rms_px();
+  return equations.solve(kShaftPriorSd, (x - start).head<kShaftParams>(), delta);
+}
+
 }  // namespace
 
 Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& image, const solver::CameraModel& camera,
@@ -1469,105 +1611,27 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
   if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
     return Status<VisionError>::failure(VisionError::BadImage);
   }
-  constexpr int kParams = 4;  // x_ch, y_ch, psi, mu
-  const double prior_sd[kParams] = {3.0, 3.0, 0.1, 0.1};
-  const double step_h[kParams] = {1e-3, 1e-3, 1e-5, 1e-5};
   const solver::PoseVector start = r;
   solver::PoseVector x = r;
   const double neutral_chroma = shaft_neutral_chroma(image);
-  std::array<double, kMaxShaftReadings> back{};
-  std::array<std::size_t, kMaxShaftReadings> sides{};
-  std::array<solver::Vec2, kMaxShaftReadings> normals{};
-  std::array<solver::Vec2, kMaxShaftReadings> predicted{};
-  std::array<double, kMaxShaftReadings> offsets{};
-  std::array<double, kMaxShaftReadings> work{};
+  ShaftReadings readings;
   double rms = 1e9;
-  int n = 0;
   for (int it = 0; it < kShaftIterations; ++it) {
     const double window = kShaftWindowsPx[std::min(it, 2)];
     const solver::PoseFrames f = model.frames(x);
-    Refiner refiner(image, colors_, config_, camera, model, f);
-    // From 1 mm before the base back to 3 mm after the channel exit (the
-    // shaft near the camera leaves the image or is out of focus).
-    const double first_mm = 1.0;
-    const double last_mm = std::max(first_mm, x[solver::kLambda] - 3.0);
-    n = 0;
-    std::array<int, 2> per_side{};
-    for (int i = 0; i < kShaftSamples; ++i) {
-      const double bk = first_mm + (last_mm - first_mm) * i / (kShaftSamples - 1.0);
-      std::array<solver::Vec2, 2> point{};
-      std::array<solver::Vec2, 2> normal{};
-      if (!shaft_silhouette_at(camera, model, f, bk, 0U, point[0], normal[0]) ||
-          !shaft_silhouette_at(camera, model, f, bk, 1U, point[1], normal[1])) {
-        continue;
-      }
-      double t0 = 0.0;
-      double t1 = 0.0;
-      if (!shaft_cross_section(image, point[0], point[1], window, neutral_chroma, t0, t1)) {
-        continue;
-      }
-      // Each end's distance from its model point along the line, as a
-      // distance along that side's outward normal (straight edge).
-      const double width = (point[1] - point[0]).norm();
-      const solver::Vec2 d = (point[1] - point[0]) / width;
-      const double along[2] = {t0, t1 - width};
-      for (std::size_t side = 0U; side < 2U; ++side) {
-        const auto k = static_cast<std::size_t>(n++);
-        back[k] = bk;
-        sides[k] = side;
-        normals[k] = normal[side];
-        predicted[k] = point[side];
-        offsets[k] = along[side] * d.dot(normal[side]);
-        if (it >= kShaftRefineFrom) {
-          // From the threshold's crossing to the colour-gradient peak's
-          // centre (the silhouette readings' rule, refine_edge_search_px).
-          double e = 0.0;
-          if (refiner.edge(point[side] + offsets[k] * normal[side], normal[side], kShaftEdgeRefinePx, e)) {
-            offsets[k] += e;
-          }
-        }
-        ++per_side[side];
-      }
-    }
+    const Refiner refiner(image, colors_, config_, camera, model, f);
+    read_shaft(image, refiner, camera, model, f, x[solver::kLambda], window, neutral_chroma, it >= kShaftRefineFrom,
+               readings);
     summary.iterations = it + 1;
-    summary.readings = n;
-    if (per_side[0] < kShaftMinPerSide || per_side[1] < kShaftMinPerSide) {
+    summary.readings = readings.count;
+    if (readings.per_side[0] < kShaftMinPerSide || readings.per_side[1] < kShaftMinPerSide) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
-    for (int i = 0; i < n; ++i) {
-      work[static_cast<std::size_t>(i)] = std::fabs(offsets[static_cast<std::size_t>(i)]);
-    }
-    RobustNormalEquations<kParams> equations(tukey_cut_px(work.data(), n, 1.0));
-    std::array<solver::PoseFrames, kParams> shifted{};
-    for (int k = 0; k < kParams; ++k) {
-      solver::PoseVector xk = x;
-      xk[k] += step_h[k];
-      shifted[static_cast<std::size_t>(k)] = model.frames(xk);
-    }
-    for (int i = 0; i < n; ++i) {
-      const auto q = static_cast<std::size_t>(i);
-      const double w = equations.weight(offsets[q]);
-      if (!(w > 0.0)) {
-        continue;
-      }
-      Eigen::Matrix<double, kParams, 1> row;
-      bool ok = true;
-      for (int k = 0; k < kParams && ok; ++k) {
-        const solver::CircleLimbs limbs = model.shaft_limbs(camera, shifted[static_cast<std::size_t>(k)], back[q]);
-        ok = limbs.present[sides[q]];
-        row[k] = normals[q].dot(limbs.pixel[sides[q]] - predicted[q]) / step_h[k];
-      }
-      if (!ok || !row.allFinite()) {
-        continue;
-      }
-      equations.add(row, offsets[q], w);
-    }
-    rms = equations.rms_px();
-    Eigen::Matrix<double, kParams, 1> delta;
-    if (!equations.solve(prior_sd, (x - start).head<kParams>(), delta)) {
+    Eigen::Matrix<double, kShaftParams, 1> delta;
+    if (!shaft_step(readings, camera, model, x, start, delta, rms)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
-    x.head<kParams>() += delta;
+    x.head<kShaftParams>() += delta;
   }
   summary.rms_px = rms;
   if (!x.allFinite() || !(rms <= kShaftMaxRmsPx)) {
