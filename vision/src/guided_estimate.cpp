@@ -158,6 +158,69 @@ struct SeedsTried {
   solver::PoseVector start_shafted = solver::PoseVector::Zero();
 };
 
+// The fallback seeds' order (try_fallback_seeds).
+constexpr int kStartSeed = 0;
+constexpr int kRegionsSeed = 1;
+constexpr int kInsertionForthSeed = 2;
+constexpr int kInsertionBackSeed = 3;
+constexpr int kBendSeed = 4;  // 4, 5: theta +, -; 6, 7: phi +, -
+constexpr int kSeedIndices = 8;
+
+// Fallback seed `seed_index`'s pose from `start` and the rule its result
+// must meet (SeedRule); false when the options or the start leave it out.
+bool fallback_seed(FeatureExtractor& extractor, const solver::CameraModel& camera,
+                   const solver::InstrumentModel& model, const solver::PoseVector& start, const GuidedOptions& options,
+                   int seed_index, solver::PoseVector& seed_r, SeedRule& rule) noexcept {
+  seed_r = start;
+  rule = SeedRule{};
+  if (seed_index == kStartSeed) {
+    return options.start_seed && start.allFinite();
+  }
+  if (seed_index == kRegionsSeed) {
+    return options.from_regions && extractor.pose_from_regions(camera, model, seed_r).ok();
+  }
+  if (seed_index >= kBendSeed) {
+    if (!options.start_seed || !(options.bend_seed_step_rad > 0.0) || !start.allFinite()) {
+      return false;
+    }
+    const int bend_index = seed_index - kBendSeed;  // 0..3
+    const int joint = bend_index < 2 ? solver::kTheta : solver::kPhi;
+    seed_r[joint] += bend_index % 2 == 0 ? options.bend_seed_step_rad : -options.bend_seed_step_rad;
+    rule.clearly_better = true;
+    return true;
+  }
+  if (!options.start_seed || !(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
+    return false;
+  }
+  seed_r[solver::kLambda] +=
+      seed_index == kInsertionForthSeed ? options.insertion_seed_step_mm : -options.insertion_seed_step_mm;
+  rule.near_lambda_mm = start[solver::kLambda];
+  return seed_r[solver::kLambda] > 0.0;
+}
+
+// A seed moved onto the class image (class_fit): the channel's pose from
+// the shaft first when it is seen (`channel_known`), so that the class fit
+// need only find the joints. The seed's shaft may have lain outside the
+// image (a short insertion at the CAD pose projects it beside the frame):
+// from the class fit's pose it is looked for again, and the joints fitted
+// once more with the channel it gives.
+void move_onto_classes(FeatureExtractor& extractor, const solver::CameraModel& camera,
+                       const solver::InstrumentModel& model, const ImageView& image, const GuidedOptions& options,
+                       bool channel_known, solver::PoseVector& seed_r) noexcept {
+  solver::PoseVector moved = seed_r;
+  double class_cost_px = 0.0;  // not used to judge: the image fit's test decides
+  if (!extractor.fit_pose_to_classes(camera, model, moved, class_cost_px, channel_known).ok()) {
+    return;
+  }
+  seed_r = moved;
+  ShaftFitSummary shaft;
+  solver::PoseVector shafted = seed_r;
+  if (options.shaft_fit && !channel_known && extractor.fit_channel_to_shaft(image, camera, model, shafted, shaft).ok() &&
+      extractor.fit_pose_to_classes(camera, model, shafted, class_cost_px, true).ok()) {
+    seed_r = shafted;
+  }
+}
+
 // The fallback seeds (GuidedOptions), each kept in `out` when better.
 SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                               const solver::CameraModel& camera, const solver::InstrumentModel& model,
@@ -176,51 +239,19 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
   // start's theta, then its phi, moved forth and back (bend_seed_step_rad),
   // their results kept against a fit-confirmed one only when clearly
   // better.
-  constexpr int kStartSeed = 0;
-  constexpr int kRegionsSeed = 1;
-  constexpr int kInsertionForthSeed = 2;
-  constexpr int kInsertionBackSeed = 3;
-  constexpr int kBendSeed = 4;  // 4, 5: theta +, -; 6, 7: phi +, -
-  constexpr int kSeedIndices = 8;
   int seeds_tried = 0;
   SeedsTried tried{};
   for (int seed_index = 0; seed_index < kSeedIndices; ++seed_index) {
     if (out.estimate.quality == solver::EstimateQuality::Valid || seeds_tried >= options.fallback_seeds) {
       break;
     }
-    solver::PoseVector seed_r = start;
+    solver::PoseVector seed_r;
     SeedRule rule;
+    if (!fallback_seed(extractor, camera, model, start, options, seed_index, seed_r, rule)) {
+      continue;
+    }
     const bool insertion_seed = seed_index == kInsertionForthSeed || seed_index == kInsertionBackSeed;
     const bool bend_seed = seed_index >= kBendSeed;
-    if (seed_index == kStartSeed) {
-      if (!options.start_seed || !start.allFinite()) {
-        continue;
-      }
-    } else if (seed_index == kRegionsSeed) {
-      if (!options.from_regions || !extractor.pose_from_regions(camera, model, seed_r).ok()) {
-        continue;
-      }
-    } else if (bend_seed) {
-      if (!options.start_seed || !(options.bend_seed_step_rad > 0.0) || !start.allFinite()) {
-        continue;
-      }
-      const int bend_index = seed_index - kBendSeed;  // 0..3
-      const int joint = bend_index < 2 ? solver::kTheta : solver::kPhi;
-      seed_r[joint] += bend_index % 2 == 0 ? options.bend_seed_step_rad : -options.bend_seed_step_rad;
-      rule.clearly_better = true;
-    } else {
-      if (!options.start_seed || !(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
-        continue;
-      }
-      seed_r[solver::kLambda] += seed_index == kInsertionForthSeed ? options.insertion_seed_step_mm
-                                                                   : -options.insertion_seed_step_mm;
-      if (!(seed_r[solver::kLambda] > 0.0)) {
-        continue;
-      }
-      rule.near_lambda_mm = start[solver::kLambda];
-    }
-    // The channel's pose from the shaft first (when it is seen), so that
-    // the class fit need only find the joints.
     ShaftFitSummary shaft;
     const bool channel_known =
         options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
@@ -231,21 +262,7 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
     }
     const solver::PoseVector unmoved = seed_r;
     if (options.class_fit) {
-      solver::PoseVector moved = seed_r;
-      double class_cost_px = 0.0;  // not used to judge: the image fit's test decides
-      if (extractor.fit_pose_to_classes(camera, model, moved, class_cost_px, channel_known).ok()) {
-        seed_r = moved;
-        // The seed's shaft may have lain outside the image (a short
-        // insertion at the CAD pose projects it beside the frame): from the
-        // class fit's pose it is looked for again, and the joints fitted once
-        // more with the channel it gives.
-        solver::PoseVector shafted = seed_r;
-        if (options.shaft_fit && !channel_known &&
-            extractor.fit_channel_to_shaft(image, camera, model, shafted, shaft).ok() &&
-            extractor.fit_pose_to_classes(camera, model, shafted, class_cost_px, true).ok()) {
-          seed_r = shafted;
-        }
-      }
+      move_onto_classes(extractor, camera, model, image, options, channel_known, seed_r);
     }
     ++seeds_tried;
     tried.insertion = tried.insertion || insertion_seed;
