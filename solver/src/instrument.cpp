@@ -305,6 +305,142 @@ Vec3 InstrumentModel::tcp(const PoseVector& r) const noexcept {
   return end.position + g_.tcp_offset_mm * end.tangent;
 }
 
+namespace {
+
+// The base frame's derivatives with respect to r (model.md): R_b by psi,
+// mu and phi, O_b by x_ch, y_ch, psi, mu and lambda (the other entries
+// zero).
+struct FrameDerivatives {
+  Mat3 d_rb[kNumParams];
+  Vec3 d_ob[kNumParams];
+};
+
+void frame_derivatives(const PoseVector& r, const PoseFrames& f, const PoseTrig& trig, FrameDerivatives& d) noexcept {
+  const Mat3 d_rch_dpsi = rotation_y_derivative_cs(trig.cos_psi, trig.sin_psi) * trig.rx;
+  const Mat3 d_rch_dmu = trig.ry * rotation_x_derivative_cs(trig.cos_mu, trig.sin_mu);
+  for (int q = 0; q < kNumParams; ++q) {
+    d.d_rb[q].setZero();
+    d.d_ob[q].setZero();
+  }
+  d.d_ob[kXch] = Vec3::UnitX();
+  d.d_ob[kYch] = Vec3::UnitY();
+  d.d_ob[kPsi] = r[kLambda] * d_rch_dpsi.col(2);
+  d.d_ob[kMu] = r[kLambda] * d_rch_dmu.col(2);
+  d.d_ob[kLambda] = f.channel_rotation.col(2);
+  d.d_rb[kPsi] = d_rch_dpsi * trig.rz;
+  d.d_rb[kMu] = d_rch_dmu * trig.rz;
+  d.d_rb[kPhi] = f.channel_rotation * rotation_z_derivative_cs(trig.cos_phi, trig.sin_phi);
+}
+
+// One boundary circle in the camera frame: its centre c, normal n, binormal
+// b and tangent t, and (model.md) A = n . c, B = b . c, rho = hypot(A, B).
+struct BoundaryCircle {
+  double s = 0.0;  // arc length (mm)
+  double sin_ks = 0.0;
+  double cos_ks = 0.0;
+  Vec3 p_local, n_local, t_local;  // in the base frame
+  Vec3 c, n, b, t;
+  double a_coef = 0.0;
+  double b_coef = 0.0;
+  double rho = 0.0;
+};
+
+// The two limb points of a boundary circle: the points, their pixels and
+// projection Jacobians, validity, side labels and the angles' cosines and
+// sines.
+struct LimbPair {
+  Vec3 points[2];
+  Vec2 pixels[2];
+  Eigen::Matrix<double, 2, 3> point_jac[2];
+  bool valid[2] = {false, false};
+  int sides[2] = {0, 0};
+  double cos_angle[2] = {0.0, 0.0};
+  double sin_angle[2] = {0.0, 0.0};
+  double sin_delta = 0.0;
+};
+
+// The limb points of circle bc of `radius`. False where its centre does not
+// project, the camera is inside the circle (no limb), or the view runs
+// along the axis (both labels the same).
+bool limb_pair(const CameraModel& camera, const BoundaryCircle& bc, double radius, LimbPair& lp) noexcept {
+  Vec2 c_px;
+  Eigen::Matrix<double, 2, 3> c_jac;
+  if (!camera.project(bc.c, c_px, c_jac)) {
+    return false;  // the boundary's centre is behind the camera or not projectable
+  }
+  if (!(bc.rho > radius)) {
+    return false;  // the camera is inside the tube's circle: no limb
+  }
+  // a = atan2(B, A) +/- acos(-R / rho), its cosine and sine by the angle
+  // sum formulas (no trigonometric call): cos(atan2(B, A)) = A / rho,
+  // sin(atan2(B, A)) = B / rho, cos(delta) = w, sin(delta) = sqrt(1 - w^2) >= 0.
+  const double cos_base = bc.a_coef / bc.rho;
+  const double sin_base = bc.b_coef / bc.rho;
+  const double w = -radius / bc.rho;
+  lp.sin_delta = std::sqrt(1.0 - w * w);
+  const Vec2 image_axis = c_jac * bc.t;  // image direction of the centreline, base -> tip
+  for (int i = 0; i < 2; ++i) {
+    const double sign = (i == 0) ? 1.0 : -1.0;
+    lp.cos_angle[i] = cos_base * w - sign * sin_base * lp.sin_delta;
+    lp.sin_angle[i] = sin_base * w + sign * cos_base * lp.sin_delta;
+    lp.points[i] = bc.c + radius * (lp.cos_angle[i] * bc.n + lp.sin_angle[i] * bc.b);
+    lp.valid[i] = camera.project(lp.points[i], lp.pixels[i], lp.point_jac[i]);
+    if (lp.valid[i]) {
+      const Vec2 v = lp.pixels[i] - c_px;
+      const double cross = image_axis.x() * v.y() - image_axis.y() * v.x();
+      lp.sides[i] = (cross < 0.0) ? kSideLeft : kSideRight;
+    }
+  }
+  // A degenerate view along the axis: the labels would collide.
+  return !(lp.valid[0] && lp.valid[1] && lp.sides[0] == lp.sides[1]);
+}
+
+// The derivatives of the circle's c, n and b with respect to r (3 x 7
+// each). R_b depends on psi, mu, phi only and O_b on x_ch, y_ch, psi, mu,
+// lambda: the other columns are skipped (the solver calls this every
+// iteration).
+void circle_derivatives(const PoseFrames& f, const FrameDerivatives& d, const BoundaryCircle& bc, double dk_dtheta,
+                        Mat37& dc, Mat37& dn, Mat37& db) noexcept {
+  const Vec3 dp_dk = arc_position_dk(f.curvature, bc.s, bc.sin_ks, bc.cos_ks);
+  const Vec3 dn_dk = -bc.s * bc.t_local;  // d n(s)/dk
+  dc.setZero();
+  dn.setZero();
+  db.setZero();
+  constexpr int kRotationParams[3] = {kPsi, kMu, kPhi};
+  for (int q : kRotationParams) {
+    dc.col(q) = d.d_rb[q] * bc.p_local;
+    dn.col(q) = d.d_rb[q] * bc.n_local;
+    db.col(q) = d.d_rb[q].col(1);
+  }
+  constexpr int kOriginParams[5] = {kXch, kYch, kPsi, kMu, kLambda};
+  for (int q : kOriginParams) {
+    dc.col(q) += d.d_ob[q];
+  }
+  dc.col(kTheta) += f.base_rotation * dp_dk * dk_dtheta;
+  dn.col(kTheta) += f.base_rotation * dn_dk * dk_dtheta;
+}
+
+// The image Jacobian (2 x 7) of limb point i from the circle's derivatives:
+// through A, B and rho to the limb angle, then the point on the circle.
+Eigen::Matrix<double, 2, kNumParams> limb_jacobian(const BoundaryCircle& bc, const LimbPair& lp, int i, double radius,
+                                                   const Mat37& dc, const Mat37& dn, const Mat37& db) noexcept {
+  const double sign = (i == 0) ? 1.0 : -1.0;
+  const Eigen::Matrix<double, 1, kNumParams> d_a = bc.c.transpose() * dn + bc.n.transpose() * dc;
+  const Eigen::Matrix<double, 1, kNumParams> d_b = bc.c.transpose() * db + bc.b.transpose() * dc;
+  const Eigen::Matrix<double, 1, kNumParams> d_rho = (bc.a_coef * d_a + bc.b_coef * d_b) / bc.rho;
+  const Eigen::Matrix<double, 1, kNumParams> d_base = (bc.a_coef * d_b - bc.b_coef * d_a) / (bc.rho * bc.rho);
+  const Eigen::Matrix<double, 1, kNumParams> d_w = (radius / (bc.rho * bc.rho)) * d_rho;
+  const Eigen::Matrix<double, 1, kNumParams> d_delta = (-1.0 / lp.sin_delta) * d_w;
+  const Eigen::Matrix<double, 1, kNumParams> d_angle = d_base + sign * d_delta;
+  const double ca = lp.cos_angle[i];
+  const double sa = lp.sin_angle[i];
+  const Vec3 along_circle = radius * (-sa * bc.n + ca * bc.b);
+  const Mat37 d_point = dc + radius * (ca * dn + sa * db) + along_circle * d_angle;
+  return lp.point_jac[i] * d_point;
+}
+
+}  // namespace
+
 void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, CornerSet& out,
                               CornerJacobians* jacobians) const noexcept {
   out.present.fill(false);
@@ -318,137 +454,50 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     out.tcp = end.position + g_.tcp_offset_mm * end.tangent;
   }
   const double radius = g_.radius_mm;
-
   // Derivatives of the frames with respect to r (only when asked).
-  Mat3 d_rch_dpsi;
-  Mat3 d_rch_dmu;
-  Mat3 d_rb[kNumParams];
-  Vec3 d_ob[kNumParams];
+  FrameDerivatives d;
   const double dk_dtheta = 1.0 / g_.bend_length_mm;
   if (jacobians != nullptr) {
-    d_rch_dpsi = rotation_y_derivative_cs(trig.cos_psi, trig.sin_psi) * trig.rx;
-    d_rch_dmu = trig.ry * rotation_x_derivative_cs(trig.cos_mu, trig.sin_mu);
-    for (int q = 0; q < kNumParams; ++q) {
-      d_rb[q].setZero();
-      d_ob[q].setZero();
-    }
-    d_ob[kXch] = Vec3::UnitX();
-    d_ob[kYch] = Vec3::UnitY();
-    d_ob[kPsi] = r[kLambda] * d_rch_dpsi.col(2);
-    d_ob[kMu] = r[kLambda] * d_rch_dmu.col(2);
-    d_ob[kLambda] = f.channel_rotation.col(2);
-    d_rb[kPsi] = d_rch_dpsi * trig.rz;
-    d_rb[kMu] = d_rch_dmu * trig.rz;
-    d_rb[kPhi] = f.channel_rotation * rotation_z_derivative_cs(trig.cos_phi, trig.sin_phi);
+    frame_derivatives(r, f, trig, d);
   }
-
   for (int j = 0; j < kNumBoundaries; ++j) {
-    const double s = g_.boundaries_mm[static_cast<std::size_t>(j)];
+    BoundaryCircle bc;
+    bc.s = g_.boundaries_mm[static_cast<std::size_t>(j)];
     // One sine/cosine pair per boundary (the solver calls this every iteration).
-    const double sin_ks = std::sin(f.curvature * s);
-    const double cos_ks = std::cos(f.curvature * s);
-    const Vec3 p_local = arc_position(f.curvature, s, g_.bend_length_mm, sin_ks, cos_ks);
-    const Vec3 n_local(cos_ks, 0.0, -sin_ks);
-    const Vec3 t_local(sin_ks, 0.0, cos_ks);
-    const Vec3 c = f.base_origin + f.base_rotation * p_local;
-    const Vec3 n = f.base_rotation * n_local;
-    const Vec3 b = f.base_rotation.col(1);
-    const Vec3 t = f.base_rotation * t_local;
-
-    Vec2 c_px;
-    Eigen::Matrix<double, 2, 3> c_jac;
-    if (!camera.project(c, c_px, c_jac)) {
-      continue;  // the boundary's centre is behind the camera or not projectable
+    bc.sin_ks = std::sin(f.curvature * bc.s);
+    bc.cos_ks = std::cos(f.curvature * bc.s);
+    bc.p_local = arc_position(f.curvature, bc.s, g_.bend_length_mm, bc.sin_ks, bc.cos_ks);
+    bc.n_local = Vec3(bc.cos_ks, 0.0, -bc.sin_ks);
+    bc.t_local = Vec3(bc.sin_ks, 0.0, bc.cos_ks);
+    bc.c = f.base_origin + f.base_rotation * bc.p_local;
+    bc.n = f.base_rotation * bc.n_local;
+    bc.b = f.base_rotation.col(1);
+    bc.t = f.base_rotation * bc.t_local;
+    bc.a_coef = bc.n.dot(bc.c);
+    bc.b_coef = bc.b.dot(bc.c);
+    bc.rho = std::hypot(bc.a_coef, bc.b_coef);
+    LimbPair lp;
+    if (!limb_pair(camera, bc, radius, lp)) {
+      continue;
     }
-    const double a_coef = n.dot(c);
-    const double b_coef = b.dot(c);
-    const double rho = std::hypot(a_coef, b_coef);
-    if (!(rho > radius)) {
-      continue;  // the camera is inside the tube's circle: no limb
-    }
-    // a = atan2(B, A) +/- acos(-R / rho), its cosine and sine by the angle
-    // sum formulas (no trigonometric call): cos(atan2(B, A)) = A / rho,
-    // sin(atan2(B, A)) = B / rho, cos(delta) = w, sin(delta) = sqrt(1 - w^2) >= 0.
-    const double cos_base = a_coef / rho;
-    const double sin_base = b_coef / rho;
-    const double w = -radius / rho;
-    const double sin_delta = std::sqrt(1.0 - w * w);
-    const Vec2 image_axis = c_jac * t;  // image direction of the centreline, base -> tip
-
-    Vec3 points[2];
-    Vec2 pixels[2];
-    Eigen::Matrix<double, 2, 3> point_jac[2];
-    bool valid[2] = {false, false};
-    int sides[2] = {0, 0};
-    double cos_angle[2] = {0.0, 0.0};
-    double sin_angle[2] = {0.0, 0.0};
-    for (int i = 0; i < 2; ++i) {
-      const double sign = (i == 0) ? 1.0 : -1.0;
-      cos_angle[i] = cos_base * w - sign * sin_base * sin_delta;
-      sin_angle[i] = sin_base * w + sign * cos_base * sin_delta;
-      points[i] = c + radius * (cos_angle[i] * n + sin_angle[i] * b);
-      valid[i] = camera.project(points[i], pixels[i], point_jac[i]);
-      if (valid[i]) {
-        const Vec2 v = pixels[i] - c_px;
-        const double cross = image_axis.x() * v.y() - image_axis.y() * v.x();
-        sides[i] = (cross < 0.0) ? kSideLeft : kSideRight;
-      }
-    }
-    if (valid[0] && valid[1] && sides[0] == sides[1]) {
-      continue;  // degenerate view along the axis: the labels would collide
-    }
-
-    // Derivatives of c, n, b for this boundary (3x7 each).
     Mat37 dc;
     Mat37 dn;
     Mat37 db;
     if (jacobians != nullptr) {
-      const Vec3 dp_dk = arc_position_dk(f.curvature, s, sin_ks, cos_ks);
-      const Vec3 dn_dk = -s * t_local;  // d n(s)/dk
-      // R_b depends on psi, mu, phi only and O_b on x_ch, y_ch, psi, mu,
-      // lambda: the other columns are skipped (the solver calls this every
-      // iteration).
-      dc.setZero();
-      dn.setZero();
-      db.setZero();
-      constexpr int kRotationParams[3] = {kPsi, kMu, kPhi};
-      for (int q : kRotationParams) {
-        dc.col(q) = d_rb[q] * p_local;
-        dn.col(q) = d_rb[q] * n_local;
-        db.col(q) = d_rb[q].col(1);
-      }
-      constexpr int kOriginParams[5] = {kXch, kYch, kPsi, kMu, kLambda};
-      for (int q : kOriginParams) {
-        dc.col(q) += d_ob[q];
-      }
-      dc.col(kTheta) += f.base_rotation * dp_dk * dk_dtheta;
-      dn.col(kTheta) += f.base_rotation * dn_dk * dk_dtheta;
+      circle_derivatives(f, d, bc, dk_dtheta, dc, dn, db);
     }
-
     for (int i = 0; i < 2; ++i) {
-      if (!valid[i]) {
+      if (!lp.valid[i]) {
         continue;
       }
-      const int k = corner_index(j, sides[i]);
+      const int k = corner_index(j, lp.sides[i]);
       const std::size_t ku = static_cast<std::size_t>(k);
       out.present[ku] = true;
-      out.point[ku] = points[i];
-      out.pixel[ku] = pixels[i];
-      out.in_image[ku] = camera.in_image(pixels[i]);
+      out.point[ku] = lp.points[i];
+      out.pixel[ku] = lp.pixels[i];
+      out.in_image[ku] = camera.in_image(lp.pixels[i]);
       if (jacobians != nullptr) {
-        const double sign = (i == 0) ? 1.0 : -1.0;
-        const Eigen::Matrix<double, 1, kNumParams> d_a = c.transpose() * dn + n.transpose() * dc;
-        const Eigen::Matrix<double, 1, kNumParams> d_b = c.transpose() * db + b.transpose() * dc;
-        const Eigen::Matrix<double, 1, kNumParams> d_rho = (a_coef * d_a + b_coef * d_b) / rho;
-        const Eigen::Matrix<double, 1, kNumParams> d_base = (a_coef * d_b - b_coef * d_a) / (rho * rho);
-        const Eigen::Matrix<double, 1, kNumParams> d_w = (radius / (rho * rho)) * d_rho;
-        const Eigen::Matrix<double, 1, kNumParams> d_delta = (-1.0 / sin_delta) * d_w;
-        const Eigen::Matrix<double, 1, kNumParams> d_angle = d_base + sign * d_delta;
-        const double ca = cos_angle[i];
-        const double sa = sin_angle[i];
-        const Vec3 along_circle = radius * (-sa * n + ca * b);
-        const Mat37 d_point = dc + radius * (ca * dn + sa * db) + along_circle * d_angle;
-        (*jacobians)[ku] = point_jac[i] * d_point;
+        (*jacobians)[ku] = limb_jacobian(bc, lp, i, radius, dc, dn, db);
       }
     }
   }
