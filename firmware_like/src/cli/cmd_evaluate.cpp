@@ -377,6 +377,131 @@ struct EvaluateTotals {
   }
 };
 
+// The command's options beyond the model setup's.
+struct EvaluateOptions {
+  double tolerance_px = 1.5;
+  unsigned long long max_images = ~0ULL;
+  bool true_prior = false;
+  bool no_prior = false;
+  bool verbose = false;
+  const char* corners_csv = nullptr;
+};
+
+// The options from the arguments; false (with the reason on stderr) on a bad
+// value or a forbidden combination.
+bool read_evaluate_options(const Args& args, EvaluateOptions& out) {
+  if (args.value("tolerance") != nullptr &&
+      (!parse_number(args.value("tolerance"), out.tolerance_px) || out.tolerance_px <= 0.0)) {
+    std::fprintf(stderr, "tcpest evaluate: --tolerance needs a positive number\n");
+    return false;
+  }
+  if (args.value("max") != nullptr && !parse_unsigned(args.value("max"), out.max_images)) {
+    std::fprintf(stderr, "tcpest evaluate: --max needs a non-negative integer\n");
+    return false;
+  }
+  out.true_prior = args.flag("true-prior");
+  out.no_prior = args.flag("no-prior");
+  if (out.true_prior && out.no_prior) {
+    std::fprintf(stderr, "tcpest evaluate: --true-prior and --no-prior exclude each other\n");
+    return false;
+  }
+  out.verbose = args.flag("verbose");
+  out.corners_csv = args.value("corners-csv");
+  return true;
+}
+
+// What one evaluation run works with, for each frame.
+struct EvaluateRun {
+  const EvaluateOptions& options;
+  const ModelSetup& setup;
+  EstimatePipeline& pipeline;
+  ImageReader& reader;
+  std::vector<std::uint8_t>& pixels;
+  EvaluateTotals& totals;
+  FILE* csv;    // the corner rows (nullptr: none)
+  bool pooled;  // several datasets: images named with their directory
+};
+
+// One frame of dataset `tally`: its sidecar `name` read, its image through
+// the pipeline and scored against the sidecar. An unreadable sidecar or
+// image, or one of another size than the calibration's, is reported and
+// counted, and the run goes on.
+void evaluate_frame(EvaluateRun& run, DatasetTally& tally, const std::string& name) {
+  char error[512];
+  const std::string& dir = tally.dir;
+  std::string sidecar_path = dir;
+  sidecar_path += "/";
+  sidecar_path += name;
+  const auto parsed = render::read_sidecar_file(sidecar_path.c_str());
+  if (!parsed.ok()) {
+    parsed.error().format(error, sizeof error);
+    std::fprintf(stderr, "tcpest evaluate: %s\n", error);
+    ++run.totals.unreadable;
+    return;
+  }
+  const render::Sidecar& truth = parsed.value();
+  std::string image_path = dir;
+  image_path += "/";
+  image_path += truth.image;
+  ImageView view;
+  if (!run.reader.read(image_path.c_str(), run.pixels, view, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest evaluate: %s: %s\n", image_path.c_str(), error);
+    ++run.totals.unreadable;
+    return;
+  }
+  if (view.width != run.setup.camera.width() || view.height != run.setup.camera.height()) {
+    std::fprintf(stderr, "tcpest evaluate: %s: size differs from the calibration\n", image_path.c_str());
+    ++run.totals.unreadable;
+    return;
+  }
+  if (std::strcmp(truth.set, "seq") != 0) {
+    run.pipeline.reset_sequence();  // independent images
+  }
+  // The true joints: r's lambda, phi, theta (the channel's pose is not a
+  // prior: the pipeline starts it at the CAD pose either way).
+  const double true_joints[3] = {truth.instrument.r[solver::kLambda], truth.instrument.r[solver::kPhi],
+                                 truth.instrument.r[solver::kTheta]};
+  const double* prior = nullptr;
+  if (run.options.true_prior) {
+    prior = truth.instrument.has_r ? true_joints : nullptr;
+  } else if (truth.has_prior && !run.options.no_prior) {
+    prior = truth.prior.data();
+  }
+  const EstimateResult result = run.pipeline.process(view, prior);
+  const vision::Extraction& e = run.pipeline.extractor().result();
+  const CornerScore score = score_corners(truth, result, e, run.options.tolerance_px, run.totals.errors_px);
+  const double tcp_err = run.totals.add(truth, result, score, tally);
+  if (run.csv != nullptr) {
+    write_corner_rows(run.csv, dir.c_str(), run.pooled, truth, result, e, run.setup);
+  }
+  if (run.options.verbose) {
+    // Pooled: the image named with its directory, as in the corner rows.
+    std::printf("%s%s%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
+                run.pooled ? dir.c_str() : "", run.pooled ? "/" : "", truth.image, to_string(result.status),
+                score.visible, score.found_ok, e.corner_count, result.extraction_ok ? "extraction ok" : "extraction: ",
+                result.extraction_ok ? "" : result.extraction_error, tcp_err, run.totals.stages_total_us.back());
+  }
+}
+
+// The pipeline with the model setup, colour model and solver options of the
+// arguments; false (reported) on a bad file or value, with the exit code.
+bool init_pipeline(const Args& args, ModelSetup& setup, EstimatePipeline& pipeline, int& exit_code) {
+  exit_code = kExitConfig;
+  if (!load_model_setup("evaluate", args.value("calib"), args.value("config"), setup)) {
+    return false;
+  }
+  vision::ColorModel colors;
+  if (!load_color_model("evaluate", args.value("colors"), colors)) {
+    return false;
+  }
+  if (!pipeline.init("evaluate", setup, colors, args.flag("fixed-model"))) {
+    return false;
+  }
+  exit_code = kExitUsage;
+  return apply_guided_rounds("evaluate", args.value("guided-rounds"), pipeline) &&
+         apply_fallback_seeds("evaluate", args.value("fallback-seeds"), pipeline);
+}
+
 }  // namespace
 
 int cmd_evaluate(int argc, char** argv) {
@@ -394,19 +519,8 @@ int cmd_evaluate(int argc, char** argv) {
                 kSpecs, kSpecCount);
     return args.help_requested() ? kExitOk : kExitUsage;
   }
-  double tolerance_px = 1.5;
-  if (args.value("tolerance") != nullptr && (!parse_number(args.value("tolerance"), tolerance_px) || tolerance_px <= 0.0)) {
-    std::fprintf(stderr, "tcpest evaluate: --tolerance needs a positive number\n");
-    return kExitUsage;
-  }
-  unsigned long long max_images = ~0ULL;
-  if (args.value("max") != nullptr && !parse_unsigned(args.value("max"), max_images)) {
-    std::fprintf(stderr, "tcpest evaluate: --max needs a non-negative integer\n");
-    return kExitUsage;
-  }
-  const bool true_prior = args.flag("true-prior");
-  if (true_prior && args.flag("no-prior")) {
-    std::fprintf(stderr, "tcpest evaluate: --true-prior and --no-prior exclude each other\n");
+  EvaluateOptions options;
+  if (!read_evaluate_options(args, options)) {
     return kExitUsage;
   }
   // Every directory is listed before any image is processed: a typo in the
@@ -420,111 +534,44 @@ int cmd_evaluate(int argc, char** argv) {
       return kExitConfig;
     }
   }
-  const bool pooled = dataset_count > 1U;
   ModelSetup setup;
-  if (!load_model_setup("evaluate", args.value("calib"), args.value("config"), setup)) {
-    return kExitConfig;
-  }
-  vision::ColorModel colors;
-  if (!load_color_model("evaluate", args.value("colors"), colors)) {
-    return kExitConfig;
-  }
   static EstimatePipeline pipeline;
-  if (!pipeline.init("evaluate", setup, colors, args.flag("fixed-model"))) {
-    return kExitConfig;
-  }
-  if (!apply_guided_rounds("evaluate", args.value("guided-rounds"), pipeline)) {
-    return kExitUsage;
-  }
-  if (!apply_fallback_seeds("evaluate", args.value("fallback-seeds"), pipeline)) {
-    return kExitUsage;
+  int exit_code = kExitOk;
+  if (!init_pipeline(args, setup, pipeline, exit_code)) {
+    return exit_code;
   }
   ImageReader reader;
   if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {
     std::fprintf(stderr, "tcpest evaluate: JPEG decoder initialisation failed\n");
     return kExitFailure;
   }
-  const bool verbose = args.flag("verbose");
   FILE* csv = nullptr;
-  if (args.value("corners-csv") != nullptr) {
-    csv = std::fopen(args.value("corners-csv"), "w");
+  if (options.corners_csv != nullptr) {
+    csv = std::fopen(options.corners_csv, "w");
     if (csv == nullptr) {
-      std::fprintf(stderr, "tcpest evaluate: cannot write %s: %s\n", args.value("corners-csv"), std::strerror(errno));
+      std::fprintf(stderr, "tcpest evaluate: cannot write %s: %s\n", options.corners_csv, std::strerror(errno));
       return kExitFailure;
     }
     std::fprintf(csv, "image,k,visible,truth_u,truth_v,found,u,v,confidence,error_px,status,model_u,model_v\n");
   }
   std::vector<std::uint8_t> pixels;
   EvaluateTotals totals;
+  EvaluateRun run{options, setup, pipeline, reader, pixels, totals, csv, dataset_count > 1U};
   for (std::size_t set = 0U; set < dataset_count; ++set) {
-    DatasetTally& tally = datasets[set];
-    const std::string& dir = tally.dir;
     pipeline.reset_sequence();  // a dataset is a sequence of its own
     for (const std::string& name : sidecars[set]) {
       if (static_cast<unsigned long long>(totals.frames) + static_cast<unsigned long long>(totals.unreadable) >=
-          max_images) {
+          options.max_images) {
         break;
       }
-      std::string sidecar_path = dir;
-      sidecar_path += "/";
-      sidecar_path += name;
-      const auto parsed = render::read_sidecar_file(sidecar_path.c_str());
-      if (!parsed.ok()) {
-        parsed.error().format(error, sizeof error);
-        std::fprintf(stderr, "tcpest evaluate: %s\n", error);
-        ++totals.unreadable;
-        continue;
-      }
-      const render::Sidecar& truth = parsed.value();
-      std::string image_path = dir;
-      image_path += "/";
-      image_path += truth.image;
-      ImageView view;
-      if (!reader.read(image_path.c_str(), pixels, view, error, sizeof error)) {
-        std::fprintf(stderr, "tcpest evaluate: %s: %s\n", image_path.c_str(), error);
-        ++totals.unreadable;
-        continue;
-      }
-      if (view.width != setup.camera.width() || view.height != setup.camera.height()) {
-        std::fprintf(stderr, "tcpest evaluate: %s: size differs from the calibration\n", image_path.c_str());
-        ++totals.unreadable;
-        continue;
-      }
-      if (std::strcmp(truth.set, "seq") != 0) {
-        pipeline.reset_sequence();  // independent images
-      }
-      // The true joints: r's lambda, phi, theta (the channel's pose is not a
-      // prior: the pipeline starts it at the CAD pose either way).
-      const double true_joints[3] = {truth.instrument.r[solver::kLambda], truth.instrument.r[solver::kPhi],
-                                     truth.instrument.r[solver::kTheta]};
-      const double* prior = nullptr;
-      if (true_prior) {
-        prior = truth.instrument.has_r ? true_joints : nullptr;
-      } else if (truth.has_prior && !args.flag("no-prior")) {
-        prior = truth.prior.data();
-      }
-      const EstimateResult result = pipeline.process(view, prior);
-      const vision::Extraction& e = pipeline.extractor().result();
-      const CornerScore score = score_corners(truth, result, e, tolerance_px, totals.errors_px);
-      const double tcp_err = totals.add(truth, result, score, tally);
-      if (csv != nullptr) {
-        write_corner_rows(csv, dir.c_str(), pooled, truth, result, e, setup);
-      }
-      if (verbose) {
-        // Pooled: the image named with its directory, as in the corner rows.
-        std::printf("%s%s%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
-                    pooled ? dir.c_str() : "", pooled ? "/" : "", truth.image, to_string(result.status),
-                    score.visible, score.found_ok, e.corner_count,
-                    result.extraction_ok ? "extraction ok" : "extraction: ",
-                    result.extraction_ok ? "" : result.extraction_error, tcp_err, totals.stages_total_us.back());
-      }
+      evaluate_frame(run, datasets[set], name);
     }
   }
   if (csv != nullptr && std::fclose(csv) != 0) {
-    std::fprintf(stderr, "tcpest evaluate: writing %s failed\n", args.value("corners-csv"));
+    std::fprintf(stderr, "tcpest evaluate: writing %s failed\n", options.corners_csv);
     return kExitFailure;
   }
-  totals.print(datasets, tolerance_px);
+  totals.print(datasets, options.tolerance_px);
   return totals.frames > 0 ? kExitOk : kExitFailure;
 }
 
