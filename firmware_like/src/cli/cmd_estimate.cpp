@@ -33,6 +33,94 @@ const char* base_name(const char* path) noexcept {
   return slash == nullptr ? path : slash + 1;
 }
 
+// The readable line of one estimate (without --json).
+void print_estimate_line(const char* path, const EstimateResult& result, const vision::Extraction& e) {
+  std::printf("%s: %s, %d corners%s%s", path, to_string(result.status), e.corner_count,
+              result.extraction_ok ? "" : " (", result.extraction_ok ? "" : result.extraction_error);
+  if (!result.extraction_ok) {
+    std::printf(")");
+  }
+  if (result.status != EstimateStatus::None) {
+    std::printf(", TCP [%.2f, %.2f, %.2f] mm, rms %.3f px, %d iterations", result.tcp.x(), result.tcp.y(),
+                result.tcp.z(), result.summary.rms_px, result.summary.iterations);
+  }
+  std::printf(", %.0f us\n", result.total_us);
+}
+
+// The overlay directory (--overlay) created, and an encoder for frames of
+// the extractor's largest size; false after printing an error.
+bool open_overlay(const char* overlay_dir, const EstimatePipeline& pipeline,
+                  std::unique_ptr<render::JpegEncoder>& encoder) {
+  if (!make_directory(overlay_dir)) {
+    std::fprintf(stderr, "tcpest estimate: cannot create the overlay directory %s\n", overlay_dir);
+    return false;
+  }
+  auto created =
+      render::JpegEncoder::create(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height);
+  if (!created.ok()) {
+    std::fprintf(stderr, "tcpest estimate: JPEG encoder: %s\n", render::to_string(created.error()));
+    return false;
+  }
+  encoder = std::move(created.value());
+  return true;
+}
+
+// What the images of one run share.
+struct EstimateRun {
+  const ModelSetup& setup;
+  EstimatePipeline& pipeline;
+  ImageReader& reader;
+  std::vector<std::uint8_t>& pixels;
+  render::JpegEncoder* encoder;  // nullptr: no overlay
+  const char* overlay_dir;
+  const double* prior;  // the encoders' joints for every image (nullptr: none)
+  bool json;
+};
+
+// One image: read, estimated and reported (a line, or a JSON object), its
+// overlay written. False when the image cannot be read or its size is not
+// the calibration's (reported; the run goes on).
+bool estimate_image(EstimateRun& run, const char* path) {
+  char error[256];
+  ImageView view;
+  if (!run.reader.read(path, run.pixels, view, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest estimate: %s: %s\n", path, error);
+    if (run.json) {
+      std::printf("{\"image\": \"%s\", \"status\": \"none\", \"error\": \"unreadable image\"}\n", path);
+    }
+    return false;
+  }
+  if (view.width != run.setup.camera.width() || view.height != run.setup.camera.height()) {
+    std::fprintf(stderr, "tcpest estimate: %s: image is %dx%d, the calibration %dx%d\n", path, view.width,
+                 view.height, run.setup.camera.width(), run.setup.camera.height());
+    if (run.json) {
+      std::printf("{\"image\": \"%s\", \"status\": \"none\", \"error\": \"image size differs from calibration\"}\n",
+                  path);
+    }
+    return false;
+  }
+  const EstimateResult result = run.pipeline.process(view, run.prior);
+  const vision::Extraction& e = run.pipeline.extractor().result();
+  if (run.json) {
+    char line[4096];
+    format_estimate_json(path, result, e, line, sizeof line);
+    std::printf("%s\n", line);
+  } else {
+    print_estimate_line(path, result, e);
+  }
+  if (run.encoder != nullptr) {
+    run.pipeline.draw_overlay(result, MutableImageView{run.pixels.data(), view.width, view.height, view.stride_bytes});
+    char out_path[1024];
+    static_cast<void>(std::snprintf(out_path, sizeof out_path, "%s/%s.overlay.jpg", run.overlay_dir,  // checked below
+                                    base_name(path)));
+    const auto written = run.encoder->write_file(view, 90, out_path);
+    if (!written.ok()) {
+      std::fprintf(stderr, "tcpest estimate: %s: %s\n", out_path, render::to_string(written.error()));
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 int cmd_estimate(int argc, char** argv) {
@@ -60,22 +148,10 @@ int cmd_estimate(int argc, char** argv) {
     return kExitUsage;
   }
   ModelSetup setup;
-  if (!load_model_setup("estimate", args.value("calib"), args.value("config"), setup)) {
-    return kExitConfig;
-  }
-  vision::ColorModel colors;
-  if (!load_color_model("estimate", args.value("colors"), colors)) {
-    return kExitConfig;
-  }
   static EstimatePipeline pipeline;  // large: static storage
-  if (!pipeline.init("estimate", setup, colors, args.flag("fixed-model"))) {
-    return kExitConfig;
-  }
-  if (!apply_guided_rounds("estimate", args.value("guided-rounds"), pipeline)) {
-    return kExitUsage;
-  }
-  if (!apply_fallback_seeds("estimate", args.value("fallback-seeds"), pipeline)) {
-    return kExitUsage;
+  int exit_code = kExitOk;
+  if (!init_pipeline_from_args("estimate", args, setup, pipeline, exit_code)) {
+    return exit_code;
   }
   ImageReader reader;
   if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {
@@ -84,71 +160,15 @@ int cmd_estimate(int argc, char** argv) {
   }
   const char* overlay_dir = args.value("overlay");
   std::unique_ptr<render::JpegEncoder> encoder;
-  if (overlay_dir != nullptr) {
-    if (!make_directory(overlay_dir)) {
-      std::fprintf(stderr, "tcpest estimate: cannot create the overlay directory %s\n", overlay_dir);
-      return kExitFailure;
-    }
-    auto created = render::JpegEncoder::create(pipeline.extractor().config().max_width,
-                                               pipeline.extractor().config().max_height);
-    if (!created.ok()) {
-      std::fprintf(stderr, "tcpest estimate: JPEG encoder: %s\n", render::to_string(created.error()));
-      return kExitFailure;
-    }
-    encoder = std::move(created.value());
+  if (overlay_dir != nullptr && !open_overlay(overlay_dir, pipeline, encoder)) {
+    return kExitFailure;
   }
-  const bool json = args.flag("json");
   std::vector<std::uint8_t> pixels;
+  EstimateRun run{setup, pipeline, reader, pixels, encoder.get(), overlay_dir, has_prior ? prior : nullptr,
+                  args.flag("json")};
   int failures = 0;
   for (std::size_t i = 0U; i < args.positional_count(); ++i) {
-    const char* path = args.positional(i);
-    ImageView view;
-    if (!reader.read(path, pixels, view, error, sizeof error)) {
-      std::fprintf(stderr, "tcpest estimate: %s: %s\n", path, error);
-      if (json) {
-        std::printf("{\"image\": \"%s\", \"status\": \"none\", \"error\": \"unreadable image\"}\n", path);
-      }
-      ++failures;
-      continue;
-    }
-    if (view.width != setup.camera.width() || view.height != setup.camera.height()) {
-      std::fprintf(stderr, "tcpest estimate: %s: image is %dx%d, the calibration %dx%d\n", path, view.width,
-                   view.height, setup.camera.width(), setup.camera.height());
-      if (json) {
-        std::printf("{\"image\": \"%s\", \"status\": \"none\", \"error\": \"image size differs from calibration\"}\n",
-                    path);
-      }
-      ++failures;
-      continue;
-    }
-    const EstimateResult result = pipeline.process(view, has_prior ? prior : nullptr);
-    const vision::Extraction& e = pipeline.extractor().result();
-    if (json) {
-      char line[4096];
-      format_estimate_json(path, result, e, line, sizeof line);
-      std::printf("%s\n", line);
-    } else {
-      std::printf("%s: %s, %d corners%s%s", path, to_string(result.status), e.corner_count,
-                  result.extraction_ok ? "" : " (", result.extraction_ok ? "" : result.extraction_error);
-      if (!result.extraction_ok) {
-        std::printf(")");
-      }
-      if (result.status != EstimateStatus::None) {
-        std::printf(", TCP [%.2f, %.2f, %.2f] mm, rms %.3f px, %d iterations", result.tcp.x(), result.tcp.y(),
-                    result.tcp.z(), result.summary.rms_px, result.summary.iterations);
-      }
-      std::printf(", %.0f us\n", result.total_us);
-    }
-    if (encoder != nullptr) {
-      pipeline.draw_overlay(result, MutableImageView{pixels.data(), view.width, view.height, view.stride_bytes});
-      char out_path[1024];
-      static_cast<void>(std::snprintf(out_path, sizeof out_path, "%s/%s.overlay.jpg", overlay_dir,  // checked below
-                                      base_name(path)));
-      const auto written = encoder->write_file(view, 90, out_path);
-      if (!written.ok()) {
-        std::fprintf(stderr, "tcpest estimate: %s: %s\n", out_path, render::to_string(written.error()));
-      }
-    }
+    failures += estimate_image(run, args.positional(i)) ? 0 : 1;
     static_cast<void>(std::fflush(stdout));  // one line per image, as it comes
   }
   return failures == 0 ? kExitOk : kExitFailure;

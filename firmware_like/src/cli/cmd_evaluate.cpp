@@ -483,25 +483,6 @@ void evaluate_frame(EvaluateRun& run, DatasetTally& tally, const std::string& na
   }
 }
 
-// The pipeline with the model setup, colour model and solver options of the
-// arguments; false (reported) on a bad file or value, with the exit code.
-bool init_pipeline(const Args& args, ModelSetup& setup, EstimatePipeline& pipeline, int& exit_code) {
-  exit_code = kExitConfig;
-  if (!load_model_setup("evaluate", args.value("calib"), args.value("config"), setup)) {
-    return false;
-  }
-  vision::ColorModel colors;
-  if (!load_color_model("evaluate", args.value("colors"), colors)) {
-    return false;
-  }
-  if (!pipeline.init("evaluate", setup, colors, args.flag("fixed-model"))) {
-    return false;
-  }
-  exit_code = kExitUsage;
-  return apply_guided_rounds("evaluate", args.value("guided-rounds"), pipeline) &&
-         apply_fallback_seeds("evaluate", args.value("fallback-seeds"), pipeline);
-}
-
 }  // namespace
 
 int cmd_evaluate(int argc, char** argv) {
@@ -537,7 +518,7 @@ int cmd_evaluate(int argc, char** argv) {
   ModelSetup setup;
   static EstimatePipeline pipeline;
   int exit_code = kExitOk;
-  if (!init_pipeline(args, setup, pipeline, exit_code)) {
+  if (!init_pipeline_from_args("evaluate", args, setup, pipeline, exit_code)) {
     return exit_code;
   }
   ImageReader reader;

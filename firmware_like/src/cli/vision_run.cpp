@@ -8,6 +8,7 @@
 #include <new>
 
 #include "cli/args.hpp"
+#include "cli/commands.hpp"
 #include "tcpest/vision/overlay.hpp"
 
 namespace tcpest {
@@ -328,6 +329,24 @@ bool apply_guided_rounds(const char* command, const char* value, EstimatePipelin
 bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept {
   return apply_count(command, "fallback-seeds", value, vision::kMaxFallbackSeeds,
                      pipeline.guided_options().fallback_seeds);
+}
+
+bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& setup, EstimatePipeline& pipeline,
+                             int& exit_code) noexcept {
+  exit_code = kExitConfig;
+  if (!load_model_setup(command, args.value("calib"), args.value("config"), setup)) {
+    return false;
+  }
+  vision::ColorModel colors;
+  if (!load_color_model(command, args.value("colors"), colors)) {
+    return false;
+  }
+  if (!pipeline.init(command, setup, colors, args.flag("fixed-model"))) {
+    return false;
+  }
+  exit_code = kExitUsage;
+  return apply_guided_rounds(command, args.value("guided-rounds"), pipeline) &&
+         apply_fallback_seeds(command, args.value("fallback-seeds"), pipeline);
 }
 
 void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept {

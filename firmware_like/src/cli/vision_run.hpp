@@ -112,6 +112,16 @@ bool apply_guided_rounds(const char* command, const char* value, EstimatePipelin
 // printing an error.
 bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept;
 
+class Args;
+
+// The pipeline of `tcpest COMMAND` from its arguments: the model setup
+// (--calib, --config), the colour model (--colors), the solver mode
+// (--fixed-model) and the guided rounds (--guided-rounds,
+// --fallback-seeds). False after printing an error, with exit_code
+// kExitConfig for a file, kExitUsage for a value.
+bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& setup, EstimatePipeline& pipeline,
+                             int& exit_code) noexcept;
+
 // Whether corner k of this frame is reported (estimate's JSON, evaluate's
 // scores): found by stages 1-4, or re-measured around a pose by the
 // model-guided rounds (Extraction::refined), which may follow a failed
