@@ -119,6 +119,65 @@ Result<CameraIntrinsics, Diagnostic> load_camera_info(const char* path, yaml::Do
   return read_camera_info(scratch);
 }
 
+namespace {
+
+// instrument.marker_colors, when given: a sequence of 5 'blue' or 'yellow'
+// into g.marker_colors. False with the error's place in the file.
+bool read_marker_colors(const yaml::Document& doc, InstrumentGeometry& g, Diagnostic& error) noexcept {
+  if (!doc.has("instrument.marker_colors")) {
+    return true;
+  }
+  const yaml::Entry* e = doc.find("instrument.marker_colors");
+  e->used = true;
+  const char* p = e->value;
+  std::size_t i = 0U;
+  while (*p != '\0') {
+    std::size_t n = 0U;
+    while (p[n] != '\0' && p[n] != '\n') {
+      ++n;
+    }
+    if (i == g.marker_colors.size()) {
+      error = doc.error_at(e, e->path, "expected 5 colours");
+      return false;
+    }
+    if (n == 4U && std::strncmp(p, "blue", 4U) == 0) {
+      g.marker_colors[i] = MarkerColor::Blue;
+    } else if (n == 6U && std::strncmp(p, "yellow", 6U) == 0) {
+      g.marker_colors[i] = MarkerColor::Yellow;
+    } else {
+      error = doc.error_at(e, e->path, "colours are 'blue' or 'yellow'");
+      return false;
+    }
+    ++i;
+    p += n;
+    if (*p == '\n') {
+      ++p;
+    }
+  }
+  if (!e->is_sequence || i != g.marker_colors.size()) {
+    error = doc.error_at(e, e->path, "expected a sequence of 5 colours");
+    return false;
+  }
+  return true;
+}
+
+// A geometry the file describes but validate() rejects, placed at the key
+// that is wrong.
+Diagnostic geometry_error_at(const yaml::Document& doc, GeometryError why) noexcept {
+  const char* field = "instrument";
+  switch (why) {
+    case GeometryError::BadBoundaries: field = "instrument.boundaries_mm"; break;
+    case GeometryError::RadiusTooLarge: field = "instrument.radius_mm"; break;
+    case GeometryError::BadPenalty: field = "play_penalty"; break;
+    case GeometryError::BadJointRange: field = "instrument.theta_max_deg"; break;
+    case GeometryError::NonFiniteValue:
+    case GeometryError::NonPositiveLength: break;
+  }
+  return doc.error_at(doc.find(field), field, to_string(why));
+}
+
+}  // namespace
+
 Result<InstrumentGeometry, Diagnostic> read_instrument_config(const yaml::Document& doc) noexcept {
   InstrumentGeometry g;
   Diagnostic error;
@@ -169,35 +228,8 @@ Result<InstrumentGeometry, Diagnostic> read_instrument_config(const yaml::Docume
       g.boundaries_mm[static_cast<std::size_t>(j)] = g.bend_length_mm * j / kNumMarkers;
     }
   }
-  if (doc.has("instrument.marker_colors")) {
-    const yaml::Entry* e = doc.find("instrument.marker_colors");
-    e->used = true;
-    const char* p = e->value;
-    std::size_t i = 0U;
-    while (*p != '\0') {
-      std::size_t n = 0U;
-      while (p[n] != '\0' && p[n] != '\n') {
-        ++n;
-      }
-      if (i == g.marker_colors.size()) {
-        return GeometryResult::failure(doc.error_at(e, e->path, "expected 5 colours"));
-      }
-      if (n == 4U && std::strncmp(p, "blue", 4U) == 0) {
-        g.marker_colors[i] = MarkerColor::Blue;
-      } else if (n == 6U && std::strncmp(p, "yellow", 6U) == 0) {
-        g.marker_colors[i] = MarkerColor::Yellow;
-      } else {
-        return GeometryResult::failure(doc.error_at(e, e->path, "colours are 'blue' or 'yellow'"));
-      }
-      ++i;
-      p += n;
-      if (*p == '\n') {
-        ++p;
-      }
-    }
-    if (!e->is_sequence || i != g.marker_colors.size()) {
-      return GeometryResult::failure(doc.error_at(e, e->path, "expected a sequence of 5 colours"));
-    }
+  if (!read_marker_colors(doc, g, error)) {
+    return GeometryResult::failure(error);
   }
   const char* sections[] = {"instrument", "channel_nominal", "play_penalty"};
   for (const char* section : sections) {
@@ -208,16 +240,7 @@ Result<InstrumentGeometry, Diagnostic> read_instrument_config(const yaml::Docume
   }
   const auto valid = validate(g);
   if (!valid.ok()) {
-    const char* field = "instrument";
-    switch (valid.error()) {
-      case GeometryError::BadBoundaries: field = "instrument.boundaries_mm"; break;
-      case GeometryError::RadiusTooLarge: field = "instrument.radius_mm"; break;
-      case GeometryError::BadPenalty: field = "play_penalty"; break;
-      case GeometryError::BadJointRange: field = "instrument.theta_max_deg"; break;
-      case GeometryError::NonFiniteValue:
-      case GeometryError::NonPositiveLength: break;
-    }
-    return GeometryResult::failure(doc.error_at(doc.find(field), field, to_string(valid.error())));
+    return GeometryResult::failure(geometry_error_at(doc, valid.error()));
   }
   return GeometryResult::success(g);
 }

@@ -102,6 +102,35 @@ TEST(ConfigIo, GeometryDefaultsAndErrors) {
   EXPECT_EQ(too_fat.error().line, 2U);
 }
 
+TEST(ConfigIo, MarkerColoursAreFiveBlueOrYellow) {
+  const char* swapped = "instrument:\n  marker_colors: [yellow, blue, yellow, blue, yellow]\n";
+  ASSERT_TRUE(scratch().parse(swapped, std::strlen(swapped), "cfg.yaml").ok());
+  const auto read = read_instrument_config(scratch());
+  ASSERT_TRUE(read.ok());
+  EXPECT_EQ(read.value().marker_colors[0], MarkerColor::Yellow);
+  EXPECT_EQ(read.value().marker_colors[1], MarkerColor::Blue);
+  EXPECT_EQ(read.value().marker_colors[4], MarkerColor::Yellow);
+
+  struct Bad {
+    const char* text;
+    const char* message;
+  };
+  const Bad bad_files[] = {
+      {"instrument:\n  marker_colors: [blue, red, blue, yellow, blue]\n", "colours are 'blue' or 'yellow'"},
+      {"instrument:\n  marker_colors: [blue, yellow, blue, yellow, blue, yellow]\n", "expected 5 colours"},
+      {"instrument:\n  marker_colors: [blue, yellow, blue, yellow]\n", "expected a sequence of 5 colours"},
+      {"instrument:\n  marker_colors: blue\n", "expected a sequence of 5 colours"},
+  };
+  for (const Bad& b : bad_files) {
+    ASSERT_TRUE(scratch().parse(b.text, std::strlen(b.text), "cfg.yaml").ok()) << b.text;
+    const auto result = read_instrument_config(scratch());
+    ASSERT_FALSE(result.ok()) << b.text;
+    EXPECT_STREQ(result.error().field, "instrument.marker_colors") << b.text;
+    EXPECT_STREQ(result.error().message, b.message) << b.text;
+    EXPECT_EQ(result.error().line, 2U) << b.text;
+  }
+}
+
 }  // namespace
 }  // namespace solver
 }  // namespace tcpest
