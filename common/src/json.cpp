@@ -44,201 +44,260 @@ std::uint32_t line_of(const char* text, std::size_t offset) noexcept {
   return line;
 }
 
+// Grammar state: what the next significant character may be.
+enum class Expect : std::uint8_t { Value, KeyOrClose, Key, Colon, CommaOrClose, ValueOrClose, End };
+
+// The state of one parse: the text, the caller's token array and the open
+// containers (an explicit stack instead of recursion).
+struct Tokeniser {
+  const char* text = nullptr;
+  std::size_t length = 0U;
+  Token* tokens = nullptr;
+  std::size_t capacity = 0U;
+  std::size_t& count;
+  // Open containers: token index, and whether the next thing is a key (objects).
+  std::size_t stack[kMaxDepth] = {};
+  std::size_t depth = 0U;
+  Expect expect = Expect::Value;
+};
+
+// The error `code` at offset `at`, with its line.
+Status<ParseError> fail(const Tokeniser& t, JsonError code, std::size_t at) noexcept {
+  ParseError e;
+  e.code = code;
+  e.offset = static_cast<std::uint32_t>(at);
+  e.line = line_of(t.text, at < t.length ? at : t.length);
+  return Status<ParseError>::failure(e);
+}
+
+// Appends a token; kNone when the token array is full.
+std::size_t add_token(Tokeniser& t, TokenType type, std::size_t start, std::size_t end) noexcept {
+  if (t.count == t.capacity) {
+    return kNone;
+  }
+  Token& token = t.tokens[t.count];
+  token.type = type;
+  token.start = static_cast<std::uint32_t>(start);
+  token.end = static_cast<std::uint32_t>(end);
+  token.children = 0U;
+  token.subtree_end = static_cast<std::uint32_t>(t.count + 1U);
+  ++t.count;
+  return t.count - 1U;
+}
+
+// Marks the end of a finished value: the next token index closes the subtree.
+void value_done(Tokeniser& t) noexcept {
+  if (t.depth == 0U) {
+    t.expect = Expect::End;
+  } else {
+    t.expect = Expect::CommaOrClose;
+  }
+}
+
+// Closes the innermost container at its bracket, offset `at`.
+void close_container(Tokeniser& t, std::size_t at) noexcept {
+  const std::size_t open = t.stack[t.depth - 1U];
+  t.tokens[open].end = static_cast<std::uint32_t>(at + 1U);
+  t.tokens[open].subtree_end = static_cast<std::uint32_t>(t.count);
+  --t.depth;
+  value_done(t);
+}
+
+// What the grammar state makes of the character at `i` before a key or value
+// can start (':' and ',', closing brackets, text after the end). `consumed`
+// is false when a key or value starts there.
+Status<ParseError> take_punctuation(Tokeniser& t, std::size_t i, bool in_object, bool& consumed) noexcept {
+  const char c = t.text[i];
+  consumed = true;
+  switch (t.expect) {
+    case Expect::End:
+      return fail(t, JsonError::TrailingText, i);
+    case Expect::Colon:
+      if (c != ':') {
+        return fail(t, JsonError::Syntax, i);
+      }
+      t.expect = Expect::Value;
+      return ok_status<ParseError>();
+    case Expect::CommaOrClose:
+      if (c == ',') {
+        t.expect = in_object ? Expect::Key : Expect::Value;
+        return ok_status<ParseError>();
+      }
+      if ((c == '}' && in_object) || (c == ']' && !in_object)) {
+        close_container(t, i);
+        return ok_status<ParseError>();
+      }
+      return fail(t, JsonError::Syntax, i);
+    case Expect::KeyOrClose:
+    case Expect::ValueOrClose:
+      if ((c == '}' && t.expect == Expect::KeyOrClose) || (c == ']' && t.expect == Expect::ValueOrClose)) {
+        close_container(t, i);
+        return ok_status<ParseError>();
+      }
+      break;
+    case Expect::Key:
+    case Expect::Value:
+      break;
+  }
+  consumed = false;
+  return ok_status<ParseError>();
+}
+
+// A string (key or value) whose opening quote is at `i`; `i` moves to its
+// closing quote.
+Status<ParseError> scan_string(Tokeniser& t, std::size_t& i, bool want_key) noexcept {
+  const std::size_t start = i + 1U;
+  std::size_t j = start;
+  bool closed = false;
+  for (; j < t.length; ++j) {
+    const char s = t.text[j];
+    if (s == '\\') {
+      ++j;  // skip the escaped character
+      continue;
+    }
+    if (static_cast<unsigned char>(s) < 0x20U) {
+      return fail(t, JsonError::Syntax, j);
+    }
+    if (s == '"') {
+      closed = true;
+      break;
+    }
+  }
+  if (!closed) {
+    return fail(t, JsonError::Truncated, t.length);
+  }
+  if (add_token(t, TokenType::String, start, j) == kNone) {
+    return fail(t, JsonError::TooManyTokens, i);
+  }
+  i = j;
+  if (want_key) {
+    t.expect = Expect::Colon;
+  } else {
+    value_done(t);
+  }
+  return ok_status<ParseError>();
+}
+
+// An object or array opening at `i`.
+Status<ParseError> open_container(Tokeniser& t, std::size_t i) noexcept {
+  const char c = t.text[i];
+  if (t.depth == kMaxDepth) {
+    return fail(t, JsonError::TooDeep, i);
+  }
+  const std::size_t index = add_token(t, c == '{' ? TokenType::Object : TokenType::Array, i, i + 1U);
+  if (index == kNone) {
+    return fail(t, JsonError::TooManyTokens, i);
+  }
+  t.stack[t.depth] = index;
+  ++t.depth;
+  t.expect = (c == '{') ? Expect::KeyOrClose : Expect::ValueOrClose;
+  return ok_status<ParseError>();
+}
+
+// Whether text[begin, end) is a JSON number: -?digits[.digits][e[+-]digits]
+bool is_number(const char* text, std::size_t begin, std::size_t end) noexcept {
+  std::size_t k = begin;
+  if (k < end && text[k] == '-') {
+    ++k;
+  }
+  bool digits = false;
+  while (k < end && text[k] >= '0' && text[k] <= '9') {
+    ++k;
+    digits = true;
+  }
+  if (k < end && text[k] == '.') {
+    ++k;
+    while (k < end && text[k] >= '0' && text[k] <= '9') {
+      ++k;
+    }
+  }
+  if (k < end && (text[k] == 'e' || text[k] == 'E')) {
+    ++k;
+    if (k < end && (text[k] == '+' || text[k] == '-')) {
+      ++k;
+    }
+    while (k < end && text[k] >= '0' && text[k] <= '9') {
+      ++k;
+    }
+  }
+  return digits && k == end;
+}
+
+// A literal or number starting at `i`; `i` moves to its last character.
+Status<ParseError> scan_literal(Tokeniser& t, std::size_t& i) noexcept {
+  const char* text = t.text;
+  // Literals and numbers: a run of characters up to a delimiter.
+  std::size_t j = i;
+  while (j < t.length && !is_space(text[j]) && text[j] != ',' && text[j] != ']' && text[j] != '}' && text[j] != ':') {
+    ++j;
+  }
+  const std::size_t run = j - i;
+  TokenType type = TokenType::Number;
+  if (run == 4U && std::strncmp(text + i, "true", 4U) == 0) {
+    type = TokenType::True;
+  } else if (run == 5U && std::strncmp(text + i, "false", 5U) == 0) {
+    type = TokenType::False;
+  } else if (run == 4U && std::strncmp(text + i, "null", 4U) == 0) {
+    type = TokenType::Null;
+  } else if (!is_number(text, i, j)) {
+    return fail(t, JsonError::Syntax, i);
+  }
+  if (add_token(t, type, i, j) == kNone) {
+    return fail(t, JsonError::TooManyTokens, i);
+  }
+  i = j - 1U;
+  value_done(t);
+  return ok_status<ParseError>();
+}
+
+// Takes the significant character at `i` and what follows it in the same
+// token; `i` moves to the token's last character.
+Status<ParseError> next_token(Tokeniser& t, std::size_t& i) noexcept {
+  const char c = t.text[i];
+  const bool in_object = t.depth > 0U && t.tokens[t.stack[t.depth - 1U]].type == TokenType::Object;
+  bool consumed = false;
+  const auto punctuation = take_punctuation(t, i, in_object, consumed);
+  if (!punctuation.ok() || consumed) {
+    return punctuation;
+  }
+  const bool want_key = (t.expect == Expect::Key || t.expect == Expect::KeyOrClose);
+  if (want_key && c != '"') {
+    return fail(t, JsonError::Syntax, i);
+  }
+  // A new key or value starts here; count it in its container.
+  if (t.depth > 0U && !(in_object && !want_key)) {
+    ++t.tokens[t.stack[t.depth - 1U]].children;
+  }
+  if (c == '"') {
+    return scan_string(t, i, want_key);
+  }
+  if (c == '{' || c == '[') {
+    return open_container(t, i);
+  }
+  return scan_literal(t, i);
+}
+
 }  // namespace
 
 Status<ParseError> Document::parse(const char* text, std::size_t length) noexcept {
   text_ = text;
   length_ = length;
   count_ = 0U;
-  auto fail = [&](JsonError code, std::size_t at) noexcept {
-    ParseError e;
-    e.code = code;
-    e.offset = static_cast<std::uint32_t>(at);
-    e.line = line_of(text, at < length ? at : length);
-    return Status<ParseError>::failure(e);
-  };
+  Tokeniser t{text, length, tokens_, capacity_, count_};
   if (length > 0xFFFFFFF0U) {
-    return fail(JsonError::TooLong, 0U);
+    return fail(t, JsonError::TooLong, 0U);
   }
-
-  // Open containers: token index, and whether the next thing is a key (objects).
-  std::size_t stack[kMaxDepth];
-  std::size_t depth = 0U;
-  // Grammar state: what the next significant character may be.
-  enum class Expect : std::uint8_t { Value, KeyOrClose, Key, Colon, CommaOrClose, ValueOrClose, End };
-  Expect expect = Expect::Value;
-
-  auto add_token = [&](TokenType type, std::size_t start, std::size_t end) noexcept -> std::size_t {
-    if (count_ == capacity_) {
-      return kNone;
-    }
-    Token& t = tokens_[count_];
-    t.type = type;
-    t.start = static_cast<std::uint32_t>(start);
-    t.end = static_cast<std::uint32_t>(end);
-    t.children = 0U;
-    t.subtree_end = static_cast<std::uint32_t>(count_ + 1U);
-    ++count_;
-    return count_ - 1U;
-  };
-  // Marks the end of a finished value: the next token index closes the subtree.
-  auto value_done = [&]() noexcept {
-    if (depth == 0U) {
-      expect = Expect::End;
-    } else {
-      expect = Expect::CommaOrClose;
-    }
-  };
-
-  std::size_t i = 0U;
-  for (; i < length; ++i) {
-    const char c = text[i];
-    if (is_space(c)) {
+  for (std::size_t i = 0U; i < length; ++i) {
+    if (is_space(text[i])) {
       continue;
     }
-    const bool in_object = depth > 0U && tokens_[stack[depth - 1U]].type == TokenType::Object;
-    switch (expect) {
-      case Expect::End:
-        return fail(JsonError::TrailingText, i);
-      case Expect::Colon:
-        if (c != ':') {
-          return fail(JsonError::Syntax, i);
-        }
-        expect = Expect::Value;
-        continue;
-      case Expect::CommaOrClose:
-        if (c == ',') {
-          expect = in_object ? Expect::Key : Expect::Value;
-          continue;
-        }
-        if ((c == '}' && in_object) || (c == ']' && !in_object)) {
-          const std::size_t open = stack[depth - 1U];
-          tokens_[open].end = static_cast<std::uint32_t>(i + 1U);
-          tokens_[open].subtree_end = static_cast<std::uint32_t>(count_);
-          --depth;
-          value_done();
-          continue;
-        }
-        return fail(JsonError::Syntax, i);
-      case Expect::KeyOrClose:
-      case Expect::ValueOrClose:
-        if ((c == '}' && expect == Expect::KeyOrClose) || (c == ']' && expect == Expect::ValueOrClose)) {
-          const std::size_t open = stack[depth - 1U];
-          tokens_[open].end = static_cast<std::uint32_t>(i + 1U);
-          tokens_[open].subtree_end = static_cast<std::uint32_t>(count_);
-          --depth;
-          value_done();
-          continue;
-        }
-        break;
-      case Expect::Key:
-      case Expect::Value:
-        break;
+    const auto step = next_token(t, i);
+    if (!step.ok()) {
+      return step;
     }
-    const bool want_key = (expect == Expect::Key || expect == Expect::KeyOrClose);
-    if (want_key && c != '"') {
-      return fail(JsonError::Syntax, i);
-    }
-    // A new key or value starts here; count it in its container.
-    if (depth > 0U && !(in_object && !want_key)) {
-      ++tokens_[stack[depth - 1U]].children;
-    }
-    if (c == '"') {
-      const std::size_t start = i + 1U;
-      std::size_t j = start;
-      bool closed = false;
-      for (; j < length; ++j) {
-        const char s = text[j];
-        if (s == '\\') {
-          ++j;  // skip the escaped character
-          continue;
-        }
-        if (static_cast<unsigned char>(s) < 0x20U) {
-          return fail(JsonError::Syntax, j);
-        }
-        if (s == '"') {
-          closed = true;
-          break;
-        }
-      }
-      if (!closed) {
-        return fail(JsonError::Truncated, length);
-      }
-      if (add_token(TokenType::String, start, j) == kNone) {
-        return fail(JsonError::TooManyTokens, i);
-      }
-      i = j;
-      if (want_key) {
-        expect = Expect::Colon;
-      } else {
-        value_done();
-      }
-      continue;
-    }
-    if (c == '{' || c == '[') {
-      if (depth == kMaxDepth) {
-        return fail(JsonError::TooDeep, i);
-      }
-      const std::size_t index = add_token(c == '{' ? TokenType::Object : TokenType::Array, i, i + 1U);
-      if (index == kNone) {
-        return fail(JsonError::TooManyTokens, i);
-      }
-      stack[depth] = index;
-      ++depth;
-      expect = (c == '{') ? Expect::KeyOrClose : Expect::ValueOrClose;
-      continue;
-    }
-    // Literals and numbers: a run of characters up to a delimiter.
-    std::size_t j = i;
-    while (j < length && !is_space(text[j]) && text[j] != ',' && text[j] != ']' && text[j] != '}' && text[j] != ':') {
-      ++j;
-    }
-    const std::size_t run = j - i;
-    TokenType type = TokenType::Number;
-    if (run == 4U && std::strncmp(text + i, "true", 4U) == 0) {
-      type = TokenType::True;
-    } else if (run == 5U && std::strncmp(text + i, "false", 5U) == 0) {
-      type = TokenType::False;
-    } else if (run == 4U && std::strncmp(text + i, "null", 4U) == 0) {
-      type = TokenType::Null;
-    } else {
-      // JSON numbers: -?digits[.digits][e[+-]digits]
-      std::size_t k = i;
-      if (k < j && text[k] == '-') {
-        ++k;
-      }
-      bool digits = false;
-      while (k < j && text[k] >= '0' && text[k] <= '9') {
-        ++k;
-        digits = true;
-      }
-      if (k < j && text[k] == '.') {
-        ++k;
-        while (k < j && text[k] >= '0' && text[k] <= '9') {
-          ++k;
-        }
-      }
-      if (k < j && (text[k] == 'e' || text[k] == 'E')) {
-        ++k;
-        if (k < j && (text[k] == '+' || text[k] == '-')) {
-          ++k;
-        }
-        while (k < j && text[k] >= '0' && text[k] <= '9') {
-          ++k;
-        }
-      }
-      if (!digits || k != j) {
-        return fail(JsonError::Syntax, i);
-      }
-    }
-    if (add_token(type, i, j) == kNone) {
-      return fail(JsonError::TooManyTokens, i);
-    }
-    i = j - 1U;
-    value_done();
   }
-  if (depth > 0U || expect != Expect::End) {
-    return fail(JsonError::Truncated, length);
+  if (t.depth > 0U || t.expect != Expect::End) {
+    return fail(t, JsonError::Truncated, length);
   }
   return ok_status<ParseError>();
 }

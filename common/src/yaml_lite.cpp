@@ -81,6 +81,264 @@ bool append_char(char* out, std::size_t capacity, std::size_t& used, char c) noe
   return true;
 }
 
+// Adds the items of a flow sequence piece ("a, b" or "a, b]") to entry e.
+// Returns false on overflow; sets `closed` when the ']' is found.
+bool add_flow_items(Entry& e, Span piece, bool& closed, bool& nested) noexcept {
+  closed = false;
+  nested = false;
+  std::size_t used = std::strlen(e.value);
+  std::size_t start = 0U;
+  for (std::size_t i = 0U; i <= piece.size; ++i) {
+    const bool at_end = (i == piece.size);
+    const char c = at_end ? ',' : piece.begin[i];
+    if (c == '[' || c == '{') {
+      nested = true;
+      return true;
+    }
+    if (c == ',' || c == ']') {
+      Span item = unquote(trim(Span{piece.begin + start, i - start}));
+      if (item.size > 0U) {
+        if (used > 0U && !append_char(e.value, sizeof e.value, used, '\n')) {
+          return false;
+        }
+        if (!append(e.value, sizeof e.value, used, item)) {
+          return false;
+        }
+      }
+      start = i + 1U;
+      if (c == ']') {
+        closed = true;
+        return trim(Span{piece.begin + i + 1U, piece.size - i - 1U}).size == 0U;
+      }
+    }
+  }
+  return true;
+}
+
+// A mapping level: its children's indentation and the length of its path.
+struct Level {
+  std::size_t indent;
+  std::size_t path_length;
+};
+
+// The state of one parse: the document's entries, the open mapping levels,
+// the current key path and what the lines above left open.
+struct Parser {
+  Entry* entries = nullptr;
+  std::size_t& count;
+  const Document& doc;  // its find() sees the entries added so far
+  const char* file = nullptr;
+  Level levels[kMaxDepth + 1U] = {};
+  std::size_t depth = 0U;
+  char path[kMaxPath] = {};
+  std::size_t open_key = kMaxEntries;  // entry whose value is still to come (mapping or block sequence)
+  bool open_flow = false;              // inside a flow sequence that continues on the next line
+  std::size_t open_flow_line = 0U;
+  std::uint32_t line_number = 0U;
+};
+
+Status<Diagnostic> fail(const Parser& p, std::uint32_t line, const char* field, const char* message) noexcept {
+  return Status<Diagnostic>::failure(Diagnostic::make(p.file, line, field, message));
+}
+
+// A line that continues the flow sequence of the last entry.
+Status<Diagnostic> continue_flow(Parser& p, Span content) noexcept {
+  Entry& e = p.entries[p.count - 1U];
+  bool closed = false;
+  bool nested = false;
+  if (!add_flow_items(e, content, closed, nested)) {
+    return fail(p, p.line_number, e.path, "sequence too long");
+  }
+  if (nested) {
+    return fail(p, p.line_number, e.path, "nested sequences are not supported");
+  }
+  p.open_flow = !closed;
+  return ok_status<Diagnostic>();
+}
+
+// Block sequence item: "- value", added to the key above it.
+Status<Diagnostic> add_sequence_item(Parser& p, std::size_t indent, Span content) noexcept {
+  if (p.open_key == kMaxEntries) {
+    return fail(p, p.line_number, "", "sequence item without a key above it");
+  }
+  Entry& e = p.entries[p.open_key];
+  // The key was pushed as a mapping level; a sequence opens none.
+  if (p.depth > 0U && p.levels[p.depth].indent == kUnsetIndent &&
+      p.levels[p.depth].path_length == std::strlen(e.path)) {
+    --p.depth;
+  }
+  if (indent < p.levels[p.depth].indent) {
+    return fail(p, p.line_number, e.path, "sequence item indented less than its key");
+  }
+  Span item = unquote(trim(Span{content.begin + 1U, content.size - 1U}));
+  if (item.size > 0U && (item.begin[0] == '[' || item.begin[0] == '{' ||
+                         std::memchr(item.begin, ':', item.size) != nullptr)) {
+    return fail(p, p.line_number, e.path, "sequences of mappings or sequences are not supported");
+  }
+  e.is_mapping = false;
+  e.is_sequence = true;
+  std::size_t used = std::strlen(e.value);
+  if ((used > 0U && !append_char(e.value, sizeof e.value, used, '\n')) ||
+      !append(e.value, sizeof e.value, used, item)) {
+    return fail(p, p.line_number, e.path, "sequence too long");
+  }
+  return ok_status<Diagnostic>();
+}
+
+// Offset of the colon of "key: value" or "key:" (outside quotes), or
+// content.size if there is none.
+std::size_t key_colon(Span content) noexcept {
+  std::size_t colon = content.size;
+  char quote = '\0';
+  for (std::size_t i = 0U; i < content.size; ++i) {
+    const char c = content.begin[i];
+    if (quote != '\0') {
+      if (c == quote) {
+        quote = '\0';
+      }
+      continue;
+    }
+    if (c == '"' || c == '\'') {
+      quote = c;
+    } else if (c == ':' && (i + 1U == content.size || content.begin[i + 1U] == ' ')) {
+      colon = i;
+      break;
+    }
+  }
+  return colon;
+}
+
+// Sets the path of a key at `indent`: its parent level's path, '.', the key.
+Status<Diagnostic> place_key(Parser& p, std::size_t indent, Span key) noexcept {
+  // Find the parent: a mapping opened by the key above takes its
+  // indentation from its first child; then close every deeper level.
+  if (p.depth > 0U && p.levels[p.depth].indent == kUnsetIndent) {
+    if (indent > p.levels[p.depth - 1U].indent) {
+      p.levels[p.depth].indent = indent;
+    } else {
+      --p.depth;  // the key above has no children: an empty value
+    }
+  }
+  while (p.depth > 0U && indent < p.levels[p.depth].indent) {
+    --p.depth;
+  }
+  if (indent != p.levels[p.depth].indent) {
+    return fail(p, p.line_number, "", "unexpected indentation");
+  }
+  p.path[p.levels[p.depth].path_length] = '\0';
+  std::size_t used = p.levels[p.depth].path_length;
+  if ((used > 0U && !append_char(p.path, sizeof p.path, used, '.')) || !append(p.path, sizeof p.path, used, key)) {
+    return fail(p, p.line_number, "", "key path too long");
+  }
+  return ok_status<Diagnostic>();
+}
+
+// The value after "key:" of the new entry e: a nested mapping to come, a
+// flow sequence or a scalar.
+Status<Diagnostic> set_value(Parser& p, Entry& e, Span value) noexcept {
+  if (value.size > 0U && value.begin[0] == '!') {
+    // A tag (e.g. !!opencv-matrix): ignored.
+    std::size_t t = 0U;
+    while (t < value.size && value.begin[t] != ' ') {
+      ++t;
+    }
+    value = trim(Span{value.begin + t, value.size - t});
+  }
+  if (value.size == 0U) {
+    if (p.depth == kMaxDepth) {
+      return fail(p, p.line_number, p.path, "nesting too deep");
+    }
+    e.is_mapping = true;
+    p.open_key = p.count - 1U;
+    ++p.depth;
+    p.levels[p.depth] = Level{kUnsetIndent, std::strlen(p.path)};  // indentation fixed by the first child
+    return ok_status<Diagnostic>();
+  }
+  if (value.begin[0] == '&' || value.begin[0] == '*') {
+    return fail(p, p.line_number, p.path, "anchors and aliases are not supported");
+  }
+  if (value.begin[0] == '|' || value.begin[0] == '>') {
+    return fail(p, p.line_number, p.path, "multi-line strings are not supported");
+  }
+  if (value.begin[0] == '[') {
+    e.is_sequence = true;
+    bool closed = false;
+    bool nested = false;
+    if (!add_flow_items(e, Span{value.begin + 1U, value.size - 1U}, closed, nested)) {
+      return fail(p, p.line_number, p.path, "sequence too long, or text after ']'");
+    }
+    if (nested) {
+      return fail(p, p.line_number, p.path, "nested sequences are not supported");
+    }
+    p.open_flow = !closed;
+    p.open_flow_line = p.line_number;
+    return ok_status<Diagnostic>();
+  }
+  Span scalar = unquote(value);
+  std::size_t value_used = 0U;
+  if (!append(e.value, sizeof e.value, value_used, scalar)) {
+    return fail(p, p.line_number, p.path, "value too long");
+  }
+  return ok_status<Diagnostic>();
+}
+
+// "key: value" or "key:": a new entry below its parent mapping.
+Status<Diagnostic> add_key(Parser& p, std::size_t indent, Span content) noexcept {
+  const std::size_t colon = key_colon(content);
+  if (colon == content.size) {
+    return fail(p, p.line_number, "", "expected 'key: value'");
+  }
+  Span key = unquote(trim(Span{content.begin, colon}));
+  Span value = trim(Span{content.begin + colon + 1U, content.size - colon - 1U});
+  if (key.size == 0U) {
+    return fail(p, p.line_number, "", "empty key");
+  }
+  const auto placed = place_key(p, indent, key);
+  if (!placed.ok()) {
+    return placed;
+  }
+  if (p.doc.find(p.path) != nullptr) {
+    return fail(p, p.line_number, p.path, "duplicate key");
+  }
+  if (p.count == kMaxEntries) {
+    return fail(p, p.line_number, p.path, "too many keys");
+  }
+  Entry& e = p.entries[p.count];
+  e = Entry{};
+  copy_text(e.path, sizeof e.path, p.path);
+  e.line = p.line_number;
+  ++p.count;
+  p.open_key = kMaxEntries;
+  return set_value(p, e, value);
+}
+
+// One line of the text (without its '\n').
+Status<Diagnostic> parse_line(Parser& p, Span raw) noexcept {
+  Span content = trim(strip_comment(raw));
+  if (content.size == 0U) {
+    return ok_status<Diagnostic>();
+  }
+  std::size_t indent = 0U;
+  while (indent < raw.size && raw.begin[indent] == ' ') {
+    ++indent;
+  }
+  if (indent < raw.size && raw.begin[indent] == '\t') {
+    return fail(p, p.line_number, "", "tab in indentation (YAML allows spaces only)");
+  }
+
+  if (p.open_flow) {
+    return continue_flow(p, content);
+  }
+  if (content.begin[0] == '%' || (content.size >= 3U && std::strncmp(content.begin, "---", 3U) == 0) ||
+      (content.size >= 3U && std::strncmp(content.begin, "...", 3U) == 0)) {
+    return ok_status<Diagnostic>();  // directive or document marker
+  }
+  if (content.begin[0] == '-' && (content.size == 1U || content.begin[1] == ' ')) {
+    return add_sequence_item(p, indent, content);
+  }
+  return add_key(p, indent, content);
+}
+
 }  // namespace
 
 bool parse_double(const char* text, double& out) noexcept {
@@ -131,231 +389,24 @@ Status<Diagnostic> Document::parse(const char* text, std::size_t length, const c
     copy_text(file_, sizeof file_, file);
   }
   count_ = 0U;
-  struct Level {
-    std::size_t indent;
-    std::size_t path_length;
-  };
-  Level levels[kMaxDepth + 1U];
-  std::size_t depth = 0U;
-  levels[0] = Level{0U, 0U};
-  char path[kMaxPath] = {};
-  std::size_t open_key = kMaxEntries;  // entry whose value is still to come (mapping or block sequence)
-  bool open_flow = false;              // inside a flow sequence that continues on the next line
-  std::size_t open_flow_line = 0U;
-
-  auto fail = [&](std::uint32_t line, const char* field, const char* message) noexcept {
-    return Status<Diagnostic>::failure(Diagnostic::make(file_, line, field, message));
-  };
-
-  // Adds the items of a flow sequence piece ("a, b" or "a, b]") to entry e.
-  // Returns false on overflow; sets `closed` when the ']' is found.
-  auto add_flow_items = [&](Entry& e, Span piece, bool& closed, bool& nested) noexcept -> bool {
-    closed = false;
-    nested = false;
-    std::size_t used = std::strlen(e.value);
-    std::size_t start = 0U;
-    for (std::size_t i = 0U; i <= piece.size; ++i) {
-      const bool at_end = (i == piece.size);
-      const char c = at_end ? ',' : piece.begin[i];
-      if (c == '[' || c == '{') {
-        nested = true;
-        return true;
-      }
-      if (c == ',' || c == ']') {
-        Span item = unquote(trim(Span{piece.begin + start, i - start}));
-        if (item.size > 0U) {
-          if (used > 0U && !append_char(e.value, sizeof e.value, used, '\n')) {
-            return false;
-          }
-          if (!append(e.value, sizeof e.value, used, item)) {
-            return false;
-          }
-        }
-        start = i + 1U;
-        if (c == ']') {
-          closed = true;
-          return trim(Span{piece.begin + i + 1U, piece.size - i - 1U}).size == 0U;
-        }
-      }
-    }
-    return true;
-  };
-
+  Parser p{entries_, count_, *this, file_};
+  p.levels[0] = Level{0U, 0U};
   std::size_t pos = 0U;
-  std::uint32_t line_number = 0U;
   while (pos < length) {
-    ++line_number;
+    ++p.line_number;
     const char* line_begin = text + pos;
     std::size_t line_size = 0U;
     while (pos + line_size < length && text[pos + line_size] != '\n') {
       ++line_size;
     }
     pos += line_size + 1U;
-    Span raw{line_begin, line_size};
-    Span content = trim(strip_comment(raw));
-    if (content.size == 0U) {
-      continue;
-    }
-    std::size_t indent = 0U;
-    while (indent < raw.size && raw.begin[indent] == ' ') {
-      ++indent;
-    }
-    if (indent < raw.size && raw.begin[indent] == '\t') {
-      return fail(line_number, "", "tab in indentation (YAML allows spaces only)");
-    }
-
-    if (open_flow) {
-      Entry& e = entries_[count_ - 1U];
-      bool closed = false;
-      bool nested = false;
-      if (!add_flow_items(e, content, closed, nested)) {
-        return fail(line_number, e.path, "sequence too long");
-      }
-      if (nested) {
-        return fail(line_number, e.path, "nested sequences are not supported");
-      }
-      open_flow = !closed;
-      continue;
-    }
-    if (content.begin[0] == '%' || (content.size >= 3U && std::strncmp(content.begin, "---", 3U) == 0) ||
-        (content.size >= 3U && std::strncmp(content.begin, "...", 3U) == 0)) {
-      continue;  // directive or document marker
-    }
-
-    // Block sequence item: "- value".
-    if (content.begin[0] == '-' && (content.size == 1U || content.begin[1] == ' ')) {
-      if (open_key == kMaxEntries) {
-        return fail(line_number, "", "sequence item without a key above it");
-      }
-      Entry& e = entries_[open_key];
-      // The key was pushed as a mapping level; a sequence opens none.
-      if (depth > 0U && levels[depth].indent == kUnsetIndent && levels[depth].path_length == std::strlen(e.path)) {
-        --depth;
-      }
-      if (indent < levels[depth].indent) {
-        return fail(line_number, e.path, "sequence item indented less than its key");
-      }
-      Span item = unquote(trim(Span{content.begin + 1U, content.size - 1U}));
-      if (item.size > 0U && (item.begin[0] == '[' || item.begin[0] == '{' ||
-                             std::memchr(item.begin, ':', item.size) != nullptr)) {
-        return fail(line_number, e.path, "sequences of mappings or sequences are not supported");
-      }
-      e.is_mapping = false;
-      e.is_sequence = true;
-      std::size_t used = std::strlen(e.value);
-      if ((used > 0U && !append_char(e.value, sizeof e.value, used, '\n')) ||
-          !append(e.value, sizeof e.value, used, item)) {
-        return fail(line_number, e.path, "sequence too long");
-      }
-      continue;
-    }
-
-    // "key: value" or "key:".
-    std::size_t colon = content.size;
-    char quote = '\0';
-    for (std::size_t i = 0U; i < content.size; ++i) {
-      const char c = content.begin[i];
-      if (quote != '\0') {
-        if (c == quote) {
-          quote = '\0';
-        }
-        continue;
-      }
-      if (c == '"' || c == '\'') {
-        quote = c;
-      } else if (c == ':' && (i + 1U == content.size || content.begin[i + 1U] == ' ')) {
-        colon = i;
-        break;
-      }
-    }
-    if (colon == content.size) {
-      return fail(line_number, "", "expected 'key: value'");
-    }
-    Span key = unquote(trim(Span{content.begin, colon}));
-    Span value = trim(Span{content.begin + colon + 1U, content.size - colon - 1U});
-    if (key.size == 0U) {
-      return fail(line_number, "", "empty key");
-    }
-
-    // Find the parent: a mapping opened by the key above takes its
-    // indentation from its first child; then close every deeper level.
-    if (depth > 0U && levels[depth].indent == kUnsetIndent) {
-      if (indent > levels[depth - 1U].indent) {
-        levels[depth].indent = indent;
-      } else {
-        --depth;  // the key above has no children: an empty value
-      }
-    }
-    while (depth > 0U && indent < levels[depth].indent) {
-      --depth;
-    }
-    if (indent != levels[depth].indent) {
-      return fail(line_number, "", "unexpected indentation");
-    }
-    path[levels[depth].path_length] = '\0';
-    std::size_t used = levels[depth].path_length;
-    if ((used > 0U && !append_char(path, sizeof path, used, '.')) || !append(path, sizeof path, used, key)) {
-      return fail(line_number, "", "key path too long");
-    }
-    if (find(path) != nullptr) {
-      return fail(line_number, path, "duplicate key");
-    }
-    if (count_ == kMaxEntries) {
-      return fail(line_number, path, "too many keys");
-    }
-    Entry& e = entries_[count_];
-    e = Entry{};
-    copy_text(e.path, sizeof e.path, path);
-    e.line = line_number;
-    ++count_;
-    open_key = kMaxEntries;
-
-    if (value.size > 0U && value.begin[0] == '!') {
-      // A tag (e.g. !!opencv-matrix): ignored.
-      std::size_t t = 0U;
-      while (t < value.size && value.begin[t] != ' ') {
-        ++t;
-      }
-      value = trim(Span{value.begin + t, value.size - t});
-    }
-    if (value.size == 0U) {
-      if (depth == kMaxDepth) {
-        return fail(line_number, path, "nesting too deep");
-      }
-      e.is_mapping = true;
-      open_key = count_ - 1U;
-      ++depth;
-      levels[depth] = Level{kUnsetIndent, std::strlen(path)};  // indentation fixed by the first child
-      continue;
-    }
-    if (value.begin[0] == '&' || value.begin[0] == '*') {
-      return fail(line_number, path, "anchors and aliases are not supported");
-    }
-    if (value.begin[0] == '|' || value.begin[0] == '>') {
-      return fail(line_number, path, "multi-line strings are not supported");
-    }
-    if (value.begin[0] == '[') {
-      e.is_sequence = true;
-      bool closed = false;
-      bool nested = false;
-      if (!add_flow_items(e, Span{value.begin + 1U, value.size - 1U}, closed, nested)) {
-        return fail(line_number, path, "sequence too long, or text after ']'");
-      }
-      if (nested) {
-        return fail(line_number, path, "nested sequences are not supported");
-      }
-      open_flow = !closed;
-      open_flow_line = line_number;
-      continue;
-    }
-    Span scalar = unquote(value);
-    std::size_t value_used = 0U;
-    if (!append(e.value, sizeof e.value, value_used, scalar)) {
-      return fail(line_number, path, "value too long");
+    const auto status = parse_line(p, Span{line_begin, line_size});
+    if (!status.ok()) {
+      return status;
     }
   }
-  if (open_flow) {
-    return fail(static_cast<std::uint32_t>(open_flow_line), entries_[count_ - 1U].path,
+  if (p.open_flow) {
+    return fail(p, static_cast<std::uint32_t>(p.open_flow_line), entries_[count_ - 1U].path,
                 "sequence not closed with ']'");
   }
   return ok_status<Diagnostic>();
