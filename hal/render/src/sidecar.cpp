@@ -247,6 +247,170 @@ const char* parse_instrument(const Reader& rd, std::size_t object, SidecarInstru
   return nullptr;
 }
 
+// The image's name, set name and integer keys (width, height, index).
+// Returns nullptr on success, else the failing field name (message in `message`).
+const char* parse_image_keys(const Reader& rd, std::size_t root, Sidecar& s, const char*& message) noexcept {
+  const json::Document& doc = rd.doc();
+  std::size_t i = rd.find(root, "image");
+  if (i != json::kNone && !doc.string(i, s.image, sizeof s.image).ok()) {
+    message = "expected a file name (at most 127 characters)";
+    return "image";
+  }
+  i = rd.find(root, "set");
+  if (i != json::kNone && !doc.string(i, s.set, sizeof s.set).ok()) {
+    message = "expected a short string";
+    return "set";
+  }
+  const char* int_keys[] = {"width", "height", "index"};
+  int* int_values[] = {&s.width, &s.height, &s.index};
+  for (std::size_t k = 0; k < 3U; ++k) {
+    i = rd.find(root, int_keys[k]);
+    if (i == json::kNone) {
+      continue;
+    }
+    const auto v = doc.number(i);
+    if (!v.ok() || v.value() != std::floor(v.value()) || std::fabs(v.value()) > 1e9) {
+      message = "expected an integer";
+      return int_keys[k];
+    }
+    *int_values[k] = static_cast<int>(v.value());
+  }
+  if (s.width < 0 || s.height < 0) {
+    message = "image size must not be negative";
+    return "width";
+  }
+  return nullptr;
+}
+
+// The seeds (seed, dataset_seed, world_seed), read from their digits in `text`.
+// Returns nullptr on success, else the failing field name (message in `message`).
+const char* parse_seeds(const Reader& rd, std::size_t root, const char* text, Sidecar& s,
+                        const char*& message) noexcept {
+  const json::Document& doc = rd.doc();
+  const char* seed_keys[] = {"seed", "dataset_seed", "world_seed"};
+  std::uint64_t* seed_values[] = {&s.seed, &s.dataset_seed, &s.scene.world_seed};
+  for (std::size_t k = 0; k < 3U; ++k) {
+    const std::size_t i = rd.find(root, seed_keys[k]);
+    if (i == json::kNone) {
+      continue;
+    }
+    const auto v = doc.number(i);
+    if (!v.ok() || v.value() < 0.0 || v.value() != std::floor(v.value()) || v.value() > 1.8446744073709552e19) {
+      message = "expected a non-negative 64-bit integer";
+      return seed_keys[k];
+    }
+    // Seeds above 2^53 do not survive a double: read the digits.
+    const json::Token& t = doc.token(i);
+    std::uint64_t seed = 0U;
+    for (std::uint32_t c = t.start; c < t.end; ++c) {
+      const char ch = text[c];
+      if (ch < '0' || ch > '9') {
+        break;
+      }
+      seed = seed * 10U + static_cast<std::uint64_t>(ch - '0');
+    }
+    *seed_values[k] = seed;
+    s.has_dataset_seed = s.has_dataset_seed || k == 1U;
+    s.scene.seed = s.seed;
+  }
+  return nullptr;
+}
+
+// The prior, the hard cases and the time of the frame.
+// Returns nullptr on success, else the failing field name (message in `message`).
+const char* parse_frame_keys(const Reader& rd, std::size_t root, Sidecar& s, const char*& message) noexcept {
+  const json::Document& doc = rd.doc();
+  std::size_t i = rd.find(root, "prior");
+  if (i != json::kNone && !doc.is_null(i)) {
+    if (!rd.numbers(i, s.prior.data(), 3U)) {
+      message = "expected [lambda mm, phi rad, theta rad] or null";
+      return "prior";
+    }
+    s.has_prior = true;
+  }
+  i = rd.find(root, "hard_cases");
+  if (i != json::kNone) {
+    if (doc.type(i) != json::TokenType::Array) {
+      message = "expected an array of names";
+      return "hard_cases";
+    }
+    for (std::size_t e = 0; e < doc.array_size(i); ++e) {
+      const auto el = doc.element(i, e);
+      bool known = false;
+      for (int b = 0; b < kNumHardCases && el.ok(); ++b) {
+        if (doc.string_equals(el.value(), hard_case_name(b))) {
+          s.hard_cases |= 1U << static_cast<unsigned>(b);
+          known = true;
+        }
+      }
+      if (!known) {
+        message = "unknown hard case name";
+        return "hard_cases";
+      }
+    }
+  }
+  i = rd.find(root, "time_s");
+  if (i != json::kNone) {
+    const auto v = doc.number(i);
+    if (!v.ok()) {
+      message = "expected a number";
+      return "time_s";
+    }
+    s.has_time = true;
+    s.time_s = v.value();
+  }
+  return nullptr;
+}
+
+// The "render" object's keys (a missing or non-object "render" leaves them).
+// Returns nullptr on success, else the failing field name (message in `message`).
+const char* parse_render_keys(const Reader& rd, std::size_t root, Sidecar& s, const char*& message) noexcept {
+  const json::Document& doc = rd.doc();
+  const std::size_t i = rd.find(root, "render");
+  if (i == json::kNone || doc.type(i) != json::TokenType::Object) {
+    return nullptr;
+  }
+  s.has_render = true;
+  const char* keys[] = {"noise_sigma", "blur_sigma_px", "vignetting", "exposure", "tissue_depth_mm"};
+  double* values[] = {&s.scene.noise_sigma, &s.scene.blur_sigma_px, &s.scene.vignetting, &s.scene.exposure,
+                      &s.tissue_depth_mm};
+  for (std::size_t k = 0; k < 5U; ++k) {
+    const std::size_t m = rd.find(i, keys[k]);
+    if (m != json::kNone) {
+      const auto v = doc.number(m);
+      if (!v.ok()) {
+        message = "expected a number";
+        return keys[k];
+      }
+      *values[k] = v.value();
+    }
+  }
+  const char* int_render_keys[] = {"supersample", "jpeg_quality"};
+  int* int_render_values[] = {&s.supersample, &s.jpeg_quality};
+  for (std::size_t k = 0; k < 2U; ++k) {
+    const std::size_t m = rd.find(i, int_render_keys[k]);
+    if (m != json::kNone) {
+      const auto v = doc.number(m);
+      if (!v.ok() || std::fabs(v.value()) > 1e6) {
+        message = "expected an integer";
+        return int_render_keys[k];
+      }
+      *int_render_values[k] = static_cast<int>(v.value());
+    }
+  }
+  const std::size_t blur = rd.find(i, "motion_blur_px");
+  if (blur != json::kNone) {
+    if (!rd.numbers(blur, s.motion_blur_px.data(), 2U)) {
+      message = "expected [dx, dy] (px)";
+      return "render.motion_blur_px";
+    }
+    s.has_motion_blur = true;
+  }
+  const std::size_t c = rd.find(i, "clean");
+  s.scene.clean = c != json::kNone && doc.type(c) == json::TokenType::True;
+  return nullptr;
+}
+
 }  // namespace
 
 Sidecar make_sidecar(const GroundTruth& truth, const SceneSpec& scene, const RenderSettings& settings, int width,
@@ -339,132 +503,22 @@ Result<Sidecar, Diagnostic> parse_sidecar(const char* text, std::size_t length, 
   const std::size_t root = doc.root();
   const char* message = "";
   const char* field = parse_instrument(rd, root, s.instrument, message);
+  if (field == nullptr) {
+    field = parse_image_keys(rd, root, s, message);
+  }
+  if (field == nullptr) {
+    field = parse_seeds(rd, root, text, s, message);
+  }
+  if (field == nullptr) {
+    field = parse_frame_keys(rd, root, s, message);
+  }
+  if (field == nullptr) {
+    field = parse_render_keys(rd, root, s, message);
+  }
   if (field != nullptr) {
     return R::failure(rd.error(field, message));
   }
-  std::size_t i = rd.find(root, "image");
-  if (i != json::kNone && !doc.string(i, s.image, sizeof s.image).ok()) {
-    return R::failure(rd.error("image", "expected a file name (at most 127 characters)"));
-  }
-  i = rd.find(root, "set");
-  if (i != json::kNone && !doc.string(i, s.set, sizeof s.set).ok()) {
-    return R::failure(rd.error("set", "expected a short string"));
-  }
-  const char* int_keys[] = {"width", "height", "index"};
-  int* int_values[] = {&s.width, &s.height, &s.index};
-  for (std::size_t k = 0; k < 3U; ++k) {
-    i = rd.find(root, int_keys[k]);
-    if (i == json::kNone) {
-      continue;
-    }
-    const auto v = doc.number(i);
-    if (!v.ok() || v.value() != std::floor(v.value()) || std::fabs(v.value()) > 1e9) {
-      return R::failure(rd.error(int_keys[k], "expected an integer"));
-    }
-    *int_values[k] = static_cast<int>(v.value());
-  }
-  if (s.width < 0 || s.height < 0) {
-    return R::failure(rd.error("width", "image size must not be negative"));
-  }
-  const char* seed_keys[] = {"seed", "dataset_seed", "world_seed"};
-  std::uint64_t* seed_values[] = {&s.seed, &s.dataset_seed, &s.scene.world_seed};
-  for (std::size_t k = 0; k < 3U; ++k) {
-    i = rd.find(root, seed_keys[k]);
-    if (i == json::kNone) {
-      continue;
-    }
-    const auto v = doc.number(i);
-    if (!v.ok() || v.value() < 0.0 || v.value() != std::floor(v.value()) || v.value() > 1.8446744073709552e19) {
-      return R::failure(rd.error(seed_keys[k], "expected a non-negative 64-bit integer"));
-    }
-    // Seeds above 2^53 do not survive a double: read the digits.
-    const json::Token& t = doc.token(i);
-    std::uint64_t seed = 0U;
-    for (std::uint32_t c = t.start; c < t.end; ++c) {
-      const char ch = text[c];
-      if (ch < '0' || ch > '9') {
-        break;
-      }
-      seed = seed * 10U + static_cast<std::uint64_t>(ch - '0');
-    }
-    *seed_values[k] = seed;
-    s.has_dataset_seed = s.has_dataset_seed || k == 1U;
-    s.scene.seed = s.seed;
-  }
-  i = rd.find(root, "prior");
-  if (i != json::kNone && !doc.is_null(i)) {
-    if (!rd.numbers(i, s.prior.data(), 3U)) {
-      return R::failure(rd.error("prior", "expected [lambda mm, phi rad, theta rad] or null"));
-    }
-    s.has_prior = true;
-  }
-  i = rd.find(root, "hard_cases");
-  if (i != json::kNone) {
-    if (doc.type(i) != json::TokenType::Array) {
-      return R::failure(rd.error("hard_cases", "expected an array of names"));
-    }
-    for (std::size_t e = 0; e < doc.array_size(i); ++e) {
-      const auto el = doc.element(i, e);
-      bool known = false;
-      for (int b = 0; b < kNumHardCases && el.ok(); ++b) {
-        if (doc.string_equals(el.value(), hard_case_name(b))) {
-          s.hard_cases |= 1U << static_cast<unsigned>(b);
-          known = true;
-        }
-      }
-      if (!known) {
-        return R::failure(rd.error("hard_cases", "unknown hard case name"));
-      }
-    }
-  }
-  i = rd.find(root, "time_s");
-  if (i != json::kNone) {
-    const auto v = doc.number(i);
-    if (!v.ok()) {
-      return R::failure(rd.error("time_s", "expected a number"));
-    }
-    s.has_time = true;
-    s.time_s = v.value();
-  }
-  i = rd.find(root, "render");
-  if (i != json::kNone && doc.type(i) == json::TokenType::Object) {
-    s.has_render = true;
-    const char* keys[] = {"noise_sigma", "blur_sigma_px", "vignetting", "exposure", "tissue_depth_mm"};
-    double* values[] = {&s.scene.noise_sigma, &s.scene.blur_sigma_px, &s.scene.vignetting, &s.scene.exposure,
-                        &s.tissue_depth_mm};
-    for (std::size_t k = 0; k < 5U; ++k) {
-      const std::size_t m = rd.find(i, keys[k]);
-      if (m != json::kNone) {
-        const auto v = doc.number(m);
-        if (!v.ok()) {
-          return R::failure(rd.error(keys[k], "expected a number"));
-        }
-        *values[k] = v.value();
-      }
-    }
-    const char* int_render_keys[] = {"supersample", "jpeg_quality"};
-    int* int_render_values[] = {&s.supersample, &s.jpeg_quality};
-    for (std::size_t k = 0; k < 2U; ++k) {
-      const std::size_t m = rd.find(i, int_render_keys[k]);
-      if (m != json::kNone) {
-        const auto v = doc.number(m);
-        if (!v.ok() || std::fabs(v.value()) > 1e6) {
-          return R::failure(rd.error(int_render_keys[k], "expected an integer"));
-        }
-        *int_render_values[k] = static_cast<int>(v.value());
-      }
-    }
-    const std::size_t blur = rd.find(i, "motion_blur_px");
-    if (blur != json::kNone) {
-      if (!rd.numbers(blur, s.motion_blur_px.data(), 2U)) {
-        return R::failure(rd.error("render.motion_blur_px", "expected [dx, dy] (px)"));
-      }
-      s.has_motion_blur = true;
-    }
-    const std::size_t c = rd.find(i, "clean");
-    s.scene.clean = c != json::kNone && doc.type(c) == json::TokenType::True;
-  }
-  i = rd.find(root, "instrument2");
+  const std::size_t i = rd.find(root, "instrument2");
   if (i != json::kNone && !doc.is_null(i)) {
     if (doc.type(i) != json::TokenType::Object) {
       return R::failure(rd.error("instrument2", "expected an object"));
