@@ -87,6 +87,149 @@ bool parse_int(const char* text, std::size_t length, int& out) noexcept {
   return true;
 }
 
+// The JPEG paths of a replay, NUL-separated in one block, in play order.
+struct FileList {
+  std::unique_ptr<char[]> names;         // all paths, NUL-separated
+  std::unique_ptr<std::size_t[]> offsets;  // start of each path in names
+  std::size_t count = 0U;
+};
+
+// The *.jpg / *.jpeg files of a directory (at most max_files), sorted by name.
+Status<CameraError> list_directory(const char* path, std::size_t max_files, FileList& list) noexcept {
+  // First pass: the total size of the names, so that one block holds them all.
+  std::size_t bytes = 0U;
+  std::size_t count = 0U;
+  char prefix[kMaxPath] = {};
+  static_cast<void>(std::snprintf(prefix, sizeof prefix, "%s/", path));  // paths longer than 4 KiB fail open() later
+  DIR* dir = ::opendir(path);
+  if (dir == nullptr) {
+    return Status<CameraError>::failure(from_errno(errno));
+  }
+  for (const dirent* e = ::readdir(dir); e != nullptr; e = ::readdir(dir)) {  // NOLINT(concurrency-mt-unsafe): start-up, one thread
+    if (ends_with_jpeg(e->d_name) && count < max_files) {
+      bytes += std::strlen(prefix) + std::strlen(e->d_name) + 1U;
+      ++count;
+    }
+  }
+  ::closedir(dir);
+  if (count == 0U) {
+    return Status<CameraError>::failure(CameraError::kNotFound);
+  }
+  list.names.reset(new (std::nothrow) char[bytes]);
+  list.offsets.reset(new (std::nothrow) std::size_t[count]);
+  if (!list.names || !list.offsets) {
+    return Status<CameraError>::failure(CameraError::kOutOfMemory);
+  }
+  dir = ::opendir(path);
+  if (dir == nullptr) {
+    return Status<CameraError>::failure(from_errno(errno));
+  }
+  std::size_t at = 0U;
+  std::size_t n = 0U;
+  for (const dirent* e = ::readdir(dir); e != nullptr && n < count; e = ::readdir(dir)) {  // NOLINT(concurrency-mt-unsafe): start-up, one thread
+    if (ends_with_jpeg(e->d_name)) {
+      const int written = std::snprintf(list.names.get() + at, bytes - at, "%s%s", prefix, e->d_name);
+      if (written < 0 || static_cast<std::size_t>(written) >= bytes - at) {
+        break;  // the directory changed between the passes: keep what fits
+      }
+      list.offsets[n++] = at;
+      at += static_cast<std::size_t>(written) + 1U;
+    }
+  }
+  ::closedir(dir);
+  list.count = n;
+  const char* names = list.names.get();
+  std::sort(list.offsets.get(), list.offsets.get() + list.count,
+            [names](std::size_t a, std::size_t b) { return std::strcmp(names + a, names + b) < 0; });
+  return ok_status<CameraError>();
+}
+
+// Reads a whole list file of `size` bytes into `text`, NUL-terminated;
+// `length` is the number of bytes read.
+Status<CameraError> read_list_text(const char* path, std::size_t size, std::unique_ptr<char[]>& text,
+                                   std::size_t& length) noexcept {
+  const int fd = ::open(path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    return Status<CameraError>::failure(from_errno(errno));
+  }
+  text.reset(new (std::nothrow) char[size + 1U]);
+  if (!text) {
+    close_quietly(fd);
+    return Status<CameraError>::failure(CameraError::kOutOfMemory);
+  }
+  const auto got = read_fully(fd, reinterpret_cast<std::uint8_t*>(text.get()), size);  // NOLINT(cppcoreguidelines-pro-type-reinterpret-cast): bytes of a text file
+  close_quietly(fd);
+  if (!got.ok()) {
+    return Status<CameraError>::failure(got.error());
+  }
+  text[got.value()] = '\0';
+  length = got.value();
+  return ok_status<CameraError>();
+}
+
+// A list file of `size` bytes: one path per line (at most max_files), relative
+// paths relative to the list's directory; blank lines and '#' comments skipped.
+Status<CameraError> list_file(const char* path, std::size_t size, std::size_t max_files, FileList& list) noexcept {
+  // A list file: read it whole, one path per line.
+  std::unique_ptr<char[]> text;
+  std::size_t length = 0U;
+  const auto read = read_list_text(path, size, text, length);
+  if (!read.ok()) {
+    return read;
+  }
+  char prefix[kMaxPath] = {};
+  const char* slash = std::strrchr(path, '/');
+  if (slash != nullptr) {
+    const auto dir_len = static_cast<std::size_t>(slash - path) + 1U;
+    if (dir_len < sizeof prefix) {
+      std::memcpy(prefix, path, dir_len);
+      prefix[dir_len] = '\0';
+    }
+  }
+  const std::size_t prefix_len = std::strlen(prefix);
+  // Every line costs at most prefix + line + NUL.
+  std::size_t lines = 1U;
+  for (std::size_t i = 0; i < length; ++i) {
+    if (text[i] == '\n') {
+      ++lines;
+    }
+  }
+  const std::size_t bytes = length + lines * (prefix_len + 1U) + 1U;
+  list.names.reset(new (std::nothrow) char[bytes]);
+  list.offsets.reset(new (std::nothrow) std::size_t[lines]);
+  if (!list.names || !list.offsets) {
+    return Status<CameraError>::failure(CameraError::kOutOfMemory);
+  }
+  std::size_t at = 0U;
+  char* line = text.get();
+  for (std::size_t l = 0; l < lines && list.count < max_files; ++l) {
+    char* end = std::strchr(line, '\n');
+    if (end != nullptr) {
+      *end = '\0';
+    }
+    std::size_t len = std::strlen(line);
+    while (len > 0U && (line[len - 1U] == '\r' || line[len - 1U] == ' ')) {
+      line[--len] = '\0';
+    }
+    if (len > 0U && line[0] != '#') {
+      const char* use_prefix = line[0] == '/' ? "" : prefix;
+      const int written = std::snprintf(list.names.get() + at, bytes - at, "%s%s", use_prefix, line);
+      if (written > 0 && static_cast<std::size_t>(written) < bytes - at) {
+        list.offsets[list.count++] = at;
+        at += static_cast<std::size_t>(written) + 1U;
+      }
+    }
+    if (end == nullptr) {
+      break;
+    }
+    line = end + 1;
+  }
+  if (list.count == 0U) {
+    return Status<CameraError>::failure(CameraError::kNotFound);
+  }
+  return ok_status<CameraError>();
+}
+
 }  // namespace
 
 std::int64_t monotonic_now_ns() noexcept {
@@ -113,122 +256,15 @@ Result<std::unique_ptr<JpegFileSource>, CameraError> JpegFileSource::open(const 
   if (::stat(path, &st) != 0) {
     return R::failure(from_errno(errno));
   }
-  // First pass: the total size of the names, so that one block holds them all.
-  std::size_t bytes = 0U;
-  std::size_t count = 0U;
-  char prefix[kMaxPath] = {};
-  const bool is_dir = S_ISDIR(st.st_mode);
-  if (is_dir) {
-    static_cast<void>(std::snprintf(prefix, sizeof prefix, "%s/", path));  // paths longer than 4 KiB fail open() later
-    DIR* dir = ::opendir(path);
-    if (dir == nullptr) {
-      return R::failure(from_errno(errno));
-    }
-    for (const dirent* e = ::readdir(dir); e != nullptr; e = ::readdir(dir)) {  // NOLINT(concurrency-mt-unsafe): start-up, one thread
-      if (ends_with_jpeg(e->d_name) && count < options.max_files) {
-        bytes += std::strlen(prefix) + std::strlen(e->d_name) + 1U;
-        ++count;
-      }
-    }
-    ::closedir(dir);
-    if (count == 0U) {
-      return R::failure(CameraError::kNotFound);
-    }
-    source->names_.reset(new (std::nothrow) char[bytes]);
-    source->offsets_.reset(new (std::nothrow) std::size_t[count]);
-    if (!source->names_ || !source->offsets_) {
-      return R::failure(CameraError::kOutOfMemory);
-    }
-    dir = ::opendir(path);
-    if (dir == nullptr) {
-      return R::failure(from_errno(errno));
-    }
-    std::size_t at = 0U;
-    std::size_t n = 0U;
-    for (const dirent* e = ::readdir(dir); e != nullptr && n < count; e = ::readdir(dir)) {  // NOLINT(concurrency-mt-unsafe): start-up, one thread
-      if (ends_with_jpeg(e->d_name)) {
-        const int written = std::snprintf(source->names_.get() + at, bytes - at, "%s%s", prefix, e->d_name);
-        if (written < 0 || static_cast<std::size_t>(written) >= bytes - at) {
-          break;  // the directory changed between the passes: keep what fits
-        }
-        source->offsets_[n++] = at;
-        at += static_cast<std::size_t>(written) + 1U;
-      }
-    }
-    ::closedir(dir);
-    count = n;
-    const char* names = source->names_.get();
-    std::sort(source->offsets_.get(), source->offsets_.get() + count,
-              [names](std::size_t a, std::size_t b) { return std::strcmp(names + a, names + b) < 0; });
-  } else {
-    // A list file: read it whole, one path per line.
-    const int fd = ::open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-      return R::failure(from_errno(errno));
-    }
-    const auto list_size = static_cast<std::size_t>(st.st_size);
-    std::unique_ptr<char[]> text(new (std::nothrow) char[list_size + 1U]);
-    if (!text) {
-      close_quietly(fd);
-      return R::failure(CameraError::kOutOfMemory);
-    }
-    const auto got = read_fully(fd, reinterpret_cast<std::uint8_t*>(text.get()), list_size);  // NOLINT(cppcoreguidelines-pro-type-reinterpret-cast): bytes of a text file
-    close_quietly(fd);
-    if (!got.ok()) {
-      return R::failure(got.error());
-    }
-    text[got.value()] = '\0';
-    const char* slash = std::strrchr(path, '/');
-    if (slash != nullptr) {
-      const auto dir_len = static_cast<std::size_t>(slash - path) + 1U;
-      if (dir_len < sizeof prefix) {
-        std::memcpy(prefix, path, dir_len);
-        prefix[dir_len] = '\0';
-      }
-    }
-    const std::size_t prefix_len = std::strlen(prefix);
-    // Every line costs at most prefix + line + NUL.
-    std::size_t lines = 1U;
-    for (std::size_t i = 0; i < got.value(); ++i) {
-      if (text[i] == '\n') {
-        ++lines;
-      }
-    }
-    bytes = got.value() + lines * (prefix_len + 1U) + 1U;
-    source->names_.reset(new (std::nothrow) char[bytes]);
-    source->offsets_.reset(new (std::nothrow) std::size_t[lines]);
-    if (!source->names_ || !source->offsets_) {
-      return R::failure(CameraError::kOutOfMemory);
-    }
-    std::size_t at = 0U;
-    char* line = text.get();
-    for (std::size_t l = 0; l < lines && count < options.max_files; ++l) {
-      char* end = std::strchr(line, '\n');
-      if (end != nullptr) {
-        *end = '\0';
-      }
-      std::size_t len = std::strlen(line);
-      while (len > 0U && (line[len - 1U] == '\r' || line[len - 1U] == ' ')) {
-        line[--len] = '\0';
-      }
-      if (len > 0U && line[0] != '#') {
-        const char* use_prefix = line[0] == '/' ? "" : prefix;
-        const int written = std::snprintf(source->names_.get() + at, bytes - at, "%s%s", use_prefix, line);
-        if (written > 0 && static_cast<std::size_t>(written) < bytes - at) {
-          source->offsets_[count++] = at;
-          at += static_cast<std::size_t>(written) + 1U;
-        }
-      }
-      if (end == nullptr) {
-        break;
-      }
-      line = end + 1;
-    }
-    if (count == 0U) {
-      return R::failure(CameraError::kNotFound);
-    }
+  FileList list;
+  const auto listed = S_ISDIR(st.st_mode) ? list_directory(path, options.max_files, list)
+                                          : list_file(path, static_cast<std::size_t>(st.st_size), options.max_files, list);
+  if (!listed.ok()) {
+    return R::failure(listed.error());
   }
-  source->count_ = count;
+  source->names_ = std::move(list.names);
+  source->offsets_ = std::move(list.offsets);
+  source->count_ = list.count;
   source->rate_hz_ = options.rate_hz > 0.0 ? options.rate_hz : 25.0;
   source->loop_ = options.loop;
   source->width_ = options.width;
