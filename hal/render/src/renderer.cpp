@@ -154,6 +154,42 @@ bool misses_sphere(const Vec3& origin, const Vec3& d_unit, const Vec3& centre, d
   return (oc - along * d_unit).squaredNorm() > radius * radius;
 }
 
+// Bound on the z = 1 plane of the box around the piece p0 -> p1 grown by
+// `reach` (mm), z clipped to > 0: sets p.xmin, xmax, ymin, ymax.
+void set_image_bound(Primitive& p, const Vec3& p0, const Vec3& p1, double reach) noexcept {
+  const Vec3 lo = p0.cwiseMin(p1) - Vec3::Constant(reach);
+  const Vec3 hi = p0.cwiseMax(p1) + Vec3::Constant(reach);
+  const double inf = std::numeric_limits<double>::infinity();
+  if (!(hi.z() > 0.0)) {
+    p.xmin = inf;  // entirely behind the camera: matches no ray
+    p.xmax = -inf;
+    p.ymin = inf;
+    p.ymax = -inf;
+    return;
+  }
+  const double zlo = std::max(lo.z(), 1e-9);
+  const double zhi = hi.z();
+  // x / z over the box: extremes at the corners (z > 0).
+  p.xmin = std::min(lo.x() / zlo, lo.x() / zhi);
+  p.xmax = std::max(hi.x() / zlo, hi.x() / zhi);
+  p.ymin = std::min(lo.y() / zlo, lo.y() / zhi);
+  p.ymax = std::max(hi.y() / zlo, hi.y() / zhi);
+  if (lo.z() <= 1e-9) {  // reaches the camera plane: unbounded where the sign allows
+    if (lo.x() <= 0.0) {
+      p.xmin = -inf;
+    }
+    if (hi.x() >= 0.0) {
+      p.xmax = inf;
+    }
+    if (lo.y() <= 0.0) {
+      p.ymin = -inf;
+    }
+    if (hi.y() >= 0.0) {
+      p.ymax = inf;
+    }
+  }
+}
+
 double clamp01(double v) noexcept { return v < 0.0 ? 0.0 : (v > 1.0 ? 1.0 : v); }
 double smoothstep(double e0, double e1, double x) noexcept {
   const double t = clamp01((x - e0) / (e1 - e0));
@@ -270,6 +306,13 @@ struct Sample {
   bool instrument = false;
 };
 
+// A pixel's ray (cx, cy on the z = 1 plane) and its derivatives per pixel
+// step in x (gxx, gxy) and in y (gyx, gyy).
+struct RayFootprint {
+  double cx = 0.0, cy = 0.0;
+  double gxx = 0.0, gxy = 0.0, gyx = 0.0, gyy = 0.0;
+};
+
 struct Materials {
   Rgb albedo[7];
   double specular[7];
@@ -324,6 +367,14 @@ struct Renderer::Impl {
   Sample shade(double x, double y, const std::uint16_t* candidates, int candidate_count) const noexcept;
   Rgb apply_haze(const Rgb& c, double depth, double x, double y) const noexcept;
   void compute_truth(const SceneSpec& scene, GroundTruth& truth) noexcept;
+  void shade_pixel_centres(float* coverage, long* instrument_pixels) noexcept;
+  bool on_label_edge(int x, int y, std::uint8_t label) const noexcept;
+  RayFootprint ray_footprint(int x, int y) const noexcept;
+  void supersample_pixel(int x, int y, float* coverage) noexcept;
+  void supersample_edges(float* coverage) noexcept;
+  void apply_motion_blur(const float* src, float* dst) const noexcept;
+  void apply_optical_blur(float* image, float* tmp) const noexcept;
+  void tone_map(const SceneSpec& scene, const float* src, const MutableImageView& out) const noexcept;
   void post_process(const SceneSpec& scene, const MutableImageView& out) noexcept;
 };
 
@@ -557,38 +608,7 @@ void Renderer::Impl::build_instrument(const PoseVector& r, std::uint8_t index) n
     p.centre = 0.5 * (p0 + p1);
     const double reach = 1.05 * radius;  // the mitre cuts reach slightly past R
     p.bound_radius = 0.5 * length + reach;
-    // Bound on the z = 1 plane of the box around the piece, z clipped to > 0.
-    const Vec3 lo = p0.cwiseMin(p1) - Vec3::Constant(reach);
-    const Vec3 hi = p0.cwiseMax(p1) + Vec3::Constant(reach);
-    const double inf = std::numeric_limits<double>::infinity();
-    if (!(hi.z() > 0.0)) {
-      p.xmin = inf;  // entirely behind the camera: matches no ray
-      p.xmax = -inf;
-      p.ymin = inf;
-      p.ymax = -inf;
-    } else {
-      const double zlo = std::max(lo.z(), 1e-9);
-      const double zhi = hi.z();
-      // x / z over the box: extremes at the corners (z > 0).
-      p.xmin = std::min(lo.x() / zlo, lo.x() / zhi);
-      p.xmax = std::max(hi.x() / zlo, hi.x() / zhi);
-      p.ymin = std::min(lo.y() / zlo, lo.y() / zhi);
-      p.ymax = std::max(hi.y() / zlo, hi.y() / zhi);
-      if (lo.z() <= 1e-9) {  // reaches the camera plane: unbounded where the sign allows
-        if (lo.x() <= 0.0) {
-          p.xmin = -inf;
-        }
-        if (hi.x() >= 0.0) {
-          p.xmax = inf;
-        }
-        if (lo.y() <= 0.0) {
-          p.ymin = -inf;
-        }
-        if (hi.y() >= 0.0) {
-          p.ymax = inf;
-        }
-      }
-    }
+    set_image_bound(p, p0, p1, reach);
     ++prim_count;
   };
 
@@ -1104,85 +1124,91 @@ void Renderer::Impl::compute_truth(const SceneSpec& scene, GroundTruth& truth) n
   }
 }
 
-void Renderer::Impl::post_process(const SceneSpec& scene, const MutableImageView& out) noexcept {
+// Motion blur: a symmetric streak of the linear image `src` into `dst`.
+void Renderer::Impl::apply_motion_blur(const float* src, float* dst) const noexcept {
   const SceneLayout& s = layout;
   const int w = width;
   const int h = height;
-  float* src = linear.get();
-  float* tmp = scratch.get();
-  // Motion blur: a symmetric streak (the ground truth is mid-exposure).
-  if (s.motion_blur) {
-    constexpr int kMaxSteps = 32;
-    const int steps = std::min(kMaxSteps, std::max(2, static_cast<int>(std::ceil(std::hypot(s.blur_dx, s.blur_dy)))));
-    int off_x[kMaxSteps + 1];
-    int off_y[kMaxSteps + 1];
-    int reach_x = 0;
-    int reach_y = 0;
-    for (int i = 0; i <= steps; ++i) {
-      const double f = static_cast<double>(i) / steps - 0.5;
-      off_x[i] = static_cast<int>(std::lround(f * s.blur_dx));
-      off_y[i] = static_cast<int>(std::lround(f * s.blur_dy));
-      reach_x = std::max(reach_x, std::abs(off_x[i]));
-      reach_y = std::max(reach_y, std::abs(off_y[i]));
-    }
-    const float inv = 1.0F / static_cast<float>(steps + 1);
-    for (int y = 0; y < h; ++y) {
-      const bool inner_row = y >= reach_y && y < h - reach_y;
-      for (int x = 0; x < w; ++x) {
-        const bool inner = inner_row && x >= reach_x && x < w - reach_x;
-        float acc0 = 0.0F;
-        float acc1 = 0.0F;
-        float acc2 = 0.0F;
-        for (int i = 0; i <= steps; ++i) {
-          int sx = x + off_x[i];
-          int sy = y + off_y[i];
-          if (!inner) {  // clamp at the borders only
-            sx = std::min(w - 1, std::max(0, sx));
-            sy = std::min(h - 1, std::max(0, sy));
-          }
-          const float* p = &src[3U * (static_cast<std::size_t>(sy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(sx))];
-          acc0 += p[0];
-          acc1 += p[1];
-          acc2 += p[2];
-        }
-        float* q = &tmp[3U * (static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x))];
-        q[0] = acc0 * inv;
-        q[1] = acc1 * inv;
-        q[2] = acc2 * inv;
-      }
-    }
-    std::swap(src, tmp);
+  constexpr int kMaxSteps = 32;
+  const int steps = std::min(kMaxSteps, std::max(2, static_cast<int>(std::ceil(std::hypot(s.blur_dx, s.blur_dy)))));
+  int off_x[kMaxSteps + 1];
+  int off_y[kMaxSteps + 1];
+  int reach_x = 0;
+  int reach_y = 0;
+  for (int i = 0; i <= steps; ++i) {
+    const double f = static_cast<double>(i) / steps - 0.5;
+    off_x[i] = static_cast<int>(std::lround(f * s.blur_dx));
+    off_y[i] = static_cast<int>(std::lround(f * s.blur_dy));
+    reach_x = std::max(reach_x, std::abs(off_x[i]));
+    reach_y = std::max(reach_y, std::abs(off_y[i]));
   }
-  // Slight optical blur: separable 3-tap Gaussian.
-  if (s.blur_sigma > 0.0) {
-    const auto side = static_cast<float>(std::exp(-1.0 / (2.0 * s.blur_sigma * s.blur_sigma)));
-    const float norm = 1.0F / (1.0F + 2.0F * side);
-    const float wc = norm;
-    const float ws = side * norm;
-    for (int y = 0; y < h; ++y) {
-      const float* row = &src[3U * static_cast<std::size_t>(y) * static_cast<std::size_t>(w)];
-      float* dst = &tmp[3U * static_cast<std::size_t>(y) * static_cast<std::size_t>(w)];
-      for (int x = 0; x < w; ++x) {
-        const int xl = std::max(0, x - 1);
-        const int xr = std::min(w - 1, x + 1);
-        for (int c = 0; c < 3; ++c) {
-          dst[3 * x + c] = wc * row[3 * x + c] + ws * (row[3 * xl + c] + row[3 * xr + c]);
+  const float inv = 1.0F / static_cast<float>(steps + 1);
+  for (int y = 0; y < h; ++y) {
+    const bool inner_row = y >= reach_y && y < h - reach_y;
+    for (int x = 0; x < w; ++x) {
+      const bool inner = inner_row && x >= reach_x && x < w - reach_x;
+      float acc0 = 0.0F;
+      float acc1 = 0.0F;
+      float acc2 = 0.0F;
+      for (int i = 0; i <= steps; ++i) {
+        int sx = x + off_x[i];
+        int sy = y + off_y[i];
+        if (!inner) {  // clamp at the borders only
+          sx = std::min(w - 1, std::max(0, sx));
+          sy = std::min(h - 1, std::max(0, sy));
         }
+        const float* p = &src[3U * (static_cast<std::size_t>(sy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(sx))];
+        acc0 += p[0];
+        acc1 += p[1];
+        acc2 += p[2];
       }
+      float* q = &dst[3U * (static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x))];
+      q[0] = acc0 * inv;
+      q[1] = acc1 * inv;
+      q[2] = acc2 * inv;
     }
-    for (int y = 0; y < h; ++y) {
-      const int yu = std::max(0, y - 1);
-      const int yd = std::min(h - 1, y + 1);
-      const float* r0 = &tmp[3U * static_cast<std::size_t>(yu) * static_cast<std::size_t>(w)];
-      const float* r1 = &tmp[3U * static_cast<std::size_t>(y) * static_cast<std::size_t>(w)];
-      const float* r2 = &tmp[3U * static_cast<std::size_t>(yd) * static_cast<std::size_t>(w)];
-      float* dst = &src[3U * static_cast<std::size_t>(y) * static_cast<std::size_t>(w)];
-      for (int i = 0; i < 3 * w; ++i) {
-        dst[i] = wc * r1[i] + ws * (r0[i] + r2[i]);
+  }
+}
+
+// Slight optical blur of the linear image in place: separable 3-tap Gaussian
+// (rows into `tmp`, then columns back).
+void Renderer::Impl::apply_optical_blur(float* image, float* tmp) const noexcept {
+  const int w = width;
+  const int h = height;
+  const auto side = static_cast<float>(std::exp(-1.0 / (2.0 * layout.blur_sigma * layout.blur_sigma)));
+  const float norm = 1.0F / (1.0F + 2.0F * side);
+  const float wc = norm;
+  const float ws = side * norm;
+  for (int y = 0; y < h; ++y) {
+    const float* row = &image[3U * static_cast<std::size_t>(y) * static_cast<std::size_t>(w)];
+    float* dst = &tmp[3U * static_cast<std::size_t>(y) * static_cast<std::size_t>(w)];
+    for (int x = 0; x < w; ++x) {
+      const int xl = std::max(0, x - 1);
+      const int xr = std::min(w - 1, x + 1);
+      for (int c = 0; c < 3; ++c) {
+        dst[3 * x + c] = wc * row[3 * x + c] + ws * (row[3 * xl + c] + row[3 * xr + c]);
       }
     }
   }
-  // Vignetting, tone curve and gamma, noise, 8-bit saturation.
+  for (int y = 0; y < h; ++y) {
+    const int yu = std::max(0, y - 1);
+    const int yd = std::min(h - 1, y + 1);
+    const float* r0 = &tmp[3U * static_cast<std::size_t>(yu) * static_cast<std::size_t>(w)];
+    const float* r1 = &tmp[3U * static_cast<std::size_t>(y) * static_cast<std::size_t>(w)];
+    const float* r2 = &tmp[3U * static_cast<std::size_t>(yd) * static_cast<std::size_t>(w)];
+    float* dst = &image[3U * static_cast<std::size_t>(y) * static_cast<std::size_t>(w)];
+    for (int i = 0; i < 3 * w; ++i) {
+      dst[i] = wc * r1[i] + ws * (r0[i] + r2[i]);
+    }
+  }
+}
+
+// Vignetting, tone curve and gamma, noise, 8-bit saturation: the linear
+// image `src` to the output frame.
+void Renderer::Impl::tone_map(const SceneSpec& scene, const float* src, const MutableImageView& out) const noexcept {
+  const SceneLayout& s = layout;
+  const int w = width;
+  const int h = height;
   const auto& k = camera.intrinsics();
   const double lut_scale = kToneLutSize / 4.0;
   for (int y = 0; y < h; ++y) {
@@ -1220,6 +1246,22 @@ void Renderer::Impl::post_process(const SceneSpec& scene, const MutableImageView
       }
     }
   }
+}
+
+void Renderer::Impl::post_process(const SceneSpec& scene, const MutableImageView& out) noexcept {
+  float* src = linear.get();
+  float* tmp = scratch.get();
+  // Motion blur: a symmetric streak (the ground truth is mid-exposure).
+  if (layout.motion_blur) {
+    apply_motion_blur(src, tmp);
+    std::swap(src, tmp);
+  }
+  // Slight optical blur: separable 3-tap Gaussian.
+  if (layout.blur_sigma > 0.0) {
+    apply_optical_blur(src, tmp);
+  }
+  // Vignetting, tone curve and gamma, noise, 8-bit saturation.
+  tone_map(scene, src, out);
 }
 
 Renderer::Renderer(std::unique_ptr<Impl> impl) noexcept : impl_(std::move(impl)) {}
@@ -1308,43 +1350,33 @@ Status<RenderError> Renderer::ground_truth(const SceneSpec& scene, GroundTruth& 
   return ok_status<RenderError>();
 }
 
-Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView out, GroundTruth& truth,
-                                     float* coverage) noexcept {
-  Impl& m = *impl_;
-  if (!out.valid() || out.width != m.width || out.height != m.height) {
-    return Status<RenderError>::failure(RenderError::BadImage);
-  }
-  const auto status = ground_truth(scene, truth);
-  if (!status.ok()) {
-    return status;
-  }
-  m.bin_tiles();
-  const int w = m.width;
-  const int h = m.height;
-  // Pass 1: one sample at every pixel centre.
-  long instrument_pixels[2] = {0, 0};
-  for (int ty = 0; ty < m.tiles_y; ++ty) {
-    for (int tx = 0; tx < m.tiles_x; ++tx) {
-      const std::size_t tile = static_cast<std::size_t>(ty) * static_cast<std::size_t>(m.tiles_x) + static_cast<std::size_t>(tx);
-      const std::uint16_t* list = &m.tile_prims[tile * kMaxPrims];
-      const int count = m.tile_count[tile];
+// Pass 1 of a render: one sample at every pixel centre, tile by tile; counts
+// each instrument's pixels into instrument_pixels[2].
+void Renderer::Impl::shade_pixel_centres(float* coverage, long* instrument_pixels) noexcept {
+  const int w = width;
+  const int h = height;
+  for (int ty = 0; ty < tiles_y; ++ty) {
+    for (int tx = 0; tx < tiles_x; ++tx) {
+      const std::size_t tile = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tiles_x) + static_cast<std::size_t>(tx);
+      const std::uint16_t* list = &tile_prims[tile * kMaxPrims];
+      const int count = tile_count[tile];
       const int y1 = std::min(h, (ty + 1) * kTileSize);
       const int x1 = std::min(w, (tx + 1) * kTileSize);
       for (int y = ty * kTileSize; y < y1; ++y) {
         for (int x = tx * kTileSize; x < x1; ++x) {
           const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x);
-          const auto rx = static_cast<double>(m.ray_x[i]);
-          float* px = &m.linear[3U * i];
+          const auto rx = static_cast<double>(ray_x[i]);
+          float* px = &linear[3U * i];
           if (std::isnan(rx)) {
-            m.labels[i] = kLabelNoRay;
+            labels[i] = kLabelNoRay;
             px[0] = px[1] = px[2] = 0.0F;
             if (coverage != nullptr) {
               coverage[i] = 0.0F;
             }
             continue;
           }
-          const Sample sample = m.shade(rx, static_cast<double>(m.ray_y[i]), list, count);
-          m.labels[i] = sample.label;
+          const Sample sample = shade(rx, static_cast<double>(ray_y[i]), list, count);
+          labels[i] = sample.label;
           if (sample.instrument) {
             ++instrument_pixels[(sample.label - kLabelInstrument) / 8];
           }
@@ -1358,103 +1390,143 @@ Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView ou
       }
     }
   }
-  // Pass 2: pixels whose neighbourhood changes label are supersampled.
-  const int n = m.settings.supersample;
-  const double inv_n = 1.0 / n;
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x);
-      const std::uint8_t label = m.labels[i];
-      if (label == kLabelNoRay || n == 1) {
+}
+
+// Whether a pixel of `label` has a neighbour (8-connected) of another label.
+bool Renderer::Impl::on_label_edge(int x, int y, std::uint8_t label) const noexcept {
+  const int w = width;
+  const int h = height;
+  for (int dy = -1; dy <= 1; ++dy) {
+    const int yy = y + dy;
+    if (yy < 0 || yy >= h) {
+      continue;
+    }
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int xx = x + dx;
+      if (xx < 0 || xx >= w) {
         continue;
       }
-      bool edge = false;
-      for (int dy = -1; dy <= 1 && !edge; ++dy) {
-        const int yy = y + dy;
-        if (yy < 0 || yy >= h) {
-          continue;
-        }
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int xx = x + dx;
-          if (xx < 0 || xx >= w) {
-            continue;
-          }
-          if (m.labels[static_cast<std::size_t>(yy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(xx)] != label) {
-            edge = true;
-            break;
-          }
-        }
-      }
-      if (!edge) {
-        continue;
-      }
-      // Ray derivatives per pixel (central where possible).
-      auto ray_at = [&m, w](int xx, int yy, double& rx, double& ry) {
-        const std::size_t j = static_cast<std::size_t>(yy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(xx);
-        rx = static_cast<double>(m.ray_x[j]);
-        ry = static_cast<double>(m.ray_y[j]);
-        return !std::isnan(rx);
-      };
-      double cx = 0.0;
-      double cy = 0.0;
-      static_cast<void>(ray_at(x, y, cx, cy));  // valid: label is not kLabelNoRay
-      double gxx = 0.0;
-      double gxy = 0.0;
-      double gyx = 0.0;
-      double gyy = 0.0;
-      double ax = 0.0;
-      double ay = 0.0;
-      double bx = 0.0;
-      double by = 0.0;
-      const bool l = x > 0 && ray_at(x - 1, y, ax, ay);
-      const bool r = x + 1 < w && ray_at(x + 1, y, bx, by);
-      if (l && r) {
-        gxx = 0.5 * (bx - ax);
-        gxy = 0.5 * (by - ay);
-      } else if (r) {
-        gxx = bx - cx;
-        gxy = by - cy;
-      } else if (l) {
-        gxx = cx - ax;
-        gxy = cy - ay;
-      }
-      const bool u = y > 0 && ray_at(x, y - 1, ax, ay);
-      const bool dn = y + 1 < h && ray_at(x, y + 1, bx, by);
-      if (u && dn) {
-        gyx = 0.5 * (bx - ax);
-        gyy = 0.5 * (by - ay);
-      } else if (dn) {
-        gyx = bx - cx;
-        gyy = by - cy;
-      } else if (u) {
-        gyx = cx - ax;
-        gyy = cy - ay;
-      }
-      const std::size_t tile = static_cast<std::size_t>(y / kTileSize) * static_cast<std::size_t>(m.tiles_x) +
-                               static_cast<std::size_t>(x / kTileSize);
-      const std::uint16_t* list = &m.tile_prims[tile * kMaxPrims];
-      const int count = m.tile_count[tile];
-      Rgb acc;
-      int covered = 0;
-      for (int sy = 0; sy < n; ++sy) {
-        const double oy = (sy + 0.5) * inv_n - 0.5;
-        for (int sx = 0; sx < n; ++sx) {
-          const double ox = (sx + 0.5) * inv_n - 0.5;
-          const Sample sample = m.shade(cx + ox * gxx + oy * gyx, cy + ox * gxy + oy * gyy, list, count);
-          acc = acc + sample.colour;
-          covered += sample.instrument ? 1 : 0;
-        }
-      }
-      const double inv = 1.0 / (n * n);
-      float* px = &m.linear[3U * i];
-      px[0] = static_cast<float>(acc.r * inv);
-      px[1] = static_cast<float>(acc.g * inv);
-      px[2] = static_cast<float>(acc.b * inv);
-      if (coverage != nullptr) {
-        coverage[i] = static_cast<float>(covered * inv);
+      if (labels[static_cast<std::size_t>(yy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(xx)] != label) {
+        return true;
       }
     }
   }
+  return false;
+}
+
+// The ray of pixel (x, y), which must have one, and how it changes from
+// pixel to pixel in x and in y.
+RayFootprint Renderer::Impl::ray_footprint(int x, int y) const noexcept {
+  const int w = width;
+  const int h = height;
+  // Ray derivatives per pixel (central where possible).
+  auto ray_at = [this, w](int xx, int yy, double& rx, double& ry) {
+    const std::size_t j = static_cast<std::size_t>(yy) * static_cast<std::size_t>(w) + static_cast<std::size_t>(xx);
+    rx = static_cast<double>(ray_x[j]);
+    ry = static_cast<double>(ray_y[j]);
+    return !std::isnan(rx);
+  };
+  RayFootprint f;
+  static_cast<void>(ray_at(x, y, f.cx, f.cy));  // valid: only pixels whose label is not kLabelNoRay come here
+  double ax = 0.0;
+  double ay = 0.0;
+  double bx = 0.0;
+  double by = 0.0;
+  const bool l = x > 0 && ray_at(x - 1, y, ax, ay);
+  const bool r = x + 1 < w && ray_at(x + 1, y, bx, by);
+  if (l && r) {
+    f.gxx = 0.5 * (bx - ax);
+    f.gxy = 0.5 * (by - ay);
+  } else if (r) {
+    f.gxx = bx - f.cx;
+    f.gxy = by - f.cy;
+  } else if (l) {
+    f.gxx = f.cx - ax;
+    f.gxy = f.cy - ay;
+  }
+  const bool u = y > 0 && ray_at(x, y - 1, ax, ay);
+  const bool dn = y + 1 < h && ray_at(x, y + 1, bx, by);
+  if (u && dn) {
+    f.gyx = 0.5 * (bx - ax);
+    f.gyy = 0.5 * (by - ay);
+  } else if (dn) {
+    f.gyx = bx - f.cx;
+    f.gyy = by - f.cy;
+  } else if (u) {
+    f.gyx = f.cx - ax;
+    f.gyy = f.cy - ay;
+  }
+  return f;
+}
+
+// Replaces pixel (x, y)'s colour (and coverage) by the mean of n x n samples
+// over its footprint, n = settings.supersample.
+void Renderer::Impl::supersample_pixel(int x, int y, float* coverage) noexcept {
+  const int n = settings.supersample;
+  const double inv_n = 1.0 / n;
+  const RayFootprint f = ray_footprint(x, y);
+  const std::size_t tile = static_cast<std::size_t>(y / kTileSize) * static_cast<std::size_t>(tiles_x) +
+                           static_cast<std::size_t>(x / kTileSize);
+  const std::uint16_t* list = &tile_prims[tile * kMaxPrims];
+  const int count = tile_count[tile];
+  Rgb acc;
+  int covered = 0;
+  for (int sy = 0; sy < n; ++sy) {
+    const double oy = (sy + 0.5) * inv_n - 0.5;
+    for (int sx = 0; sx < n; ++sx) {
+      const double ox = (sx + 0.5) * inv_n - 0.5;
+      const Sample sample = shade(f.cx + ox * f.gxx + oy * f.gyx, f.cy + ox * f.gxy + oy * f.gyy, list, count);
+      acc = acc + sample.colour;
+      covered += sample.instrument ? 1 : 0;
+    }
+  }
+  const double inv = 1.0 / (n * n);
+  const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
+  float* px = &linear[3U * i];
+  px[0] = static_cast<float>(acc.r * inv);
+  px[1] = static_cast<float>(acc.g * inv);
+  px[2] = static_cast<float>(acc.b * inv);
+  if (coverage != nullptr) {
+    coverage[i] = static_cast<float>(covered * inv);
+  }
+}
+
+// Pass 2 of a render: pixels whose neighbourhood changes label are supersampled.
+void Renderer::Impl::supersample_edges(float* coverage) noexcept {
+  const int w = width;
+  const int h = height;
+  const int n = settings.supersample;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x);
+      const std::uint8_t label = labels[i];
+      if (label == kLabelNoRay || n == 1) {
+        continue;
+      }
+      if (!on_label_edge(x, y, label)) {
+        continue;
+      }
+      supersample_pixel(x, y, coverage);
+    }
+  }
+}
+
+Status<RenderError> Renderer::render(const SceneSpec& scene, MutableImageView out, GroundTruth& truth,
+                                     float* coverage) noexcept {
+  Impl& m = *impl_;
+  if (!out.valid() || out.width != m.width || out.height != m.height) {
+    return Status<RenderError>::failure(RenderError::BadImage);
+  }
+  const auto status = ground_truth(scene, truth);
+  if (!status.ok()) {
+    return status;
+  }
+  m.bin_tiles();
+  // Pass 1: one sample at every pixel centre.
+  long instrument_pixels[2] = {0, 0};
+  m.shade_pixel_centres(coverage, instrument_pixels);
+  // Pass 2: pixels whose neighbourhood changes label are supersampled.
+  m.supersample_edges(coverage);
   // An instrument the geometry placed in view but no pixel shows is out of view.
   for (int k = 0; k < truth.instrument_count; ++k) {
     InstrumentTruth& it = truth.instruments[static_cast<std::size_t>(k)];
