@@ -361,66 +361,57 @@ bool write_latency_svg(const char* path, const std::vector<Sample>& samples) {
   return std::fclose(f) == 0;
 }
 
-}  // namespace
-
-int cmd_demo(int argc, char** argv) {
-  auto args_owner = std::make_unique<Args>();  // large (positional table): not on the stack
-  Args& args = *args_owner;
-  char error[256];
-  if (!args.parse(argc, argv, 1, kOptions, kOptionCount, error, sizeof error)) {
-    std::fprintf(stderr, "tcpest demo: %s (see --help)\n", error);
-    return kExitUsage;
-  }
-  if (args.help_requested()) {
-    print_usage("tcpest demo [--out DIR]",
-                "Renders a synthetic motion sequence with the built-in camera and runs the real loop on it at 25 Hz\n"
-                "(about 10 s), on vcan0 if it exists, else on the in-process simulated bus. Prints the accuracy\n"
-                "against the ground truth and the timing; writes can.log, cycles.csv, overlays/, tcp.svg and\n"
-                "latency.svg into DIR.",
-                kOptions, kOptionCount);
-    return kExitOk;
-  }
-  if (args.positional_count() != 0U) {
-    std::fprintf(stderr, "tcpest demo: unexpected argument '%s' (see --help)\n", args.positional(0));
-    return kExitUsage;
-  }
-  const char* out_dir = args.value("out") != nullptr ? args.value("out") : "tcpest-demo";
+// The demo's options.
+struct DemoOptions {
+  const char* out_dir = "tcpest-demo";
   unsigned long long frames = 250U;
   unsigned long long seed = 7U;
   unsigned long long overlay_every = 25U;
-  if ((args.value("frames") != nullptr && (!parse_unsigned(args.value("frames"), frames) || frames == 0U || frames > 100000U)) ||
-      (args.value("seed") != nullptr && !parse_unsigned(args.value("seed"), seed)) ||
-      (args.value("overlay-every") != nullptr && !parse_unsigned(args.value("overlay-every"), overlay_every))) {
+};
+
+// --out, --frames, --seed and --overlay-every. Returns kExitOk or kExitUsage
+// (reported).
+int parse_demo_options(const Args& args, DemoOptions& o) noexcept {
+  o.out_dir = args.value("out") != nullptr ? args.value("out") : "tcpest-demo";
+  if ((args.value("frames") != nullptr &&
+       (!parse_unsigned(args.value("frames"), o.frames) || o.frames == 0U || o.frames > 100000U)) ||
+      (args.value("seed") != nullptr && !parse_unsigned(args.value("seed"), o.seed)) ||
+      (args.value("overlay-every") != nullptr && !parse_unsigned(args.value("overlay-every"), o.overlay_every))) {
     std::fprintf(stderr, "tcpest demo: --frames, --seed, --overlay-every: expected non-negative integers\n");
     return kExitUsage;
   }
-  char overlay_dir[512];
-  char log_path[512];
-  char csv_path[512];
-  char tcp_svg[512];
-  char latency_svg[512];
-  static_cast<void>(std::snprintf(overlay_dir, sizeof overlay_dir, "%s/overlays", out_dir));  // paths under 512 bytes
-  static_cast<void>(std::snprintf(log_path, sizeof log_path, "%s/can.log", out_dir));
-  static_cast<void>(std::snprintf(csv_path, sizeof csv_path, "%s/cycles.csv", out_dir));
-  static_cast<void>(std::snprintf(tcp_svg, sizeof tcp_svg, "%s/tcp.svg", out_dir));
-  static_cast<void>(std::snprintf(latency_svg, sizeof latency_svg, "%s/latency.svg", out_dir));
-  if (!make_directory(out_dir) || !make_directory(overlay_dir)) {
+  return kExitOk;
+}
+
+// The files the demo writes into its output directory.
+struct DemoPaths {
+  char overlay_dir[512] = {};
+  char log_path[512] = {};
+  char csv_path[512] = {};
+  char tcp_svg[512] = {};
+  char latency_svg[512] = {};
+};
+
+// The output paths under `out_dir`, and the directories (out_dir and its
+// overlays/). Returns kExitOk or kExitConfig (reported).
+int make_demo_paths(const char* out_dir, DemoPaths& p) noexcept {
+  static_cast<void>(std::snprintf(p.overlay_dir, sizeof p.overlay_dir, "%s/overlays", out_dir));  // paths under 512 bytes
+  static_cast<void>(std::snprintf(p.log_path, sizeof p.log_path, "%s/can.log", out_dir));
+  static_cast<void>(std::snprintf(p.csv_path, sizeof p.csv_path, "%s/cycles.csv", out_dir));
+  static_cast<void>(std::snprintf(p.tcp_svg, sizeof p.tcp_svg, "%s/tcp.svg", out_dir));
+  static_cast<void>(std::snprintf(p.latency_svg, sizeof p.latency_svg, "%s/latency.svg", out_dir));
+  if (!make_directory(out_dir) || !make_directory(p.overlay_dir)) {
     std::fprintf(stderr, "tcpest demo: cannot create %s: %s\n", out_dir, std::strerror(errno));
     return kExitConfig;
   }
+  return kExitOk;
+}
 
-  const bool have_vcan = ::if_nametoindex("vcan0") != 0U;
-  const char* bus = args.value("bus") != nullptr ? args.value("bus") : (have_vcan ? "vcan0" : "sim");
-  RigRequest request;
-  request.command = "demo";
-  request.config_path = args.value("config");
-  request.calib_path = args.value("calib");
-  request.source = "sim";
-  request.bus = bus;
-  request.sim_frames = static_cast<std::uint32_t>(frames);
-  const std::atomic<bool>* stop = install_stop_signals();
-  auto rig_owner = std::make_unique<LoopRig>();  // the loop's buffers: allocated once, here
-  LoopRig& rig = *rig_owner;
+// Loads the rig for the demo: configuration and models, the loop's settings
+// for a frame-triggered paced run, the simulated camera with this seed, the
+// bus (logged to `log_path`) and the loop. Returns kExitOk, else the exit
+// code (reported).
+int load_demo_rig(const RigRequest& request, const DemoOptions& o, const char* log_path, LoopRig& rig) noexcept {
   int code = rig.load(request);
   if (code != kExitOk) {
     return code;
@@ -430,12 +421,12 @@ int cmd_demo(int argc, char** argv) {
   rig.config.loop.replay_loop = false;
   rig.config.loop.frames = 0U;
   rig.config.can.autostart = false;  // the simulated robot starts the node, as the real one would
-  std::printf("tcpest demo: rendering %llu frames of a motion sequence (seed %llu) ...\n", frames, seed);
+  std::printf("tcpest demo: rendering %llu frames of a motion sequence (seed %llu) ...\n", o.frames, o.seed);
   // The simulated camera, with this seed.
   {
     loop::PrerenderOptions options;
-    options.frames = static_cast<std::uint32_t>(frames);
-    options.seed = seed;
+    options.frames = static_cast<std::uint32_t>(o.frames);
+    options.seed = o.seed;
     options.loop = false;
     auto created = loop::PrerenderedSource::create(rig.models.camera, rig.models.instrument, options);
     if (!created.ok()) {
@@ -449,54 +440,30 @@ int cmd_demo(int argc, char** argv) {
   if (code == kExitOk) {
     code = rig.build();
   }
-  if (code != kExitOk) {
-    return code;
-  }
-  // The robot: the other endpoint of the simulated bus, or its own socket on the interface.
-  hal::SocketCanBus robot_socket;
-  hal::CanBus* robot_bus = nullptr;
-  if (rig.sim_bus) {
-    robot_bus = &rig.sim_bus->endpoint(1);
-  } else {
-    hal::SocketCanConfig sc;
-    const std::uint32_t ids[] = {can::tcp_id(rig.config.can.node_id), can::heartbeat_id(rig.config.can.node_id)};
-    for (const std::uint32_t id : ids) {
-      static_cast<void>(sc.rx_ids.push_back(id));  // 2 of 16
-    }
-    if (!robot_socket.open(bus, sc).ok()) {
-      std::fprintf(stderr, "tcpest demo: cannot open %s for the simulated robot\n", bus);
-      return kExitFailure;
-    }
-    robot_bus = &robot_socket;
-  }
-  Robot robot(*robot_bus, rig.config.can.node_id);
-  std::FILE* csv = std::fopen(csv_path, "w");
-  if (csv == nullptr) {
-    std::fprintf(stderr, "tcpest demo: cannot write %s: %s\n", csv_path, std::strerror(errno));
-    return kExitConfig;
-  }
-  std::vector<Sample> samples;
-  samples.reserve(static_cast<std::size_t>(frames) + 16U);
-  DemoObserver observer(rig, robot, csv, overlay_dir, static_cast<int>(overlay_every), samples);
-  if (!observer.init()) {
-    std::fclose(csv);
-    return kExitFailure;
-  }
-  rig.executive->set_observer(&observer);
-  std::printf("tcpest demo: running the loop at 25 Hz on %s (vision, solver, CAN node 0x%02X) ...\n", rig.bus_label,
-              static_cast<unsigned>(rig.config.can.node_id));
-  // The node boots (boot-up message), the robot starts it, the first prior goes out.
-  static_cast<void>(rig.node->receive(rig.clock.now_ns()));  // a bus fault here shows in the first cycle again
-  robot.start_node();
-  robot.send_prior(rig.sim->encoder_reading(0U));
-  const loop::CycleOutcome outcome = rig.executive->run(stop);
-  robot.drain();
-  const bool csv_ok = std::fclose(csv) == 0;
-  if (rig.logging) {
-    static_cast<void>(rig.log.flush());  // checked by close() in the rig's destructor path below
-  }
+  return code;
+}
 
-  // Accuracy against the ground truth.
+// The robot's bus: the other endpoint of the simulated bus, or `socket`
+// opened on the interface `bus`. nullptr (reported) if it cannot be opened.
+hal::CanBus* open_robot_bus(LoopRig& rig, const char* bus, hal::SocketCanBus& socket) noexcept {
+  if (rig.sim_bus) {
+    return &rig.sim_bus->endpoint(1);
+  }
+  hal::SocketCanConfig sc;
+  const std::uint32_t ids[] = {can::tcp_id(rig.config.can.node_id), can::heartbeat_id(rig.config.can.node_id)};
+  for (const std::uint32_t id : ids) {
+    static_cast<void>(sc.rx_ids.push_back(id));  // 2 of 16
+  }
+  if (!socket.open(bus, sc).ok()) {
+    std::fprintf(stderr, "tcpest demo: cannot open %s for the simulated robot\n", bus);
+    return nullptr;
+  }
+  return &socket;
+}
+
+// Prints the accuracy of the estimates (valid or degraded) against the
+// ground truth: share of frames, 3-D error and per-axis error (mm).
+void print_accuracy(const std::vector<Sample>& samples) {
   std::vector<double> err3;
   std::vector<double> err_axis[3];
   std::size_t estimated = 0U;
@@ -521,12 +488,109 @@ int cmd_demo(int argc, char** argv) {
     std::printf("per axis, median |error| (mm): x %.2f, y %.2f, z %.2f\n", percentile(err_axis[0], 0.5),
                 percentile(err_axis[1], 0.5), percentile(err_axis[2], 0.5));
   }
+}
+
+// The report after the run: accuracy, timing, what the robot received, the
+// plots (tcp.svg, latency.svg) and the list of outputs. False if a plot could
+// not be written.
+bool report_run(const LoopRig& rig, const Robot& robot, const std::vector<Sample>& samples,
+                const DemoPaths& paths) {
+  // Accuracy against the ground truth.
+  print_accuracy(samples);
   std::printf("\n== timing\n");
   print_summary(stdout, *rig.executive);
   std::printf("robot side: %llu frames received from the estimator\n",
               static_cast<unsigned long long>(robot.received()));
-  const bool svg_ok = write_tcp_svg(tcp_svg, samples) && write_latency_svg(latency_svg, samples);
-  std::printf("\nwritten: %s, %s, %s, %s, %s/\n", log_path, csv_path, tcp_svg, latency_svg, overlay_dir);
+  const bool svg_ok = write_tcp_svg(paths.tcp_svg, samples) && write_latency_svg(paths.latency_svg, samples);
+  std::printf("\nwritten: %s, %s, %s, %s, %s/\n", paths.log_path, paths.csv_path, paths.tcp_svg, paths.latency_svg,
+              paths.overlay_dir);
+  return svg_ok;
+}
+
+}  // namespace
+
+int cmd_demo(int argc, char** argv) {
+  auto args_owner = std::make_unique<Args>();  // large (positional table): not on the stack
+  Args& args = *args_owner;
+  char error[256];
+  if (!args.parse(argc, argv, 1, kOptions, kOptionCount, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest demo: %s (see --help)\n", error);
+    return kExitUsage;
+  }
+  if (args.help_requested()) {
+    print_usage("tcpest demo [--out DIR]",
+                "Renders a synthetic motion sequence with the built-in camera and runs the real loop on it at 25 Hz\n"
+                "(about 10 s), on vcan0 if it exists, else on the in-process simulated bus. Prints the accuracy\n"
+                "against the ground truth and the timing; writes can.log, cycles.csv, overlays/, tcp.svg and\n"
+                "latency.svg into DIR.",
+                kOptions, kOptionCount);
+    return kExitOk;
+  }
+  if (args.positional_count() != 0U) {
+    std::fprintf(stderr, "tcpest demo: unexpected argument '%s' (see --help)\n", args.positional(0));
+    return kExitUsage;
+  }
+  DemoOptions options;
+  int code = parse_demo_options(args, options);
+  if (code != kExitOk) {
+    return code;
+  }
+  DemoPaths paths;
+  code = make_demo_paths(options.out_dir, paths);
+  if (code != kExitOk) {
+    return code;
+  }
+
+  const bool have_vcan = ::if_nametoindex("vcan0") != 0U;
+  const char* bus = args.value("bus") != nullptr ? args.value("bus") : (have_vcan ? "vcan0" : "sim");
+  RigRequest request;
+  request.command = "demo";
+  request.config_path = args.value("config");
+  request.calib_path = args.value("calib");
+  request.source = "sim";
+  request.bus = bus;
+  request.sim_frames = static_cast<std::uint32_t>(options.frames);
+  const std::atomic<bool>* stop = install_stop_signals();
+  auto rig_owner = std::make_unique<LoopRig>();  // the loop's buffers: allocated once, here
+  LoopRig& rig = *rig_owner;
+  code = load_demo_rig(request, options, paths.log_path, rig);
+  if (code != kExitOk) {
+    return code;
+  }
+  // The robot: the other endpoint of the simulated bus, or its own socket on the interface.
+  hal::SocketCanBus robot_socket;
+  hal::CanBus* robot_bus = open_robot_bus(rig, bus, robot_socket);
+  if (robot_bus == nullptr) {
+    return kExitFailure;
+  }
+  Robot robot(*robot_bus, rig.config.can.node_id);
+  std::FILE* csv = std::fopen(paths.csv_path, "w");
+  if (csv == nullptr) {
+    std::fprintf(stderr, "tcpest demo: cannot write %s: %s\n", paths.csv_path, std::strerror(errno));
+    return kExitConfig;
+  }
+  std::vector<Sample> samples;
+  samples.reserve(static_cast<std::size_t>(options.frames) + 16U);
+  DemoObserver observer(rig, robot, csv, paths.overlay_dir, static_cast<int>(options.overlay_every), samples);
+  if (!observer.init()) {
+    std::fclose(csv);
+    return kExitFailure;
+  }
+  rig.executive->set_observer(&observer);
+  std::printf("tcpest demo: running the loop at 25 Hz on %s (vision, solver, CAN node 0x%02X) ...\n", rig.bus_label,
+              static_cast<unsigned>(rig.config.can.node_id));
+  // The node boots (boot-up message), the robot starts it, the first prior goes out.
+  static_cast<void>(rig.node->receive(rig.clock.now_ns()));  // a bus fault here shows in the first cycle again
+  robot.start_node();
+  robot.send_prior(rig.sim->encoder_reading(0U));
+  const loop::CycleOutcome outcome = rig.executive->run(stop);
+  robot.drain();
+  const bool csv_ok = std::fclose(csv) == 0;
+  if (rig.logging) {
+    static_cast<void>(rig.log.flush());  // checked by close() in the rig's destructor path below
+  }
+
+  const bool svg_ok = report_run(rig, robot, samples, paths);
   if (!csv_ok || !svg_ok) {
     std::fprintf(stderr, "tcpest demo: some outputs could not be written\n");
     return kExitFailure;

@@ -138,6 +138,333 @@ class ContactSheet {
   int thumb_w_ = 0, thumb_h_ = 0, width_ = 0, height_ = 0, count_ = 0;
 };
 
+// The options of one render, parsed and checked.
+struct RenderOptions {
+  SetKind set = SetKind::Lab;
+  const char* set_name = nullptr;
+  const char* out_dir = nullptr;
+  const char* sheet_path = nullptr;  // --contact-sheet, nullptr: none
+  unsigned long long n = 0U;
+  unsigned long long start = 0U;
+  unsigned long long seed = 1U;
+  unsigned long long quality = 92U;
+  unsigned long long supersample = 4U;
+  double fps = 25.0;
+  std::uint32_t forced_hard = 0U;
+  PoseVector single_r = PoseVector::Zero();
+  bool raw = false;
+  bool two_instruments = false;
+  bool clean = false;
+  bool quiet = false;
+};
+
+// The set named by --set; false if the name is unknown.
+bool parse_set_kind(const char* name, SetKind& set) noexcept {
+  if (std::strcmp(name, "lab") == 0) {
+    set = SetKind::Lab;
+  } else if (std::strcmp(name, "hard") == 0) {
+    set = SetKind::Hard;
+  } else if (std::strcmp(name, "seq") == 0) {
+    set = SetKind::Seq;
+  } else if (std::strcmp(name, "single") == 0) {
+    set = SetKind::Single;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// --n, --start, --seed, --quality, --supersample and --fps with their
+// defaults and ranges (lab/hard: n clipped to the grid). Returns kExitOk or
+// kExitUsage (reported).
+int parse_numeric_options(const Args& args, RenderOptions& o) noexcept {
+  o.n = (o.set == SetKind::Seq) ? 100U : static_cast<unsigned long long>(render::kLabGridSize);
+  if ((args.value("n") != nullptr && !parse_unsigned(args.value("n"), o.n)) ||
+      (args.value("start") != nullptr && !parse_unsigned(args.value("start"), o.start)) ||
+      (args.value("seed") != nullptr && !parse_unsigned(args.value("seed"), o.seed)) ||
+      (args.value("quality") != nullptr && !parse_unsigned(args.value("quality"), o.quality)) ||
+      (args.value("supersample") != nullptr && !parse_unsigned(args.value("supersample"), o.supersample)) ||
+      (args.value("fps") != nullptr && !parse_number(args.value("fps"), o.fps))) {
+    std::fprintf(stderr, "tcpest render: --n, --start, --seed, --quality, --supersample take non-negative integers, "
+                         "--fps a number\n");
+    return kExitUsage;
+  }
+  if (o.quality < 1U || o.quality > 100U || o.supersample < 1U || o.supersample > 8U ||
+      !(o.fps > 0.0 && o.fps <= 1000.0) || o.n > 1000000U || o.start > 1000000U) {
+    std::fprintf(stderr, "tcpest render: out of range: --quality 1..100, --supersample 1..8, --fps (0, 1000], "
+                         "--n and --start <= 1000000\n");
+    return kExitUsage;
+  }
+  if ((o.set == SetKind::Lab || o.set == SetKind::Hard) &&
+      o.start + o.n > static_cast<unsigned long long>(render::kLabGridSize)) {
+    o.n = (o.start >= static_cast<unsigned long long>(render::kLabGridSize))
+              ? 0U
+              : static_cast<unsigned long long>(render::kLabGridSize) - o.start;
+  }
+  return kExitOk;
+}
+
+// --set single's configuration from --r or --r-deg (angles converted to
+// radians). Returns kExitOk or kExitUsage (reported).
+int parse_single_pose(const Args& args, PoseVector& single_r) noexcept {
+  double values[solver::kNumParams];
+  if (args.value("r") != nullptr) {
+    if (!parse_number_list(args.value("r"), values, solver::kNumParams)) {
+      std::fprintf(stderr, "tcpest render: --r needs 7 finite numbers x_ch,y_ch,psi,mu,lambda,phi,theta\n");
+      return kExitUsage;
+    }
+  } else if (args.value("r-deg") != nullptr) {
+    if (!parse_number_list(args.value("r-deg"), values, solver::kNumParams)) {
+      std::fprintf(stderr, "tcpest render: --r-deg needs 7 finite numbers x_ch,y_ch,psi,mu,lambda,phi,theta\n");
+      return kExitUsage;
+    }
+    const int angles[] = {solver::kPsi, solver::kMu, solver::kPhi, solver::kTheta};
+    for (int a : angles) {
+      values[a] = solver::deg_to_rad(values[a]);
+    }
+  } else {
+    std::fprintf(stderr, "tcpest render: --set single needs --r or --r-deg\n");
+    return kExitUsage;
+  }
+  for (int q = 0; q < solver::kNumParams; ++q) {
+    single_r[q] = values[q];
+  }
+  return kExitOk;
+}
+
+// Every option after --help. Returns kExitOk or kExitUsage (reported).
+int parse_render_options(const Args& args, RenderOptions& o) noexcept {
+  if (args.positional_count() > 0U) {
+    std::fprintf(stderr, "tcpest render: unexpected argument '%s'\n", args.positional(0));
+    return kExitUsage;
+  }
+  o.set_name = args.value("set");
+  o.out_dir = args.value("out");
+  if (o.set_name == nullptr || o.out_dir == nullptr) {
+    std::fprintf(stderr, "tcpest render: --set and --out are required (see --help)\n");
+    return kExitUsage;
+  }
+  if (!parse_set_kind(o.set_name, o.set)) {
+    std::fprintf(stderr, "tcpest render: --set must be lab, hard, seq or single (got '%s')\n", o.set_name);
+    return kExitUsage;
+  }
+  const int numbers = parse_numeric_options(args, o);
+  if (numbers != kExitOk) {
+    return numbers;
+  }
+  if (args.value("hard") != nullptr && !parse_hard_list(args.value("hard"), o.forced_hard)) {
+    std::fprintf(stderr, "tcpest render: --hard: unknown name in '%s' (reflection, occluder, haze, decoy, noise, "
+                         "motion_blur)\n", args.value("hard"));
+    return kExitUsage;
+  }
+  if (o.set == SetKind::Single) {
+    const int pose = parse_single_pose(args, o.single_r);
+    if (pose != kExitOk) {
+      return pose;
+    }
+    o.n = 1U;
+  }
+  o.sheet_path = args.value("contact-sheet");
+  o.raw = args.flag("raw");
+  o.two_instruments = args.flag("two-instruments");
+  o.clean = args.flag("clean");
+  o.quiet = args.flag("quiet");
+  return kExitOk;
+}
+
+// What the images are made and written with: the renderer, the JPEG encoder
+// (none with --raw), the frame and the optional contact sheet.
+struct RenderTools {
+  render::RenderSettings settings;
+  std::unique_ptr<render::Renderer> renderer;
+  std::unique_ptr<render::JpegEncoder> encoder;
+  std::unique_ptr<std::uint8_t[]> frame;
+  MutableImageView view;
+  ContactSheet sheet;
+  int width = 0;
+  int height = 0;
+};
+
+// Creates the renderer, the encoder, the frame, the output directory and the
+// contact sheet. Returns kExitOk, else the exit code (reported).
+int make_render_tools(const RenderOptions& o, const ModelSetup& setup, RenderTools& t) noexcept {
+  t.settings.supersample = static_cast<int>(o.supersample);
+  auto created = render::Renderer::create(setup.camera, setup.instrument, t.settings);
+  if (!created.ok()) {
+    std::fprintf(stderr, "tcpest render: renderer: %s\n", render::to_string(created.error()));
+    return kExitConfig;
+  }
+  t.renderer = std::move(created.value());
+  t.width = setup.camera.width();
+  t.height = setup.camera.height();
+  if (!o.raw) {
+    auto made = render::JpegEncoder::create(t.width, t.height);
+    if (!made.ok()) {
+      std::fprintf(stderr, "tcpest render: JPEG encoder: %s\n", render::to_string(made.error()));
+      return kExitFailure;
+    }
+    t.encoder = std::move(made.value());
+  }
+  const std::size_t frame_bytes = static_cast<std::size_t>(t.width) * static_cast<std::size_t>(t.height) * 3U;
+  t.frame.reset(new (std::nothrow) std::uint8_t[frame_bytes]);
+  if (!t.frame) {
+    std::fprintf(stderr, "tcpest render: out of memory for a %dx%d frame\n", t.width, t.height);
+    return kExitFailure;
+  }
+  t.view = MutableImageView{t.frame.get(), t.width, t.height, static_cast<std::size_t>(t.width) * 3U};
+  if (!make_directory(o.out_dir)) {
+    std::fprintf(stderr, "tcpest render: cannot create the output directory '%s': %s\n", o.out_dir,
+                 std::strerror(errno));
+    return kExitFailure;
+  }
+  if (o.sheet_path != nullptr && !t.sheet.init(t.width, t.height)) {
+    std::fprintf(stderr, "tcpest render: out of memory for the contact sheet\n");
+    return kExitFailure;
+  }
+  return kExitOk;
+}
+
+// Where the scenes come from: the instrument's geometry, the smooth motions
+// (seq, second instrument) and the renderer (the mirrored nominal pose).
+struct SceneSources {
+  const solver::InstrumentGeometry& geometry;
+  const render::SequenceGenerator& sequence;
+  const render::SequenceGenerator& sequence2;
+  const render::Renderer& renderer;
+};
+
+// Image `index`'s scene, and the sidecar keys only the set knows (prior, time).
+void describe_scene(const RenderOptions& o, const SceneSources& from, int index, SceneSpec& scene,
+                    render::Sidecar& sidecar_extra) noexcept {
+  scene.clean = o.clean;
+  scene.seed = render::image_seed(o.seed, static_cast<std::uint64_t>(index));
+  scene.hard_cases = o.forced_hard;
+  switch (o.set) {
+    case SetKind::Lab:
+    case SetKind::Hard: {
+      const render::LabSample lab = render::lab_sample(from.geometry, index, o.seed);
+      scene.r = lab.r;
+      sidecar_extra.has_prior = true;
+      sidecar_extra.prior = lab.prior.joints;
+      if (o.set == SetKind::Hard) {
+        scene.hard_cases = render::hard_cases_for(index, o.seed);
+      }
+      break;
+    }
+    case SetKind::Seq: {
+      const render::SequenceSample s = from.sequence.sample(static_cast<std::uint32_t>(index));
+      scene.r = s.r;
+      scene.world_seed = from.sequence.world_seed();  // the same tissue in every frame
+      scene.tissue_depth_mm = from.sequence.tissue_depth_mm();
+      sidecar_extra.has_prior = true;
+      sidecar_extra.prior = s.prior.joints;
+      sidecar_extra.has_time = true;
+      sidecar_extra.time_s = s.time_s;
+      break;
+    }
+    case SetKind::Single:
+      scene.r = o.single_r;
+      break;
+  }
+  if (o.two_instruments) {
+    // The second instrument: its own smooth joints (seq) or a draw from
+    // the working range, about the mirrored nominal pose.
+    const render::SequenceSample s2 = from.sequence2.sample(static_cast<std::uint32_t>(index));
+    scene.second_instrument = true;
+    scene.r2 = from.renderer.mirrored_nominal_pose(s2.r[solver::kLambda], s2.r[solver::kPhi], s2.r[solver::kTheta]);
+  }
+}
+
+// Writes the rendered image `index` (JPEG, or PPM with --raw) and its sidecar.
+// Returns kExitOk, else the exit code (reported).
+int write_image(const RenderOptions& o, const RenderTools& t, int index, const SceneSpec& scene,
+                const GroundTruth& truth, const render::Sidecar& sidecar_extra) noexcept {
+  char stem[4096];
+  char path[4160];
+  static_cast<void>(std::snprintf(stem, sizeof stem, "%s/%04d", o.out_dir, index));  // long paths are refused below
+  if (std::strlen(stem) + 8U >= sizeof stem) {
+    std::fprintf(stderr, "tcpest render: output path too long\n");
+    return kExitUsage;
+  }
+  render::Sidecar sidecar = render::make_sidecar(truth, scene, t.settings, t.width, t.height);
+  static_cast<void>(std::snprintf(sidecar.image, sizeof sidecar.image, "%04d.%s", index, o.raw ? "ppm" : "jpg"));
+  static_cast<void>(std::snprintf(sidecar.set, sizeof sidecar.set, "%s", o.set_name));  // names are short
+  sidecar.index = index;
+  sidecar.has_dataset_seed = true;
+  sidecar.dataset_seed = o.seed;
+  sidecar.has_prior = sidecar_extra.has_prior;
+  sidecar.prior = sidecar_extra.prior;
+  sidecar.has_time = sidecar_extra.has_time;
+  sidecar.time_s = sidecar_extra.time_s;
+  sidecar.jpeg_quality = o.raw ? 0 : static_cast<int>(o.quality);
+  static_cast<void>(std::snprintf(path, sizeof path, "%s.%s", stem, o.raw ? "ppm" : "jpg"));  // fits: checked above
+  const auto written = o.raw ? render::write_ppm_file(t.view.view(), path)
+                             : t.encoder->write_file(t.view.view(), static_cast<int>(o.quality), path);
+  if (!written.ok()) {
+    std::fprintf(stderr, "\ntcpest render: %s: %s\n", path, render::to_string(written.error()));
+    return kExitFailure;
+  }
+  static_cast<void>(std::snprintf(path, sizeof path, "%s.json", stem));  // fits: checked above
+  if (!render::write_sidecar_file(path, sidecar)) {
+    std::fprintf(stderr, "\ntcpest render: %s: cannot write the sidecar\n", path);
+    return kExitFailure;
+  }
+  return kExitOk;
+}
+
+// How many images showed no instrument, and the last image's view.
+struct VisibilityCount {
+  int not_visible = 0;
+  render::InstrumentView last_view = render::InstrumentView::Visible;
+};
+
+// Renders and writes every image of the set, with a progress line on stderr.
+// Returns kExitOk, else the exit code (reported).
+int render_images(const RenderOptions& o, const ModelSetup& setup, RenderTools& t,
+                  VisibilityCount& visibility) noexcept {
+  const auto& geometry = setup.instrument.geometry();
+  const render::SequenceGenerator sequence(geometry, o.seed, o.fps);
+  const render::SequenceGenerator sequence2(geometry, o.seed + 0x51DEULL, o.fps);
+  const SceneSources sources{geometry, sequence, sequence2, *t.renderer};
+  const bool progress = !o.quiet && o.n > 1U;
+  const bool tty = ::isatty(STDERR_FILENO) != 0;
+  const auto t_start = std::chrono::steady_clock::now();
+
+  for (unsigned long long i = 0U; i < o.n; ++i) {
+    const auto index = static_cast<int>(o.start + i);
+    SceneSpec scene;
+    render::Sidecar sidecar_extra;
+    describe_scene(o, sources, index, scene, sidecar_extra);
+    GroundTruth truth;
+    const auto rendered = t.renderer->render(scene, t.view, truth);
+    if (!rendered.ok()) {
+      std::fprintf(stderr, "\ntcpest render: image %d: %s\n", index, render::to_string(rendered.error()));
+      return kExitFailure;
+    }
+    visibility.last_view = truth.instruments[0].view;
+    if (visibility.last_view != render::InstrumentView::Visible) {
+      ++visibility.not_visible;
+    }
+    const int written = write_image(o, t, index, scene, truth, sidecar_extra);
+    if (written != kExitOk) {
+      return written;
+    }
+    if (o.sheet_path != nullptr) {
+      t.sheet.add(t.view.view());
+    }
+    if (progress && (tty || (i + 1U) % 25U == 0U || i + 1U == o.n)) {
+      const double elapsed =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+      std::fprintf(stderr, "%srender: %llu/%llu images, %.1f s%s", tty ? "\r" : "", i + 1U, o.n, elapsed,
+                   tty ? "" : "\n");
+    }
+  }
+  if (progress && tty) {
+    std::fprintf(stderr, "\n");
+  }
+  return kExitOk;
+}
+
 }  // namespace
 
 int cmd_render(int argc, char** argv) {
@@ -154,245 +481,35 @@ int cmd_render(int argc, char** argv) {
                 kOptions, kOptionCount);
     return kExitOk;
   }
-  if (args.positional_count() > 0U) {
-    std::fprintf(stderr, "tcpest render: unexpected argument '%s'\n", args.positional(0));
-    return kExitUsage;
-  }
-  const char* set_name = args.value("set");
-  const char* out_dir = args.value("out");
-  if (set_name == nullptr || out_dir == nullptr) {
-    std::fprintf(stderr, "tcpest render: --set and --out are required (see --help)\n");
-    return kExitUsage;
-  }
-  SetKind set = SetKind::Lab;
-  if (std::strcmp(set_name, "lab") == 0) {
-    set = SetKind::Lab;
-  } else if (std::strcmp(set_name, "hard") == 0) {
-    set = SetKind::Hard;
-  } else if (std::strcmp(set_name, "seq") == 0) {
-    set = SetKind::Seq;
-  } else if (std::strcmp(set_name, "single") == 0) {
-    set = SetKind::Single;
-  } else {
-    std::fprintf(stderr, "tcpest render: --set must be lab, hard, seq or single (got '%s')\n", set_name);
-    return kExitUsage;
-  }
-  unsigned long long n = (set == SetKind::Seq) ? 100U : static_cast<unsigned long long>(render::kLabGridSize);
-  unsigned long long start = 0U;
-  unsigned long long seed = 1U;
-  unsigned long long quality = 92U;
-  unsigned long long supersample = 4U;
-  double fps = 25.0;
-  if ((args.value("n") != nullptr && !parse_unsigned(args.value("n"), n)) ||
-      (args.value("start") != nullptr && !parse_unsigned(args.value("start"), start)) ||
-      (args.value("seed") != nullptr && !parse_unsigned(args.value("seed"), seed)) ||
-      (args.value("quality") != nullptr && !parse_unsigned(args.value("quality"), quality)) ||
-      (args.value("supersample") != nullptr && !parse_unsigned(args.value("supersample"), supersample)) ||
-      (args.value("fps") != nullptr && !parse_number(args.value("fps"), fps))) {
-    std::fprintf(stderr, "tcpest render: --n, --start, --seed, --quality, --supersample take non-negative integers, "
-                         "--fps a number\n");
-    return kExitUsage;
-  }
-  if (quality < 1U || quality > 100U || supersample < 1U || supersample > 8U || !(fps > 0.0 && fps <= 1000.0) ||
-      n > 1000000U || start > 1000000U) {
-    std::fprintf(stderr, "tcpest render: out of range: --quality 1..100, --supersample 1..8, --fps (0, 1000], "
-                         "--n and --start <= 1000000\n");
-    return kExitUsage;
-  }
-  if ((set == SetKind::Lab || set == SetKind::Hard) && start + n > static_cast<unsigned long long>(render::kLabGridSize)) {
-    n = (start >= static_cast<unsigned long long>(render::kLabGridSize))
-            ? 0U
-            : static_cast<unsigned long long>(render::kLabGridSize) - start;
-  }
-  std::uint32_t forced_hard = 0U;
-  if (args.value("hard") != nullptr && !parse_hard_list(args.value("hard"), forced_hard)) {
-    std::fprintf(stderr, "tcpest render: --hard: unknown name in '%s' (reflection, occluder, haze, decoy, noise, "
-                         "motion_blur)\n", args.value("hard"));
-    return kExitUsage;
-  }
-  PoseVector single_r = PoseVector::Zero();
-  if (set == SetKind::Single) {
-    double values[solver::kNumParams];
-    if (args.value("r") != nullptr) {
-      if (!parse_number_list(args.value("r"), values, solver::kNumParams)) {
-        std::fprintf(stderr, "tcpest render: --r needs 7 finite numbers x_ch,y_ch,psi,mu,lambda,phi,theta\n");
-        return kExitUsage;
-      }
-    } else if (args.value("r-deg") != nullptr) {
-      if (!parse_number_list(args.value("r-deg"), values, solver::kNumParams)) {
-        std::fprintf(stderr, "tcpest render: --r-deg needs 7 finite numbers x_ch,y_ch,psi,mu,lambda,phi,theta\n");
-        return kExitUsage;
-      }
-      const int angles[] = {solver::kPsi, solver::kMu, solver::kPhi, solver::kTheta};
-      for (int a : angles) {
-        values[a] = solver::deg_to_rad(values[a]);
-      }
-    } else {
-      std::fprintf(stderr, "tcpest render: --set single needs --r or --r-deg\n");
-      return kExitUsage;
-    }
-    for (int q = 0; q < solver::kNumParams; ++q) {
-      single_r[q] = values[q];
-    }
-    n = 1U;
+  RenderOptions options;
+  const int parsed = parse_render_options(args, options);
+  if (parsed != kExitOk) {
+    return parsed;
   }
 
   ModelSetup setup;
   if (!load_model_setup("render", args.value("calib"), args.value("config"), setup)) {
     return kExitConfig;
   }
-  render::RenderSettings settings;
-  settings.supersample = static_cast<int>(supersample);
-  auto created = render::Renderer::create(setup.camera, setup.instrument, settings);
-  if (!created.ok()) {
-    std::fprintf(stderr, "tcpest render: renderer: %s\n", render::to_string(created.error()));
-    return kExitConfig;
+  RenderTools tools;
+  const int made = make_render_tools(options, setup, tools);
+  if (made != kExitOk) {
+    return made;
   }
-  render::Renderer& renderer = *created.value();
-  const int width = setup.camera.width();
-  const int height = setup.camera.height();
-  const bool raw = args.flag("raw");
-  std::unique_ptr<render::JpegEncoder> encoder;
-  if (!raw) {
-    auto made = render::JpegEncoder::create(width, height);
-    if (!made.ok()) {
-      std::fprintf(stderr, "tcpest render: JPEG encoder: %s\n", render::to_string(made.error()));
-      return kExitFailure;
-    }
-    encoder = std::move(made.value());
+  VisibilityCount visibility;
+  const int rendered = render_images(options, setup, tools, visibility);
+  if (rendered != kExitOk) {
+    return rendered;
   }
-  const std::size_t frame_bytes = static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * 3U;
-  std::unique_ptr<std::uint8_t[]> frame(new (std::nothrow) std::uint8_t[frame_bytes]);
-  if (!frame) {
-    std::fprintf(stderr, "tcpest render: out of memory for a %dx%d frame\n", width, height);
+  if (options.sheet_path != nullptr && !tools.sheet.write(options.sheet_path)) {
+    std::fprintf(stderr, "tcpest render: cannot write the contact sheet '%s'\n", options.sheet_path);
     return kExitFailure;
   }
-  const MutableImageView view{frame.get(), width, height, static_cast<std::size_t>(width) * 3U};
-  if (!make_directory(out_dir)) {
-    std::fprintf(stderr, "tcpest render: cannot create the output directory '%s': %s\n", out_dir, std::strerror(errno));
-    return kExitFailure;
+  if (options.set == SetKind::Single && visibility.not_visible > 0) {
+    std::printf("instrument not visible (%s): image written without it\n", render::to_string(visibility.last_view));
   }
-  const char* sheet_path = args.value("contact-sheet");
-  ContactSheet sheet;
-  if (sheet_path != nullptr && !sheet.init(width, height)) {
-    std::fprintf(stderr, "tcpest render: out of memory for the contact sheet\n");
-    return kExitFailure;
-  }
-
-  const auto& geometry = setup.instrument.geometry();
-  const render::SequenceGenerator sequence(geometry, seed, fps);
-  const render::SequenceGenerator sequence2(geometry, seed + 0x51DEULL, fps);
-  const bool two = args.flag("two-instruments");
-  const bool clean = args.flag("clean");
-  const bool progress = !args.flag("quiet") && n > 1U;
-  const bool tty = ::isatty(STDERR_FILENO) != 0;
-  const auto t_start = std::chrono::steady_clock::now();
-  int not_visible = 0;
-  render::InstrumentView last_view = render::InstrumentView::Visible;
-
-  for (unsigned long long i = 0U; i < n; ++i) {
-    const auto index = static_cast<int>(start + i);
-    SceneSpec scene;
-    scene.clean = clean;
-    scene.seed = render::image_seed(seed, static_cast<std::uint64_t>(index));
-    scene.hard_cases = forced_hard;
-    render::Sidecar sidecar_extra;
-    switch (set) {
-      case SetKind::Lab:
-      case SetKind::Hard: {
-        const render::LabSample lab = render::lab_sample(geometry, index, seed);
-        scene.r = lab.r;
-        sidecar_extra.has_prior = true;
-        sidecar_extra.prior = lab.prior.joints;
-        if (set == SetKind::Hard) {
-          scene.hard_cases = render::hard_cases_for(index, seed);
-        }
-        break;
-      }
-      case SetKind::Seq: {
-        const render::SequenceSample s = sequence.sample(static_cast<std::uint32_t>(index));
-        scene.r = s.r;
-        scene.world_seed = sequence.world_seed();  // the same tissue in every frame
-        scene.tissue_depth_mm = sequence.tissue_depth_mm();
-        sidecar_extra.has_prior = true;
-        sidecar_extra.prior = s.prior.joints;
-        sidecar_extra.has_time = true;
-        sidecar_extra.time_s = s.time_s;
-        break;
-      }
-      case SetKind::Single:
-        scene.r = single_r;
-        break;
-    }
-    if (two) {
-      // The second instrument: its own smooth joints (seq) or a draw from
-      // the working range, about the mirrored nominal pose.
-      const render::SequenceSample s2 = sequence2.sample(static_cast<std::uint32_t>(index));
-      scene.second_instrument = true;
-      scene.r2 = renderer.mirrored_nominal_pose(s2.r[solver::kLambda], s2.r[solver::kPhi], s2.r[solver::kTheta]);
-    }
-    GroundTruth truth;
-    const auto rendered = renderer.render(scene, view, truth);
-    if (!rendered.ok()) {
-      std::fprintf(stderr, "\ntcpest render: image %d: %s\n", index, render::to_string(rendered.error()));
-      return kExitFailure;
-    }
-    last_view = truth.instruments[0].view;
-    if (last_view != render::InstrumentView::Visible) {
-      ++not_visible;
-    }
-    char stem[4096];
-    char path[4160];
-    static_cast<void>(std::snprintf(stem, sizeof stem, "%s/%04d", out_dir, index));  // long paths are refused below
-    if (std::strlen(stem) + 8U >= sizeof stem) {
-      std::fprintf(stderr, "tcpest render: output path too long\n");
-      return kExitUsage;
-    }
-    render::Sidecar sidecar = render::make_sidecar(truth, scene, settings, width, height);
-    static_cast<void>(std::snprintf(sidecar.image, sizeof sidecar.image, "%04d.%s", index, raw ? "ppm" : "jpg"));
-    static_cast<void>(std::snprintf(sidecar.set, sizeof sidecar.set, "%s", set_name));  // names are short
-    sidecar.index = index;
-    sidecar.has_dataset_seed = true;
-    sidecar.dataset_seed = seed;
-    sidecar.has_prior = sidecar_extra.has_prior;
-    sidecar.prior = sidecar_extra.prior;
-    sidecar.has_time = sidecar_extra.has_time;
-    sidecar.time_s = sidecar_extra.time_s;
-    sidecar.jpeg_quality = raw ? 0 : static_cast<int>(quality);
-    static_cast<void>(std::snprintf(path, sizeof path, "%s.%s", stem, raw ? "ppm" : "jpg"));  // fits: checked above
-    const auto written = raw ? render::write_ppm_file(view.view(), path)
-                             : encoder->write_file(view.view(), static_cast<int>(quality), path);
-    if (!written.ok()) {
-      std::fprintf(stderr, "\ntcpest render: %s: %s\n", path, render::to_string(written.error()));
-      return kExitFailure;
-    }
-    static_cast<void>(std::snprintf(path, sizeof path, "%s.json", stem));  // fits: checked above
-    if (!render::write_sidecar_file(path, sidecar)) {
-      std::fprintf(stderr, "\ntcpest render: %s: cannot write the sidecar\n", path);
-      return kExitFailure;
-    }
-    if (sheet_path != nullptr) {
-      sheet.add(view.view());
-    }
-    if (progress && (tty || (i + 1U) % 25U == 0U || i + 1U == n)) {
-      const double elapsed =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-      std::fprintf(stderr, "%srender: %llu/%llu images, %.1f s%s", tty ? "\r" : "", i + 1U, n, elapsed,
-                   tty ? "" : "\n");
-    }
-  }
-  if (progress && tty) {
-    std::fprintf(stderr, "\n");
-  }
-  if (sheet_path != nullptr && !sheet.write(sheet_path)) {
-    std::fprintf(stderr, "tcpest render: cannot write the contact sheet '%s'\n", sheet_path);
-    return kExitFailure;
-  }
-  if (set == SetKind::Single && not_visible > 0) {
-    std::printf("instrument not visible (%s): image written without it\n", render::to_string(last_view));
-  }
-  std::printf("wrote %llu image(s) and sidecar(s) to %s%s\n", n, out_dir,
-              not_visible > 0 ? " (some without a visible instrument: see instrument_view)" : "");
+  std::printf("wrote %llu image(s) and sidecar(s) to %s%s\n", options.n, options.out_dir,
+              visibility.not_visible > 0 ? " (some without a visible instrument: see instrument_view)" : "");
   return kExitOk;
 }
 

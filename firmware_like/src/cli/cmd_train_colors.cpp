@@ -295,26 +295,9 @@ bool load_sidecars(const char* dir, const ModelSetup& setup, std::vector<Frame>&
   return true;
 }
 
-}  // namespace
-
-int cmd_train_colors(int argc, char** argv) {
-  Args args;
-  char error[512];
-  if (!args.parse(argc, argv, 1, kSpecs, kSpecCount, error, sizeof error)) {
-    std::fprintf(stderr, "tcpest train-colors: %s\n", error);
-    return kExitUsage;
-  }
-  if (args.help_requested() ||
-      (args.value("polygons") == nullptr && args.value("masks") == nullptr && args.value("sidecars") == nullptr)) {
-    print_usage("tcpest train-colors (--polygons FILE.json | --masks FILE.json | --sidecars DIR)... "
-                "[--out MODEL.json] [--max N]",
-                "Trains the blue/yellow colour model (a*b* Gaussians, Mahalanobis thresholds) from marked frames.\n"
-                "Masks: 8-bit binary PPM (blue, yellow, black = background, other = unused) or PGM\n"
-                "(1 blue, 2 yellow, 3 background), the size of the image; see docs/vision.md.",
-                kSpecs, kSpecCount);
-    return args.help_requested() ? kExitOk : kExitUsage;
-  }
-  std::vector<Frame> frames;
+// The marked frames of every --polygons, --masks and --sidecars option, at
+// most --max of them. Returns kExitOk, else the exit code (reported).
+int load_all_frames(const Args& args, std::vector<Frame>& frames) {
   if (args.value("polygons") != nullptr && !load_marked_frames(args.value("polygons"), false, frames)) {
     return kExitConfig;
   }
@@ -336,131 +319,190 @@ int cmd_train_colors(int argc, char** argv) {
   if (frames.size() > max_frames) {
     frames.resize(static_cast<std::size_t>(max_frames));
   }
+  return kExitOk;
+}
+
+// Buffers reused from frame to frame: the image, its labels and its mask.
+struct FrameBuffers {
+  std::vector<std::uint8_t> pixels;
+  std::vector<std::uint8_t> label;
+  std::vector<std::uint8_t> mask_samples;
+  DecodedMask mask;
+};
+
+// Reads a frame's image and mask (if any) into `buffers`. On failure reports
+// it, marks the frame unusable and returns false.
+bool read_frame(ImageReader& reader, Frame& frame, FrameBuffers& buffers, ImageView& view) {
+  char error[512];
+  if (!reader.read(frame.image.c_str(), buffers.pixels, view, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest train-colors: %s: %s (skipped)\n", frame.image.c_str(), error);
+    frame.usable = false;
+    return false;
+  }
+  if (frame.mask.empty()) {
+    return true;
+  }
+  PnmInfo info;
+  if (!reader.read_pnm(frame.mask.c_str(), buffers.mask_samples, info, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest train-colors: mask %s: %s (frame skipped)\n", frame.mask.c_str(), error);
+    frame.usable = false;
+    return false;
+  }
+  if (info.width != view.width || info.height != view.height) {
+    std::fprintf(stderr, "tcpest train-colors: mask %s is %dx%d but image %s is %dx%d (frame skipped)\n",
+                 frame.mask.c_str(), info.width, info.height, frame.image.c_str(), view.width, view.height);
+    frame.usable = false;
+    return false;
+  }
+  decode_mask(buffers.mask_samples, info, buffers.mask);
+  if (buffers.mask.marked == 0U && buffers.mask.background == 0U) {
+    std::fprintf(stderr, "tcpest train-colors: mask %s marks no pixel (frame skipped)\n", frame.mask.c_str());
+    frame.usable = false;
+    return false;
+  }
+  return true;
+}
+
+// Index of pixel (x, y) in a frame's labels.
+std::size_t pixel_at(const ImageView& view, int x, int y) noexcept {
+  return static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x);
+}
+
+// A coordinate (pixels) truncated and clamped to the frame's columns / rows.
+int clamp_x(const ImageView& view, double v) noexcept {
+  return std::max(0, std::min(view.width - 1, static_cast<int>(v)));
+}
+int clamp_y(const ImageView& view, double v) noexcept {
+  return std::max(0, std::min(view.height - 1, static_cast<int>(v)));
+}
+
+// The automatic background rule: every pixel is background except those in
+// the marks' joint bounding box grown by half its size (+10 px), unused.
+// `mask` is the frame's decoded mask, nullptr if it has none.
+void label_far_background(const Frame& frame, const DecodedMask* mask, const ImageView& view,
+                          std::vector<std::uint8_t>& label) {
+  const std::size_t pixel_count = static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height);
+  // Labels: 1 blue, 2 yellow, 0 background, 3 unused (near the marks).
+  label.assign(pixel_count, 0U);
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  const auto grow = [&](double x, double y) {
+    x0 = std::min(x0, x);
+    y0 = std::min(y0, y);
+    x1 = std::max(x1, x);
+    y1 = std::max(y1, y);
+  };
+  for (const Polygon& p : frame.polygons) {
+    for (const vision::Point& q : p.points) {
+      grow(q.x, q.y);
+    }
+  }
+  for (const MarkedPixel& m : frame.pixels) {
+    grow(m.x, m.y);
+  }
+  if (mask != nullptr && mask->marked > 0U) {
+    grow(mask->x0, mask->y0);
+    grow(mask->x1 + 1, mask->y1 + 1);
+  }
+  const double gx = 0.5 * (x1 - x0) + 10.0;
+  const double gy = 0.5 * (y1 - y0) + 10.0;
+  for (int y = clamp_y(view, y0 - gy); y <= clamp_y(view, y1 + gy); ++y) {
+    for (int x = clamp_x(view, x0 - gx); x <= clamp_x(view, x1 + gx); ++x) {
+      label[pixel_at(view, x, y)] = kUnused;
+    }
+  }
+}
+
+// Labels the pixels inside the frame's polygons and its marked pixels with
+// their class.
+void label_marks(const Frame& frame, const ImageView& view, std::vector<std::uint8_t>& label) {
+  for (const Polygon& p : frame.polygons) {
+    double px0 = 1e30, py0 = 1e30, px1 = -1e30, py1 = -1e30;
+    for (const vision::Point& q : p.points) {
+      px0 = std::min(px0, q.x);
+      py0 = std::min(py0, q.y);
+      px1 = std::max(px1, q.x);
+      py1 = std::max(py1, q.y);
+    }
+    for (int y = clamp_y(view, py0); y <= clamp_y(view, py1 + 1.0); ++y) {
+      for (int x = clamp_x(view, px0); x <= clamp_x(view, px1 + 1.0); ++x) {
+        if (inside(p.points, x, y)) {
+          label[pixel_at(view, x, y)] = static_cast<std::uint8_t>(p.cls);
+        }
+      }
+    }
+  }
+  for (const MarkedPixel& m : frame.pixels) {
+    if (m.x >= 0 && m.y >= 0 && m.x < view.width && m.y < view.height) {
+      label[pixel_at(view, m.x, m.y)] = static_cast<std::uint8_t>(m.cls);
+    }
+  }
+}
+
+// Every pixel's label for a frame read by read_frame: background, marks and
+// mask; kUnused where nothing is known.
+void label_frame(const Frame& frame, const ImageView& view, FrameBuffers& buffers) {
+  const bool has_mask = !frame.mask.empty();
+  const DecodedMask& mask = buffers.mask;
+  std::vector<std::uint8_t>& label = buffers.label;
+  const std::size_t pixel_count = static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height);
+  if (has_mask && mask.background > 0U) {
+    // Explicit background samples replace the automatic rule.
+    label.assign(pixel_count, kUnused);
+  } else {
+    label_far_background(frame, has_mask ? &mask : nullptr, view, label);
+  }
+  label_marks(frame, view, label);
+  if (has_mask) {
+    for (std::size_t i = 0U; i < pixel_count; ++i) {
+      if (mask.labels[i] != kUnused) {
+        label[i] = mask.labels[i];  // the mask wins where it overlaps a polygon
+      }
+    }
+  }
+}
+
+// Adds the labelled pixels of a frame to the trainer: pass 0 trains the
+// Gaussians, pass 1 the thresholds.
+void add_samples(vision::ColorTrainer& trainer, const ImageView& view, const std::vector<std::uint8_t>& label,
+                 int pass) noexcept {
+  for (int y = 0; y < view.height; ++y) {
+    const std::uint8_t* row = view.row(y);
+    const std::uint8_t* lab_row = label.data() + pixel_at(view, 0, y);
+    for (int x = 0; x < view.width; ++x) {
+      if (lab_row[x] == kUnused) {
+        continue;
+      }
+      const auto cls = static_cast<vision::PixelClass>(lab_row[x]);
+      const std::uint8_t* c = row + static_cast<std::ptrdiff_t>(3) * x;
+      if (pass == 0) {
+        trainer.add_sample(cls, c[0], c[1], c[2]);
+      } else {
+        trainer.add_threshold_sample(cls, c[0], c[1], c[2]);
+      }
+    }
+  }
+}
+
+// Trains the model in two passes over the usable frames (Gaussians, then
+// thresholds). Returns kExitOk, else the exit code (reported).
+int train(std::vector<Frame>& frames, vision::ColorTrainer& trainer) {
   ImageReader reader;
   if (!reader.init(3840, 2160)) {
     std::fprintf(stderr, "tcpest train-colors: JPEG decoder initialisation failed\n");
     return kExitFailure;
   }
-  vision::ColorTrainer trainer;
-  std::vector<std::uint8_t> pixels;
-  std::vector<std::uint8_t> label;
-  std::vector<std::uint8_t> mask_samples;
-  DecodedMask mask;
+  FrameBuffers buffers;
   for (int pass = 0; pass < 2; ++pass) {
     for (Frame& frame : frames) {
       if (!frame.usable) {
         continue;  // reported in pass 1
       }
       ImageView view;
-      if (!reader.read(frame.image.c_str(), pixels, view, error, sizeof error)) {
-        std::fprintf(stderr, "tcpest train-colors: %s: %s (skipped)\n", frame.image.c_str(), error);
-        frame.usable = false;
+      if (!read_frame(reader, frame, buffers, view)) {
         continue;
       }
-      const bool has_mask = !frame.mask.empty();
-      if (has_mask) {
-        PnmInfo info;
-        if (!reader.read_pnm(frame.mask.c_str(), mask_samples, info, error, sizeof error)) {
-          std::fprintf(stderr, "tcpest train-colors: mask %s: %s (frame skipped)\n", frame.mask.c_str(), error);
-          frame.usable = false;
-          continue;
-        }
-        if (info.width != view.width || info.height != view.height) {
-          std::fprintf(stderr, "tcpest train-colors: mask %s is %dx%d but image %s is %dx%d (frame skipped)\n",
-                       frame.mask.c_str(), info.width, info.height, frame.image.c_str(), view.width, view.height);
-          frame.usable = false;
-          continue;
-        }
-        decode_mask(mask_samples, info, mask);
-        if (mask.marked == 0U && mask.background == 0U) {
-          std::fprintf(stderr, "tcpest train-colors: mask %s marks no pixel (frame skipped)\n", frame.mask.c_str());
-          frame.usable = false;
-          continue;
-        }
-      }
-      const std::size_t pixel_count = static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height);
-      const auto at = [&view](int x, int y) {
-        return static_cast<std::size_t>(y) * static_cast<std::size_t>(view.width) + static_cast<std::size_t>(x);
-      };
-      const auto clamp_x = [&view](double v) { return std::max(0, std::min(view.width - 1, static_cast<int>(v))); };
-      const auto clamp_y = [&view](double v) { return std::max(0, std::min(view.height - 1, static_cast<int>(v))); };
-      if (has_mask && mask.background > 0U) {
-        // Explicit background samples replace the automatic rule.
-        label.assign(pixel_count, kUnused);
-      } else {
-        // Labels: 1 blue, 2 yellow, 0 background, 3 unused (near the marks).
-        label.assign(pixel_count, 0U);
-        double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
-        const auto grow = [&](double x, double y) {
-          x0 = std::min(x0, x);
-          y0 = std::min(y0, y);
-          x1 = std::max(x1, x);
-          y1 = std::max(y1, y);
-        };
-        for (const Polygon& p : frame.polygons) {
-          for (const vision::Point& q : p.points) {
-            grow(q.x, q.y);
-          }
-        }
-        for (const MarkedPixel& m : frame.pixels) {
-          grow(m.x, m.y);
-        }
-        if (has_mask && mask.marked > 0U) {
-          grow(mask.x0, mask.y0);
-          grow(mask.x1 + 1, mask.y1 + 1);
-        }
-        const double gx = 0.5 * (x1 - x0) + 10.0;
-        const double gy = 0.5 * (y1 - y0) + 10.0;
-        for (int y = clamp_y(y0 - gy); y <= clamp_y(y1 + gy); ++y) {
-          for (int x = clamp_x(x0 - gx); x <= clamp_x(x1 + gx); ++x) {
-            label[at(x, y)] = kUnused;
-          }
-        }
-      }
-      for (const Polygon& p : frame.polygons) {
-        double px0 = 1e30, py0 = 1e30, px1 = -1e30, py1 = -1e30;
-        for (const vision::Point& q : p.points) {
-          px0 = std::min(px0, q.x);
-          py0 = std::min(py0, q.y);
-          px1 = std::max(px1, q.x);
-          py1 = std::max(py1, q.y);
-        }
-        for (int y = clamp_y(py0); y <= clamp_y(py1 + 1.0); ++y) {
-          for (int x = clamp_x(px0); x <= clamp_x(px1 + 1.0); ++x) {
-            if (inside(p.points, x, y)) {
-              label[at(x, y)] = static_cast<std::uint8_t>(p.cls);
-            }
-          }
-        }
-      }
-      for (const MarkedPixel& m : frame.pixels) {
-        if (m.x >= 0 && m.y >= 0 && m.x < view.width && m.y < view.height) {
-          label[at(m.x, m.y)] = static_cast<std::uint8_t>(m.cls);
-        }
-      }
-      if (has_mask) {
-        for (std::size_t i = 0U; i < pixel_count; ++i) {
-          if (mask.labels[i] != kUnused) {
-            label[i] = mask.labels[i];  // the mask wins where it overlaps a polygon
-          }
-        }
-      }
-      for (int y = 0; y < view.height; ++y) {
-        const std::uint8_t* row = view.row(y);
-        const std::uint8_t* lab_row = label.data() + at(0, y);
-        for (int x = 0; x < view.width; ++x) {
-          if (lab_row[x] == kUnused) {
-            continue;
-          }
-          const auto cls = static_cast<vision::PixelClass>(lab_row[x]);
-          const std::uint8_t* c = row + static_cast<std::ptrdiff_t>(3) * x;
-          if (pass == 0) {
-            trainer.add_sample(cls, c[0], c[1], c[2]);
-          } else {
-            trainer.add_threshold_sample(cls, c[0], c[1], c[2]);
-          }
-        }
-      }
+      label_frame(frame, view, buffers);
+      add_samples(trainer, view, buffers.label, pass);
     }
     if (pass == 0 && !trainer.finish_gaussians()) {
       std::fprintf(stderr, "tcpest train-colors: too few marked pixels (blue %llu, yellow %llu; need %llu each)\n",
@@ -470,6 +512,12 @@ int cmd_train_colors(int argc, char** argv) {
       return kExitFailure;
     }
   }
+  return kExitOk;
+}
+
+// Reports what was trained on and writes the model to --out (default:
+// standard output). Returns the command's exit code.
+int write_model(const char* out_path, const std::vector<Frame>& frames, vision::ColorTrainer& trainer) {
   const vision::ColorModel model = trainer.finish();
   char text[2048];
   const std::size_t n = vision::format_color_model(model, text, sizeof text);
@@ -479,16 +527,48 @@ int cmd_train_colors(int argc, char** argv) {
                used, frames.size() - used, static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Blue)),
                static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Yellow)),
                static_cast<unsigned long long>(trainer.samples(vision::PixelClass::Background)));
-  if (args.value("out") == nullptr) {
+  if (out_path == nullptr) {
     std::fwrite(text, 1U, n, stdout);
     return kExitOk;
   }
-  std::FILE* f = std::fopen(args.value("out"), "wb");
+  std::FILE* f = std::fopen(out_path, "wb");
   if (f == nullptr || std::fwrite(text, 1U, n, f) != n || std::fclose(f) != 0) {
-    std::fprintf(stderr, "tcpest train-colors: cannot write %s\n", args.value("out"));
+    std::fprintf(stderr, "tcpest train-colors: cannot write %s\n", out_path);
     return kExitFailure;
   }
   return kExitOk;
+}
+
+}  // namespace
+
+int cmd_train_colors(int argc, char** argv) {
+  Args args;
+  char error[512];
+  if (!args.parse(argc, argv, 1, kSpecs, kSpecCount, error, sizeof error)) {
+    std::fprintf(stderr, "tcpest train-colors: %s\n", error);
+    return kExitUsage;
+  }
+  if (args.help_requested() ||
+      (args.value("polygons") == nullptr && args.value("masks") == nullptr && args.value("sidecars") == nullptr)) {
+    print_usage("tcpest train-colors (--polygons FILE.json | --masks FILE.json | --sidecars DIR)... "
+                "[--out MODEL.json] [--max N]",
+                "Trains the blue/yellow colour model (a*b* Gaussians, Mahalanobis thresholds) from marked frames.\n"
+                "Masks: 8-bit binary PPM (blue, yellow, black = background, other = unused) or PGM\n"
+                "(1 blue, 2 yellow, 3 background), the size of the image; see docs/vision.md.",
+                kSpecs, kSpecCount);
+    return args.help_requested() ? kExitOk : kExitUsage;
+  }
+  std::vector<Frame> frames;
+  const int loaded = load_all_frames(args, frames);
+  if (loaded != kExitOk) {
+    return loaded;
+  }
+  vision::ColorTrainer trainer;
+  const int trained = train(frames, trainer);
+  if (trained != kExitOk) {
+    return trained;
+  }
+  return write_model(args.value("out"), frames, trainer);
 }
 
 }  // namespace cli
