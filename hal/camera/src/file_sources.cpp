@@ -94,7 +94,9 @@ struct FileList {
   std::size_t count = 0U;
 };
 
-// The *.jpg / *.jpeg files of a directory (at most max_files), sorted by name.
+// The *.jpg / *.jpeg files of a directory sorted by name, the first
+// max_files of them: every name is listed and sorted before the cut, so the
+// frames kept do not depend on the file system's order.
 Status<CameraError> list_directory(const char* path, std::size_t max_files, FileList& list) noexcept {
   // First pass: the total size of the names, so that one block holds them all.
   std::size_t bytes = 0U;
@@ -106,7 +108,7 @@ Status<CameraError> list_directory(const char* path, std::size_t max_files, File
     return Status<CameraError>::failure(from_errno(errno));
   }
   for (const dirent* e = ::readdir(dir); e != nullptr; e = ::readdir(dir)) {  // NOLINT(concurrency-mt-unsafe): start-up, one thread
-    if (ends_with_jpeg(e->d_name) && count < max_files) {
+    if (ends_with_jpeg(e->d_name)) {
       bytes += std::strlen(prefix) + std::strlen(e->d_name) + 1U;
       ++count;
     }
@@ -141,6 +143,7 @@ Status<CameraError> list_directory(const char* path, std::size_t max_files, File
   const char* names = list.names.get();
   std::sort(list.offsets.get(), list.offsets.get() + list.count,
             [names](std::size_t a, std::size_t b) { return std::strcmp(names + a, names + b) < 0; });
+  list.count = std::min(list.count, max_files);
   return ok_status<CameraError>();
 }
 

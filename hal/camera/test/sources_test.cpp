@@ -185,6 +185,27 @@ TEST(JpegFileSource, DirectorySortedWithACorruptFileDropped) {
   EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kEndOfStream);
 }
 
+// max_files keeps the first names in order, whatever order the file system
+// lists them in (here the reverse of their names' order, on most file
+// systems: created last to first).
+TEST(JpegFileSource, DirectoryBeyondMaxFilesKeepsTheFirstNames) {
+  const std::string dir = temp_dir("jpgmax");
+  const int w = 16;
+  const int h = 8;
+  for (int i = 5; i >= 0; --i) {
+    char name[32];
+    static_cast<void>(std::snprintf(name, sizeof name, "/f%d.jpg", i));
+    write_bytes(dir + name, testing::encode_jpeg(testing::make_pattern(w, h, i), w, h));
+  }
+  ReplayOptions options;
+  options.max_files = 2U;
+  auto source = JpegFileSource::open(dir.c_str(), options);
+  ASSERT_TRUE(source.ok());
+  ASSERT_EQ(source.value()->file_count(), 2U);
+  EXPECT_NE(std::string(source.value()->file_name(0)).find("/f0.jpg"), std::string::npos);
+  EXPECT_NE(std::string(source.value()->file_name(1)).find("/f1.jpg"), std::string::npos);
+}
+
 TEST(JpegFileSource, ListFileWithRelativePaths) {
   const std::string dir = temp_dir("jpglist");
   const int w = 24;

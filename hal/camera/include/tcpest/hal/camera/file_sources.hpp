@@ -19,7 +19,7 @@ struct ReplayOptions {
   int height = 0;
   double rate_hz = 25.0;  // JPEG files carry no rate; Y4M's header rate wins when present
   bool loop = false;      // start again after the last frame instead of kEndOfStream
-  std::size_t max_files = 100000U;
+  std::size_t max_files = 100000U;  // frames kept: the first names of a directory, the first lines of a list
 };
 
 // A directory of *.jpg / *.jpeg (sorted by name) or a text file listing one
