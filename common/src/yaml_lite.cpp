@@ -32,8 +32,10 @@ Span trim(Span s) noexcept {
   return s;
 }
 
-// Cuts a comment: '#' at the start or after white space, outside quotes.
-Span strip_comment(Span s) noexcept {
+// The offset of the first character outside quotes ('...' or "...") for
+// which stop(i) holds, or s.size if there is none.
+template <typename Stop>
+std::size_t first_outside_quotes(Span s, Stop stop) noexcept {
   char quote = '\0';
   for (std::size_t i = 0U; i < s.size; ++i) {
     const char c = s.begin[i];
@@ -45,11 +47,17 @@ Span strip_comment(Span s) noexcept {
     }
     if (c == '"' || c == '\'') {
       quote = c;
-    } else if (c == '#' && (i == 0U || is_blank(s.begin[i - 1U]))) {
-      s.size = i;
-      break;
+    } else if (stop(i)) {
+      return i;
     }
   }
+  return s.size;
+}
+
+// Cuts a comment: '#' at the start or after white space, outside quotes.
+Span strip_comment(Span s) noexcept {
+  s.size = first_outside_quotes(
+      s, [&s](std::size_t i) noexcept { return s.begin[i] == '#' && (i == 0U || is_blank(s.begin[i - 1U])); });
   return s;
 }
 
@@ -188,24 +196,9 @@ Status<Diagnostic> add_sequence_item(Parser& p, std::size_t indent, Span content
 // Offset of the colon of "key: value" or "key:" (outside quotes), or
 // content.size if there is none.
 std::size_t key_colon(Span content) noexcept {
-  std::size_t colon = content.size;
-  char quote = '\0';
-  for (std::size_t i = 0U; i < content.size; ++i) {
-    const char c = content.begin[i];
-    if (quote != '\0') {
-      if (c == quote) {
-        quote = '\0';
-      }
-      continue;
-    }
-    if (c == '"' || c == '\'') {
-      quote = c;
-    } else if (c == ':' && (i + 1U == content.size || content.begin[i + 1U] == ' ')) {
-      colon = i;
-      break;
-    }
-  }
-  return colon;
+  return first_outside_quotes(content, [&content](std::size_t i) noexcept {
+    return content.begin[i] == ':' && (i + 1U == content.size || content.begin[i + 1U] == ' ');
+  });
 }
 
 // Sets the path of a key at `indent`: its parent level's path, '.', the key.
