@@ -20,7 +20,7 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
   out.estimate = first;
   const int rounds = std::min(std::max(options.rounds, 0), kMaxGuidedRounds);
   for (int round = 0; round < rounds && out.estimate.quality != solver::EstimateQuality::None; ++round) {
-    const std::array<Corner, kNumCorners> previous = extractor.result().corners;
+    const FeatureExtractor::CornerSnapshot previous = extractor.snapshot_corners();
     solver::PoseVector fitted = out.estimate.r;
     const bool fit_ok = extractor.fit_pose_to_image(image, camera, model, fitted, out.fit, coarse_start && round == 0).ok() &&
                         out.fit.rms_px <= options.max_fit_rms_px && out.fit.boundaries >= options.min_fit_boundaries &&
@@ -29,14 +29,14 @@ GuidedResult rounds_from(FeatureExtractor& extractor, solver::PoseEstimator& est
       break;
     }
     if (!extractor.refine_corners(image, camera, model, fitted, out.fit.streak_px).ok()) {
-      extractor.restore_corners(previous);
+      extractor.restore_snapshot(previous);
       break;
     }
     solver::CornerObservation refined;
     corners_to_arrays(extractor.result(), refined.pixel, refined.visible);
     solver::Estimate again = estimator.estimate(refined, mode, fitted);
     if (again.quality == solver::EstimateQuality::None) {
-      extractor.restore_corners(previous);
+      extractor.restore_snapshot(previous);
       break;
     }
     if (again.quality == solver::EstimateQuality::Valid &&

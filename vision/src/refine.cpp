@@ -1741,12 +1741,16 @@ void FeatureExtractor::restore_stage4_corners() noexcept {
   if (result_.refined) {
     restore_corners(result_.stage4_corners);
     result_.refined = false;
+    result_.boundary_measured.fill(false);  // stage 4 measures no boundary along the model
+    result_.boundary_shift_mm.fill(0.0);
   }
 }
 
 void FeatureExtractor::restore_snapshot(const CornerSnapshot& snapshot) noexcept {
   restore_corners(snapshot.corners);
   result_.refined = snapshot.refined;
+  result_.boundary_measured = snapshot.boundary_measured;
+  result_.boundary_shift_mm = snapshot.boundary_shift_mm;
 }
 
 void FeatureExtractor::restore_corners(const std::array<Corner, kNumCorners>& corners) noexcept {

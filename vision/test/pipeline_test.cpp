@@ -548,7 +548,12 @@ TEST(Pipeline, TheGuidedResultKeepsThePoseItsCornersWereReadAt) {
   auto fx = default_extractor();
   ASSERT_NE(fx, nullptr);
   solver::PoseEstimator estimator(f.camera, f.model);
-  const double poses[3][3] = {{25.0, 30.0, 40.0}, {20.0, -60.0, -50.0}, {35.0, 60.0, 80.0}};
+  // The last two: a boundary not measured (the tip's face turned towards
+  // the camera; the base's rim not seen). On the first three every boundary
+  // is measured: the check of the predicted corners once found some there
+  // only through the measured flags of a refinement not kept.
+  const double poses[5][3] = {
+      {25.0, 30.0, 40.0}, {20.0, -60.0, -50.0}, {35.0, 60.0, 80.0}, {15.0, 90.0, 110.0}, {10.0, 0.0, 20.0}};
   double fit_error_mm = 0.0;
   double solve_error_mm = 0.0;
   int predicted = 0;
@@ -582,6 +587,42 @@ TEST(Pipeline, TheGuidedResultKeepsThePoseItsCornersWereReadAt) {
   }
   EXPECT_GE(predicted, 2);
   EXPECT_LT(fit_error_mm, solve_error_mm);
+}
+
+// A refinement the caller does not keep is put back whole: the corners and
+// which boundaries were measured with them (the flags once stayed those of
+// the refinement undone), and stage 4's corners come back with none.
+TEST(Pipeline, ARefinementPutBackTakesItsMeasuredBoundariesWithIt) {
+  Fixture f;
+  auto fx = default_extractor();
+  ASSERT_NE(fx, nullptr);
+  const solver::PoseVector truth =
+      f.model.geometry().nominal_pose(25.0, solver::deg_to_rad(30.0), solver::deg_to_rad(40.0));
+  const ImageView image = f.render_r(truth);
+  ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, truth)).ok());
+  ASSERT_TRUE(fx->refine_corners(image, f.camera, f.model, truth).ok());
+  const FeatureExtractor::CornerSnapshot at_truth = fx->snapshot_corners();
+  int measured = 0;
+  for (const bool m : at_truth.boundary_measured) {
+    measured += m ? 1 : 0;
+  }
+  ASSERT_GE(measured, 4);
+  solver::PoseVector beside = truth;
+  beside[solver::kXch] += 15.0;  // the model beside the tube: nothing to measure
+  static_cast<void>(fx->refine_corners(image, f.camera, f.model, beside));  // a trial, not kept
+  for (const bool m : fx->result().boundary_measured) {
+    EXPECT_FALSE(m);
+  }
+  fx->restore_snapshot(at_truth);
+  for (std::size_t j = 0U; j < static_cast<std::size_t>(kNumBoundaries); ++j) {
+    EXPECT_EQ(fx->result().boundary_measured[j], at_truth.boundary_measured[j]) << "j " << j;
+    EXPECT_EQ(fx->result().boundary_shift_mm[j], at_truth.boundary_shift_mm[j]) << "j " << j;
+  }
+  fx->restore_stage4_corners();
+  EXPECT_FALSE(fx->result().refined);
+  for (const bool m : fx->result().boundary_measured) {
+    EXPECT_FALSE(m);
+  }
 }
 
 // The shaft's silhouette gives the channel's pose: from the CAD pose (the

@@ -426,13 +426,18 @@ class FeatureExtractor {
   // did not keep): stage 4's, or those of an earlier refinement.
   void restore_stage4_corners() noexcept;
   void restore_corners(const std::array<Corner, kNumCorners>& corners) noexcept;
-  // The reported corners and whether they are refined ones: taken before a
-  // trial refinement, put back if the caller does not keep it.
+  // The reported corners, whether they are refined ones and which
+  // boundaries the refinement measured: taken before a trial refinement,
+  // put back if the caller does not keep it.
   struct CornerSnapshot {
     std::array<Corner, kNumCorners> corners{};
     bool refined = false;
+    std::array<bool, kNumBoundaries> boundary_measured{};
+    std::array<double, kNumBoundaries> boundary_shift_mm{};
   };
-  CornerSnapshot snapshot_corners() const noexcept { return CornerSnapshot{result_.corners, result_.refined}; }
+  CornerSnapshot snapshot_corners() const noexcept {
+    return CornerSnapshot{result_.corners, result_.refined, result_.boundary_measured, result_.boundary_shift_mm};
+  }
   void restore_snapshot(const CornerSnapshot& snapshot) noexcept;
   // All four stages.
   Status<VisionError> extract(const ImageView& image, const MarkerPriors& priors) noexcept;
