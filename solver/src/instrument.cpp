@@ -299,6 +299,17 @@ CircleLimbs InstrumentModel::shaft_limbs(const CameraModel& camera, const PoseFr
   return circle_limbs(camera, shaft_frame(f, back_mm), g_.shaft_radius_mm);
 }
 
+CentrelineFrame InstrumentModel::grasper_frame(const PoseFrames& f, double beyond_mm) const noexcept {
+  CentrelineFrame cf = centreline(f, g_.bend_length_mm);
+  cf.position += beyond_mm * cf.tangent;
+  return cf;
+}
+
+CircleLimbs InstrumentModel::grasper_limbs(const CameraModel& camera, const PoseFrames& f,
+                                           double beyond_mm) const noexcept {
+  return circle_limbs(camera, grasper_frame(f, beyond_mm), g_.grasper_radius_mm);
+}
+
 Vec3 InstrumentModel::tcp(const PoseVector& r) const noexcept {
   const PoseFrames f = frames(r);
   const CentrelineFrame end = centreline(f, g_.bend_length_mm);

@@ -164,6 +164,49 @@ TEST(Instrument, ShaftFrameAndLimbs) {
   EXPECT_GT(compared, 100);
 }
 
+// The grasper: its axis runs along the tip's tangent from the end of the
+// bending section to the TCP; with its radius set to the tube's, its limb
+// points at the tip are boundary 5's corners; its limb points are on the
+// grasper's limb.
+TEST(Instrument, GrasperFrameAndLimbs) {
+  const CameraModel camera = vectors_camera();
+  InstrumentGeometry same_radius;
+  same_radius.grasper_radius_mm = same_radius.radius_mm;
+  const InstrumentModel model = InstrumentModel::create(same_radius).value();
+  const InstrumentModel shipped = InstrumentModel::create(InstrumentGeometry{}).value();
+  const double length = model.geometry().bend_length_mm;
+  std::mt19937 rng(29);
+  int compared = 0;
+  for (int i = 0; i < 100; ++i) {
+    const PoseVector r = random_pose(rng);
+    const PoseFrames f = model.frames(r);
+    const CentrelineFrame end = model.centreline(f, length);
+    const CentrelineFrame at_tcp = model.grasper_frame(f, model.geometry().tcp_offset_mm);
+    EXPECT_LT((at_tcp.position - model.tcp(r)).norm(), 1e-9);
+    EXPECT_LT((at_tcp.tangent - end.tangent).norm(), 1e-12);
+    const CircleLimbs at_tip = model.grasper_limbs(camera, f, 0.0);
+    const CircleLimbs boundary5 = model.limbs(camera, f, length);
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      ASSERT_EQ(at_tip.present[side], boundary5.present[side]);
+      if (at_tip.present[side]) {
+        EXPECT_LT((at_tip.pixel[side] - boundary5.pixel[side]).norm(), 1e-9);
+        ++compared;
+      }
+    }
+    const CircleLimbs grasper = shipped.grasper_limbs(camera, shipped.frames(r), 5.0);
+    const CentrelineFrame gf = shipped.grasper_frame(shipped.frames(r), 5.0);
+    for (std::size_t side = 0U; side < 2U; ++side) {
+      if (grasper.present[side]) {
+        const Vec3 normal = (grasper.point[side] - gf.position) / shipped.geometry().grasper_radius_mm;
+        EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
+        EXPECT_NEAR(normal.dot(grasper.point[side]), 0.0, 1e-9);
+        EXPECT_NEAR(normal.dot(gf.tangent), 0.0, 1e-9);
+      }
+    }
+  }
+  EXPECT_GT(compared, 100);
+}
+
 TEST(Instrument, NothingBehindTheCamera) {
   const CameraModel cam = vectors_camera();
   const auto model = InstrumentModel::create(InstrumentGeometry{});

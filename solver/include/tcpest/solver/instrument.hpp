@@ -134,6 +134,12 @@ class InstrumentModel {
   CentrelineFrame shaft_frame(const PoseFrames& f, double back_mm) const noexcept;
   // The limb points of the shaft's circle there, with the same rules.
   CircleLimbs shaft_limbs(const CameraModel& camera, const PoseFrames& f, double back_mm) const noexcept;
+  // The grasper (model.md: a rigid cylinder of grasper_radius_mm along the
+  // tip tangent from s = L to the TCP): its axis point `beyond_mm` past the
+  // end of the bending section, with the tip's frame (tangent = the axis).
+  CentrelineFrame grasper_frame(const PoseFrames& f, double beyond_mm) const noexcept;
+  // The limb points of the grasper's circle there, with the same rules.
+  CircleLimbs grasper_limbs(const CameraModel& camera, const PoseFrames& f, double beyond_mm) const noexcept;
   // The apparent corners of model.md (and the TCP). With `jacobians`, also
   // their derivatives with respect to r (the limb points slide on the tube).
   void corners(const CameraModel& camera, const PoseVector& r, CornerSet& out,
