@@ -165,6 +165,39 @@ bool silhouette_at(const solver::CameraModel& camera, const solver::InstrumentMo
                          point, normal);
 }
 
+// The same for the grasper's silhouette `beyond_mm` past the tip.
+bool grasper_silhouette_at(const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                           const solver::PoseFrames& f, double beyond_mm, std::size_t side, solver::Vec2& point,
+                           solver::Vec2& normal) noexcept {
+  solver::Vec2 centre;
+  const bool centre_ok = camera.project(model.grasper_frame(f, beyond_mm).position, centre);
+  return silhouette_from(model.grasper_limbs(camera, f, beyond_mm), model.grasper_limbs(camera, f, beyond_mm + kDsMm),
+                         centre_ok, centre, side, point, normal);
+}
+
+// True when the image point p lies behind the tube's end: the tip's face
+// turned away from the camera (the grasper runs away from it) and p within
+// the image of the tube's circle at s = L (its centre's image and the
+// larger image of a radius there, +1 px). The grasper's silhouette there is
+// hidden by the tube; what lies there is the tube's own edge.
+bool behind_tube_end(const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                     const solver::PoseFrames& f, const solver::Vec2& p) noexcept {
+  if (tip_face_visible(model, f)) {
+    return false;  // the grasper runs towards the camera, in front of the tube
+  }
+  const solver::CentrelineFrame end = model.centreline(f, model.geometry().bend_length_mm);
+  const double radius_mm = model.geometry().radius_mm;
+  solver::Vec2 centre;
+  solver::Vec2 along_normal;
+  solver::Vec2 along_binormal;
+  if (!camera.project(end.position, centre) || !camera.project(end.position + radius_mm * end.normal, along_normal) ||
+      !camera.project(end.position + radius_mm * end.binormal, along_binormal)) {
+    return true;  // not projectable: take it as hidden
+  }
+  const double radius_px = std::max((along_normal - centre).norm(), (along_binormal - centre).norm());
+  return (p - centre).norm() < radius_px + 1.0;
+}
+
 // The same for the shaft's silhouette `back_mm` before the base.
 bool shaft_silhouette_at(const solver::CameraModel& camera, const solver::InstrumentModel& model,
                          const solver::PoseFrames& f, double back_mm, std::size_t side, solver::Vec2& point,
@@ -180,6 +213,8 @@ class Refiner {
   Refiner(const ImageView& image, const ColorModel& colors, const ExtractorConfig& config,
           const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& frames)
       noexcept : image_(image), colors_(colors), config_(config), camera_(camera), model_(model), frames_(frames) {}
+
+  const ImageView& image() const noexcept { return image_; }
 
   // The motion-blur streak (px, image; zero: none) under which the
   // silhouette is read by edge_across.
@@ -589,6 +624,13 @@ class Refiner {
 };
 
 
+// Whose silhouette a pose-fit reading is on, and what its s_mm measures.
+enum class Part : std::uint8_t {
+  kTube,     // the striped section: arc length from the base
+  kShaft,    // the shaft: distance before the base
+  kGrasper,  // the grasper: distance past the tip
+};
+
 // The pose fit's readings: a point of the model (a boundary arc's point or
 // a silhouette point), the image direction it is read along, and the offset
 // (px) of the image's edge from it along that direction.
@@ -596,8 +638,8 @@ struct Reading {
   bool arc = false;
   int boundary = 0;
   double angle_rad = 0.0;   // arc: the point's angle on the circle
-  bool shaft = false;       // a shaft silhouette reading (s_mm: distance before the base)
-  double s_mm = 0.0;        // silhouette: arc length
+  Part part = Part::kTube;  // silhouette: whose
+  double s_mm = 0.0;        // silhouette: where along that part (Part)
   std::size_t side = 0U;    // silhouette: side
   solver::Vec2 direction = solver::Vec2::Zero();
   double offset_px = 0.0;
@@ -611,8 +653,14 @@ constexpr int kFitSilhouetteSamples = 10; // per side
 constexpr int kFitShaftSamples = 6;
 constexpr double kFitShaftFirstMm = 1.0;
 constexpr double kFitShaftStepMm = 1.5;
-constexpr int kMaxReadings =
-    kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples + 2 * kFitShaftSamples;
+// The grasper's silhouette 2 to 9.5 mm past the tip: it holds the tip's
+// direction where an occluder or a smear hides the stripes. Not nearer:
+// within 1-2 mm of the tip the wider tube's end beside it is read instead.
+constexpr int kFitGrasperSamples = 6;
+constexpr double kFitGrasperFirstMm = 2.0;
+constexpr double kFitGrasperStepMm = 1.5;
+constexpr int kMaxReadings = kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples + 2 * kFitShaftSamples +
+                             2 * kFitGrasperSamples;
 constexpr int kMaxSmearedReadings = kNumBoundaries * kFitArcSamples;
 constexpr int kMaxFitIterations = 20;
 constexpr int kCoarseIterations = 3;  // wide-window iterations from a coarse start
@@ -628,8 +676,12 @@ bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& m
                                                                         std::sin(reading.angle_rad) * cf.binormal);
     return camera.project(x, pixel);
   }
-  const solver::CircleLimbs limbs =
-      reading.shaft ? model.shaft_limbs(camera, f, reading.s_mm) : model.limbs(camera, f, reading.s_mm);
+  solver::CircleLimbs limbs;
+  switch (reading.part) {
+    case Part::kTube: limbs = model.limbs(camera, f, reading.s_mm); break;
+    case Part::kShaft: limbs = model.shaft_limbs(camera, f, reading.s_mm); break;
+    case Part::kGrasper: limbs = model.grasper_limbs(camera, f, reading.s_mm); break;
+  }
   pixel = limbs.pixel[reading.side];
   return limbs.present[reading.side];
 }
@@ -1023,32 +1075,112 @@ void count_read_boundaries(const std::array<int, kNumBoundaries>& on_boundary, i
 struct SilhouetteReadout {
   int readings = 0;  // on the striped section (ImageFitSummary::silhouette_readings)
   int plain = 0;     // ... of them where the peak's centre reads too (plain_silhouette_readings)
+  int grasper = 0;   // on the grasper (ImageFitSummary::grasper_readings)
 };
 
+// The grasper's silhouette along `normal` through p (px from p, outwards
+// positive). The metal is neutral and the tissue beside it is not, while
+// the jaws' slit and the highlights on the metal, neutral too, make
+// lightness edges stronger than the silhouette's (which edge() would take:
+// 4 px inside on some hard frames). So the colour's spread, max - min of
+// the 8-bit sRGB values, is read every kNeutralStepPx: the silhouette is
+// where the mean spread over 1.5-4 px outside exceeds the mean over 1.5-4
+// px inside by the most (at least kNeutralMinContrast), moved to where the
+// spread crosses halfway between the two. False when there is no such
+// change within window_px.
+constexpr double kNeutralStepPx = 0.5;
+constexpr int kNeutralSide = 6;  // samples averaged on each side
+constexpr int kNeutralGap = 2;   // samples between a point and its sides
+constexpr int kNeutralMargin = kNeutralSide + kNeutralGap;
+constexpr int kNeutralMaxReach = 40;  // samples: a window of 20 px
+constexpr double kNeutralMinContrast = 12.0;
+constexpr int kMaxNeutralProfile = 2 * (kNeutralMaxReach + kNeutralMargin) + 1;
+bool neutral_edge(const ImageView& image, const solver::Vec2& p, const solver::Vec2& normal, double window_px,
+                  double& offset_px) noexcept {
+  const int half = ceil_within(window_px / kNeutralStepPx, 1, kNeutralMaxReach) + kNeutralMargin;
+  const int n = 2 * half + 1;
+  std::array<double, kMaxNeutralProfile> spread{};
+  for (int i = 0; i < n; ++i) {
+    const double t = kNeutralStepPx * static_cast<double>(i - half);
+    Rgb c;
+    if (!sample(image, p.x() + t * normal.x(), p.y() + t * normal.y(), c)) {
+      return false;
+    }
+    spread[static_cast<std::size_t>(i)] = std::max(c.r, std::max(c.g, c.b)) - std::min(c.r, std::min(c.g, c.b));
+  }
+  const auto mean = [&](int from, int to) noexcept {
+    double sum = 0.0;
+    for (int k = from; k <= to; ++k) {
+      sum += spread[static_cast<std::size_t>(k)];
+    }
+    return sum / static_cast<double>(to - from + 1);
+  };
+  int best = -1;
+  double best_contrast = kNeutralMinContrast;
+  double best_mid = 0.0;
+  for (int i = kNeutralMargin; i < n - kNeutralMargin; ++i) {
+    const double inside = mean(i - kNeutralMargin, i - kNeutralGap - 1);
+    const double outside = mean(i + kNeutralGap + 1, i + kNeutralMargin);
+    if (outside - inside > best_contrast) {
+      best_contrast = outside - inside;
+      best = i;
+      best_mid = 0.5 * (inside + outside);
+    }
+  }
+  if (best < 0 || best == kNeutralMargin || best == n - kNeutralMargin - 1) {
+    return false;  // none, or at the window's end: the change may lie beyond it
+  }
+  // The first halfway crossing within a sample of the best point.
+  double at = static_cast<double>(best);
+  for (int k = best - kNeutralGap; k < best + kNeutralGap; ++k) {
+    const double a = spread[static_cast<std::size_t>(k)];
+    const double b = spread[static_cast<std::size_t>(k) + 1U];
+    if (a <= best_mid && b > best_mid) {
+      at = static_cast<double>(k) + (best_mid - a) / (b - a);
+      if (std::fabs(at - static_cast<double>(best)) <= 1.0) {
+        break;
+      }
+    }
+  }
+  offset_px = kNeutralStepPx * (at - static_cast<double>(half));
+  return std::fabs(offset_px) <= window_px;
+}
+
 // Silhouette readings at the frames f within edge_window_px: both sides
-// along the striped section, and the shaft's just before the base up to the
-// channel exit (lambda_mm; not counted: the striped section must be seen
-// for itself).
+// along the striped section, the shaft's just before the base up to the
+// channel exit (lambda_mm) and the grasper's past the tip (neither counted:
+// the striped section must be seen for itself).
 SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorConfig& config,
                                       const solver::CameraModel& camera, const solver::InstrumentModel& model,
                                       const solver::PoseFrames& f, double edge_window_px, double lambda_mm,
                                       FitReadings& fit) noexcept {
   SilhouetteReadout out;
-  const auto read_silhouette = [&](bool shaft, double s, std::size_t side) noexcept {
+  const auto read_silhouette = [&](Part part, double s, std::size_t side) noexcept {
     solver::Vec2 point;
     solver::Vec2 normal;
-    const bool at = shaft ? shaft_silhouette_at(camera, model, f, s, side, point, normal) && camera.in_image(point)
-                          : silhouette_at(camera, model, f, s, side, point, normal);
+    bool at = false;
+    switch (part) {
+      case Part::kTube: at = silhouette_at(camera, model, f, s, side, point, normal); break;
+      case Part::kShaft:
+        at = shaft_silhouette_at(camera, model, f, s, side, point, normal) && camera.in_image(point);
+        break;
+      case Part::kGrasper:
+        at = grasper_silhouette_at(camera, model, f, s, side, point, normal) && camera.in_image(point) &&
+             !behind_tube_end(camera, model, f, point);
+        break;
+    }
     double e = 0.0;
     bool outer_end = false;
-    if (!at || !refiner.edge_across(point, normal, edge_window_px, e, outer_end)) {
+    const bool read = at && (part == Part::kGrasper ? neutral_edge(refiner.image(), point, normal, edge_window_px, e)
+                                                    : refiner.edge_across(point, normal, edge_window_px, e, outer_end));
+    if (!read) {
       return false;
     }
     // What the peak's centre would give, for the validity rule (GuidedOptions).
     double peak_e = 0.0;
-    out.plain += !shaft && (!outer_end || refiner.edge(point, normal, edge_window_px, peak_e)) ? 1 : 0;
+    out.plain += part == Part::kTube && (!outer_end || refiner.edge(point, normal, edge_window_px, peak_e)) ? 1 : 0;
     Reading rd;
-    rd.shaft = shaft;
+    rd.part = part;
     rd.s_mm = s;
     rd.side = side;
     fit.push(rd, normal, e, point);
@@ -1058,14 +1190,21 @@ SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorCon
   for (std::size_t side = 0U; side < 2U; ++side) {
     for (int i = 0; i < kFitSilhouetteSamples; ++i) {
       const double s = bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
-      out.readings += read_silhouette(false, s, side) ? 1 : 0;
+      out.readings += read_silhouette(Part::kTube, s, side) ? 1 : 0;
     }
     for (int i = 0; i < kFitShaftSamples && config.refine_shaft_readings; ++i) {
       const double back = kFitShaftFirstMm + kFitShaftStepMm * i;
       if (back > lambda_mm - 1.0) {
         break;  // the shaft starts at the channel exit
       }
-      static_cast<void>(read_silhouette(true, back, side));  // a missing shaft reading is no failure
+      static_cast<void>(read_silhouette(Part::kShaft, back, side));  // a missing shaft reading is no failure
+    }
+    for (int i = 0; i < kFitGrasperSamples && config.refine_grasper_readings; ++i) {
+      const double beyond = kFitGrasperFirstMm + kFitGrasperStepMm * i;
+      if (beyond > model.geometry().tcp_offset_mm - 1.0) {
+        break;  // the grasper ends at the TCP
+      }
+      out.grasper += read_silhouette(Part::kGrasper, beyond, side) ? 1 : 0;
     }
   }
   return out;
@@ -1118,7 +1257,10 @@ bool fit_step(const FitReadings& fit, const solver::CameraModel& camera, const s
       continue;
     }
     rows[static_cast<std::size_t>(used++)] = row;
-    equations.add(row, v, w);
+    // The grasper's readings steer the fit but stay out of its residual,
+    // which the acceptance and the comparisons of fits were set on
+    // (docs/vision.md "The grasper").
+    equations.add(row, v, w, rd.part != Part::kGrasper);
   }
   rms_px = equations.rms_px();
   if (!equations.solve(kFitPriorSd, x - start, delta)) {
@@ -1330,6 +1472,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     summary.iterations = it + 1;
     summary.arc_readings = arcs.readings;
     summary.silhouette_readings = silhouette.readings;
+    summary.grasper_readings = silhouette.grasper;
     summary.plain_silhouette_readings = silhouette.plain;
     summary.boundaries = boundaries;
     summary.boundary_run = boundary_run;

@@ -40,15 +40,19 @@ class RobustNormalEquations {
     return std::fabs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
   }
 
-  // One reading: its residual (px), its weight, and d(residual)/d(params).
-  void add(const Row& row, double residual_px, double w) noexcept {
+  // One reading: its residual (px), its weight, and d(residual)/d(params);
+  // `in_rms`: whether it counts in rms_px.
+  void add(const Row& row, double residual_px, double w, bool in_rms = true) noexcept {
     a_ += w * row * row.transpose();
     b_ += w * residual_px * row;
-    sum_w_ += w;
-    sum_wr2_ += w * residual_px * residual_px;
+    if (in_rms) {
+      sum_w_ += w;
+      sum_wr2_ += w * residual_px * residual_px;
+    }
   }
 
-  // Weighted RMS of the residuals added (px); 1e9 when none was.
+  // Weighted RMS of the residuals added that count in it (px); 1e9 when
+  // none was.
   double rms_px() const noexcept { return sum_w_ > 0.0 ? std::sqrt(sum_wr2_ / sum_w_) : 1e9; }
 
   // The step with the prior N(start, prior_sd[k]^2) on each parameter k

@@ -56,6 +56,27 @@ TEST(RobustStep, NoReadingGivesTheSentinelRmsAndANonFiniteRowFailsTheSolve) {
   EXPECT_FALSE(equations.solve(prior_sd, RobustNormalEquations<2>::Row::Zero(), delta));
 }
 
+// A reading kept out of the RMS (the pose fit's grasper readings) still
+// moves the step: the same step as with it counted, the RMS that of the
+// others alone.
+TEST(RobustStep, AReadingOutOfTheRmsStillSteersTheStep) {
+  RobustNormalEquations<1> counted(1e3);
+  RobustNormalEquations<1> uncounted(1e3);
+  for (RobustNormalEquations<1>* equations : {&counted, &uncounted}) {
+    equations->add(RobustNormalEquations<1>::Row(1.0), 1.0, 1.0);
+    equations->add(RobustNormalEquations<1>::Row(1.0), 3.0, 1.0, equations == &counted);
+  }
+  EXPECT_DOUBLE_EQ(counted.rms_px(), std::sqrt(5.0));
+  EXPECT_DOUBLE_EQ(uncounted.rms_px(), 1.0);
+  const double prior_sd[1] = {1e6};
+  RobustNormalEquations<1>::Row a;
+  RobustNormalEquations<1>::Row b;
+  ASSERT_TRUE(counted.solve(prior_sd, RobustNormalEquations<1>::Row::Zero(), a));
+  ASSERT_TRUE(uncounted.solve(prior_sd, RobustNormalEquations<1>::Row::Zero(), b));
+  EXPECT_DOUBLE_EQ(a[0], b[0]);
+  EXPECT_NEAR(a[0], 2.0, 1e-6);
+}
+
 }  // namespace
 }  // namespace detail
 }  // namespace vision

@@ -215,6 +215,7 @@ struct ExtractorConfig {
   double refine_coarse_search_mm = 2.5;     // a coarse start's first iterations: along-tube window, +/-
   double refine_coarse_edge_search_px = 10.0;  // ... and silhouette window, +/-
   bool refine_shaft_readings = true;        // the image fit also reads the shaft's silhouette
+  bool refine_grasper_readings = true;      // ... and the grasper's (docs/vision.md "The grasper")
   // A fine iteration of the image fit needs the arcs of 2 boundaries (they
   // hold the tube along its length), or of 1 when the silhouette is read at
   // this many points (of the 20 along the striped section, at the gradient
@@ -289,6 +290,7 @@ struct ImageFitSummary {
   int iterations = 0;
   int arc_readings = 0;         // colour-change readings on the boundary arcs (last iteration)
   int silhouette_readings = 0;  // silhouette readings (last iteration)
+  int grasper_readings = 0;     // the grasper's silhouette readings (last iteration; not in the above)
   int boundaries = 0;           // boundaries with arc readings
   // The longest run of consecutive colour boundaries (j = 1..4, blue
   // against yellow) with arc readings: what the validity rule counts
@@ -298,7 +300,7 @@ struct ImageFitSummary {
   // fit two stripes along reads a far boundary with a gap before it
   // (docs/vision.md, "Occluders").
   int boundary_run = 0;
-  double rms_px = 0.0;          // robust RMS of the readings' residuals at the result
+  double rms_px = 0.0;          // robust RMS of the readings' residuals at the result (the grasper's left out)
   bool converged = false;
   bool smeared = false;         // the last iteration read the arcs as smeared (refine_smear_*)
   // The motion-blur streak (px, image; sign arbitrary) under which the last
