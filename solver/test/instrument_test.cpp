@@ -121,6 +121,35 @@ TEST(Instrument, LimbsAtABoundaryAreItsCorners) {
   EXPECT_GT(compared, 1500);
 }
 
+// Limb points `same` of a part's circle whose radius was set to the tube's
+// are those of the tube's circle `tube` (the same circle, the same rule):
+// how many sides were compared.
+int expect_same_limbs(const CircleLimbs& same, const CircleLimbs& tube) {
+  int compared = 0;
+  for (std::size_t side = 0U; side < 2U; ++side) {
+    EXPECT_EQ(same.present[side], tube.present[side]);
+    if (same.present[side] && tube.present[side]) {
+      EXPECT_LT((same.pixel[side] - tube.pixel[side]).norm(), 1e-9);
+      ++compared;
+    }
+  }
+  return compared;
+}
+
+// The limb points of a part's circle of radius_mm at cf are on its limb: the
+// surface normal there is a unit radius, perpendicular to the line of sight
+// and to the axis.
+void expect_on_limb(const CircleLimbs& limbs, const CentrelineFrame& cf, double radius_mm) {
+  for (std::size_t side = 0U; side < 2U; ++side) {
+    if (limbs.present[side]) {
+      const Vec3 normal = (limbs.point[side] - cf.position) / radius_mm;
+      EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
+      EXPECT_NEAR(normal.dot(limbs.point[side]), 0.0, 1e-9);
+      EXPECT_NEAR(normal.dot(cf.tangent), 0.0, 1e-9);
+    }
+  }
+}
+
 // The shaft: its axis points lie on the channel axis, lambda - back from the
 // channel exit; at the base, with the shaft's radius set to the tube's, its
 // limb points are boundary 0's corners (the same circle, the same rule); its
@@ -141,25 +170,9 @@ TEST(Instrument, ShaftFrameAndLimbs) {
     const CentrelineFrame cf = model.shaft_frame(f, 4.0);
     EXPECT_LT((cf.position - (f.channel_origin + (r[kLambda] - 4.0) * axis)).norm(), 1e-9);
     EXPECT_LT((cf.tangent - axis).norm(), 1e-12);
-    const CircleLimbs at_base = model.shaft_limbs(camera, f, 0.0);
-    const CircleLimbs boundary0 = model.limbs(camera, f, 0.0);
-    for (std::size_t side = 0U; side < 2U; ++side) {
-      ASSERT_EQ(at_base.present[side], boundary0.present[side]);
-      if (at_base.present[side]) {
-        EXPECT_LT((at_base.pixel[side] - boundary0.pixel[side]).norm(), 1e-9);
-        ++compared;
-      }
-    }
-    const CircleLimbs shaft = shipped.shaft_limbs(camera, shipped.frames(r), 3.0);
-    const CentrelineFrame sf = shipped.shaft_frame(shipped.frames(r), 3.0);
-    for (std::size_t side = 0U; side < 2U; ++side) {
-      if (shaft.present[side]) {
-        const Vec3 normal = (shaft.point[side] - sf.position) / shipped.geometry().shaft_radius_mm;
-        EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
-        EXPECT_NEAR(normal.dot(shaft.point[side]), 0.0, 1e-9);
-        EXPECT_NEAR(normal.dot(sf.tangent), 0.0, 1e-9);
-      }
-    }
+    compared += expect_same_limbs(model.shaft_limbs(camera, f, 0.0), model.limbs(camera, f, 0.0));
+    expect_on_limb(shipped.shaft_limbs(camera, shipped.frames(r), 3.0), shipped.shaft_frame(shipped.frames(r), 3.0),
+                   shipped.geometry().shaft_radius_mm);
   }
   EXPECT_GT(compared, 100);
 }
@@ -184,25 +197,9 @@ TEST(Instrument, GrasperFrameAndLimbs) {
     const CentrelineFrame at_tcp = model.grasper_frame(f, model.geometry().tcp_offset_mm);
     EXPECT_LT((at_tcp.position - model.tcp(r)).norm(), 1e-9);
     EXPECT_LT((at_tcp.tangent - end.tangent).norm(), 1e-12);
-    const CircleLimbs at_tip = model.grasper_limbs(camera, f, 0.0);
-    const CircleLimbs boundary5 = model.limbs(camera, f, length);
-    for (std::size_t side = 0U; side < 2U; ++side) {
-      ASSERT_EQ(at_tip.present[side], boundary5.present[side]);
-      if (at_tip.present[side]) {
-        EXPECT_LT((at_tip.pixel[side] - boundary5.pixel[side]).norm(), 1e-9);
-        ++compared;
-      }
-    }
-    const CircleLimbs grasper = shipped.grasper_limbs(camera, shipped.frames(r), 5.0);
-    const CentrelineFrame gf = shipped.grasper_frame(shipped.frames(r), 5.0);
-    for (std::size_t side = 0U; side < 2U; ++side) {
-      if (grasper.present[side]) {
-        const Vec3 normal = (grasper.point[side] - gf.position) / shipped.geometry().grasper_radius_mm;
-        EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
-        EXPECT_NEAR(normal.dot(grasper.point[side]), 0.0, 1e-9);
-        EXPECT_NEAR(normal.dot(gf.tangent), 0.0, 1e-9);
-      }
-    }
+    compared += expect_same_limbs(model.grasper_limbs(camera, f, 0.0), model.limbs(camera, f, length));
+    expect_on_limb(shipped.grasper_limbs(camera, shipped.frames(r), 5.0),
+                   shipped.grasper_frame(shipped.frames(r), 5.0), shipped.geometry().grasper_radius_mm);
   }
   EXPECT_GT(compared, 100);
 }
