@@ -1130,7 +1130,8 @@ bool neutral_edge(const ImageView& image, const solver::Vec2& p, const solver::V
   if (best < 0 || best == kNeutralMargin || best == n - kNeutralMargin - 1) {
     return false;  // none, or at the window's end: the change may lie beyond it
   }
-  // The first halfway crossing within a sample of the best point.
+  // The halfway crossing near the best point: the first within a sample of
+  // it, else the last one within its gap.
   double at = static_cast<double>(best);
   for (int k = best - kNeutralGap; k < best + kNeutralGap; ++k) {
     const double a = spread[static_cast<std::size_t>(k)];
