@@ -80,7 +80,9 @@ bool fit_clearly_better(const ImageFitSummary& fit, const ImageFitSummary& curre
 // fit read at least as much of the image with a residual below
 // prefer_fit_rms_ratio times the current's (docs/vision.md). Otherwise when
 // it is of a better quality; at the same quality, when the current one was
-// not confirmed by a fit, or had a higher image-fit residual.
+// not confirmed by a fit, or (longer_run_rms_ratio) its fit read the longer
+// run of boundaries unless the shorter run's residual is clearly lower, or
+// at the same run had a higher image-fit residual.
 bool better(const GuidedResult& candidate, const GuidedResult& current, const GuidedOptions& options) noexcept {
   if (candidate.rounds_kept == 0) {
     return false;
@@ -98,7 +100,18 @@ bool better(const GuidedResult& candidate, const GuidedResult& current, const Gu
   if (a != b) {
     return a > b;
   }
-  return current.rounds_kept == 0 || candidate.fit.rms_px < current.fit.rms_px;
+  if (current.rounds_kept == 0) {
+    return true;
+  }
+  const int run = candidate.fit.boundary_run;
+  const int current_run = current.fit.boundary_run;
+  const double ratio = options.longer_run_rms_ratio;
+  if (ratio > 0.0 && run != current_run) {
+    // The shorter run needs a clearly lower residual (either way round).
+    return run > current_run ? ratio * candidate.fit.rms_px < current.fit.rms_px
+                             : candidate.fit.rms_px < ratio * current.fit.rms_px;
+  }
+  return candidate.fit.rms_px < current.fit.rms_px;
 }
 
 // What a seed's result must also meet to replace the current one.

@@ -1533,6 +1533,7 @@ TEST(Pipeline, AResultTwoStripesFromTheEncodersIsTriedAgainTwoStripesBack) {
   for (int rule = 0; rule < 2; ++rule) {
     GuidedOptions options;
     options.alias_check = rule == 1;
+    options.longer_run_rms_ratio = 0.0;  // which keeps the first rounds' result here: no alias to check
     const GuidedRun run = guided_run(f, estimator, image, prior, options, without_grasper());
     ASSERT_GT(run.guided.rounds_kept, 0);
     EXPECT_EQ(run.guided.alias_checked, rule == 1);
@@ -1544,6 +1545,40 @@ TEST(Pipeline, AResultTwoStripesFromTheEncodersIsTriedAgainTwoStripesBack) {
     } else {
       EXPECT_LT(std::fabs(off_mm), 3.0);
       EXPECT_GE(run.guided.fit.boundaries, 4);
+      EXPECT_GE(run.found * 10, run.visible * 8);
+    }
+  }
+}
+
+// The same frame with the grasper's silhouette read (the default): the
+// first rounds read a run of 4 boundaries on the true stripes (0.30 px);
+// the start seed's class fit moves it 6.8 mm along, where the fit reads a
+// run of 2, two stripes along, at 0.21 px. With the lower residual alone
+// that result replaces the first (the alias seed's, back on the true
+// stripes at 0.22 px, does not replace it in turn), and the encoder check
+// leaves no estimate. The longer run is kept (longer_run_rms_ratio), with
+// its corners.
+TEST(Pipeline, AtTheSameQualityTheFitThatReadTheLongerRunIsKept) {
+  Fixture f;
+  solver::PoseEstimator estimator(f.camera, f.model);
+  solver::PoseVector scene_r;
+  scene_r << -15.3447582969, 10.1204875737, 0.066481328094, -0.0246812879931, 10.0, -0.523598775598, -0.349065850399;
+  static_cast<void>(f.render_r(scene_r, 0U, 3726968971190200847ULL));
+  const ImageView image = f.jpeg_round_trip(92);
+  const solver::PoseVector prior = f.model.geometry().nominal_pose(10.1946135965, -0.543796416338, -0.462404854662);
+  for (int rule = 0; rule < 2; ++rule) {
+    GuidedOptions options;
+    options.longer_run_rms_ratio = rule == 0 ? 0.0 : GuidedOptions{}.longer_run_rms_ratio;
+    const GuidedRun run = guided_run(f, estimator, image, prior, options);
+    ASSERT_GT(run.guided.rounds_kept, 0) << "rule " << rule;
+    const double off_mm = run.guided.estimate.r[solver::kLambda] - scene_r[solver::kLambda];
+    if (rule == 0) {
+      EXPECT_GT(std::fabs(off_mm), 5.0);
+      EXPECT_LT(run.guided.fit.boundary_run, 3);
+      EXPECT_LT(run.found * 10, run.visible * 8);
+    } else {
+      EXPECT_LT(std::fabs(off_mm), 2.0);  // the channel 4 mm from its CAD pose: eq. 8's penalty
+      EXPECT_GE(run.guided.fit.boundary_run, 4);
       EXPECT_GE(run.found * 10, run.visible * 8);
     }
   }
@@ -1567,6 +1602,7 @@ TEST(Pipeline, TheAliasSeedIsTriedFromAFineStartFirst) {
   for (int rule = 0; rule < 2; ++rule) {
     GuidedOptions options;
     options.alias_fine_start = rule == 1;
+    options.longer_run_rms_ratio = 0.0;  // which keeps the first rounds' result here: no alias to check
     const GuidedRun run = guided_run(f, estimator, image, prior, options, without_grasper());
     ASSERT_GT(run.guided.rounds_kept, 0);
     EXPECT_TRUE(run.guided.alias_checked);

@@ -55,6 +55,15 @@ struct GuidedOptions {
   // docs/vision.md).
   bool prefer_fit_confirmed = true;   // the first of those rules (false: off)
   double prefer_fit_rms_ratio = 0.7;  // the second (0: off)
+  // At the same quality, two fit-confirmed results whose fits read runs of
+  // boundaries of different lengths (ImageFitSummary::boundary_run): the
+  // longer run is kept unless the shorter one's residual is below
+  // longer_run_rms_ratio times the longer one's. A fit two stripes along,
+  // or onto an occluder's edge, reads fewer boundaries and can settle on a
+  // lower residual; a lower residual alone replaced the true stripes there
+  // (lab frame 14; docs/vision.md, "The longer run"). 0: off (the lower
+  // residual alone).
+  double longer_run_rms_ratio = 0.7;
   bool start_seed = true;
   bool from_regions = true;
   int fallback_seeds = 9;
