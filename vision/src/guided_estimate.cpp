@@ -428,6 +428,26 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
       out.shaft_rechecked = true;
     }
   }
+  // A valid result from stage 4's solve or the shaft re-check may be a
+  // local minimum of the fit: the start seed's rounds are tried too, the
+  // better result kept.
+  if (options.rounds > 0 && options.valid_start_check && out.estimate.quality == solver::EstimateQuality::Valid &&
+      start.allFinite() && (out.rounds_kept == 0 || out.fit.rms_px > options.valid_start_check_min_rms_px)) {
+    solver::PoseVector seed_r = start;
+    ShaftFitSummary shaft;
+    const bool channel_known =
+        options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
+    if (options.class_fit) {
+      move_onto_classes(extractor, camera, model, image, options, channel_known, seed_r);
+    }
+    out.start_checked = true;
+    const bool rechecked = out.shaft_rechecked;
+    if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out)) {
+      out.from_start_check = true;
+      out.start_checked = true;
+      out.shaft_rechecked = rechecked;
+    }
+  }
   // Not valid yet: the fallback seeds. They need labelled markers: without
   // them (stage 1 or 2 failed) the fit would read whatever edges lie where
   // the seed puts the instrument.

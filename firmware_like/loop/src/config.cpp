@@ -155,6 +155,7 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
   TCPEST_TRY(read_int_as(doc, "loop.fallback_seeds", 0, vision::kMaxFallbackSeeds, l.fallback_seeds));
   TCPEST_TRY(read_bool(doc, "loop.shaft_recheck", l.shaft_recheck));
   TCPEST_TRY(read_bool(doc, "loop.alias_check", l.alias_check));
+  TCPEST_TRY(read_bool(doc, "loop.valid_start_check", l.valid_start_check));
   TCPEST_TRY(read_bool(doc, "loop.base_rim_seed", l.base_rim_seed));
   TCPEST_TRY(read_int_as(doc, "loop.camera_timeout_ms", 1, 60000, l.camera_timeout_ms));
   TCPEST_TRY(read_int_as(doc, "loop.camera_lost_after", 1, 10000, l.camera_lost_after));

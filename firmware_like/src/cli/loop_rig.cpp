@@ -235,6 +235,7 @@ int LoopRig::build() noexcept {
   vision->guided_options().fallback_seeds = config.loop.fallback_seeds;
   vision->guided_options().shaft_recheck = config.loop.shaft_recheck;
   vision->guided_options().alias_check = config.loop.alias_check;
+  vision->guided_options().valid_start_check = config.loop.valid_start_check;
   vision->guided_options().base_rim_seed = config.loop.base_rim_seed;
   pipeline = std::move(vision_pipeline.value());
   if (source->width() != models.camera.width() || source->height() != models.camera.height()) {

@@ -120,6 +120,19 @@ struct GuidedOptions {
   // more set of rounds.
   bool shaft_recheck = true;
   double shaft_recheck_min_mm = 0.3;
+  // A valid result is also checked against the start: the rounds are tried
+  // from the start seed (the channel from the shaft, then moved onto the
+  // class image, as the first fallback seed) and that result kept when
+  // better (the rule above). The rounds from stage 4's solve can settle
+  // valid beside the image, the base's or the tip's corners 3-13 px off,
+  // which no fallback seed would question (docs/vision.md, "A valid result
+  // checked against the start"). Only when the result's image fit left a robust
+  // RMS above valid_start_check_min_rms_px, or no fit confirmed it: a fit
+  // that close to the image is rarely beside the tube, and checking every
+  // valid frame more than doubled lab's solve time for one frame more. One
+  // shaft fit, one class fit and one more set of rounds per frame checked.
+  bool valid_start_check = true;
+  double valid_start_check_min_rms_px = 0.2;
   // Two stripes along the tube the colours repeat: a fit-confirmed result
   // whose insertion lies more than `alias_lambda_tolerance_mm` from the
   // start's (the encoders' accuracy is +/- 3 mm, model.md) is tried again
@@ -170,6 +183,8 @@ struct GuidedResult {
   bool from_bend = false;         // the rounds started from the start with its bend moved (bend_seed_step_rad)
   bool bend_tried = false;        // the start was also tried with its bend moved
   bool shaft_rechecked = false;   // a valid result was tried again from the shaft's channel pose
+  bool start_checked = false;     // a valid result was tried against the start seed (valid_start_check)
+  bool from_start_check = false;  // ... and that result was kept
   bool alias_checked = false;     // the result was tried again two stripes along (alias_check)
   bool from_alias = false;        // ... and that result was kept
   bool from_base_rim = false;     // the result is base_rim_seed's

@@ -48,6 +48,7 @@ struct LoopSettings {
   int fallback_seeds = 1;              // image fits from other seeds on a frame not yet valid (0..9; vision::GuidedOptions)
   bool shaft_recheck = false;          // a valid frame tried again from the shaft's channel pose (vision::GuidedOptions)
   bool alias_check = false;            // a result 3 mm off the encoders' insertion tried two stripes back (vision::GuidedOptions)
+  bool valid_start_check = false;      // a valid frame tried again from the start seed (vision::GuidedOptions)
   bool base_rim_seed = true;           // no fit kept: the channel from the shaft, the insertion from the base's rim (vision::GuidedOptions)
   int camera_timeout_ms = 200;         // a live camera silent this long counts as not ready
   int camera_lost_after = 5;           // consecutive not-ready cycles before the camera is lost
