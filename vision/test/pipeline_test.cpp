@@ -214,6 +214,30 @@ void expect_success_only_with(const GuidedRun& with, const GuidedRun& without, i
   EXPECT_LT(without.found * 10, without.visible * 8) << "seed " << scene_seed << ": not a success";
 }
 
+// A hard scene as the set has it, run from its encoders' start twice:
+// with `options` and `config` as given, and with `turn_off` applied to
+// copies of them (the rule under test switched off); the first must be a
+// success and the second not (expect_success_only_with).
+struct WithAndWithout {
+  GuidedRun with;
+  GuidedRun without;
+};
+template <typename TurnOff>
+WithAndWithout expect_success_only_with_rule(Fixture& f, solver::PoseEstimator& estimator, const HardScene& scene,
+                                             const GuidedOptions& options, const ExtractorConfig& config,
+                                             int min_visible, TurnOff turn_off) {
+  const ImageView image = render_as_in_set(f, scene);
+  const solver::PoseVector prior = encoders_start(f, scene);
+  WithAndWithout runs;
+  runs.with = guided_run(f, estimator, image, prior, options, config);
+  GuidedOptions options_off = options;
+  ExtractorConfig config_off = config;
+  turn_off(options_off, config_off);
+  runs.without = guided_run(f, estimator, image, prior, options_off, config_off);
+  expect_success_only_with(runs.with, runs.without, min_visible, scene.seed);
+  return runs;
+}
+
 TEST(Pipeline, FindsTheMarkerChainAndCornersOnARenderedFrame) {
   Fixture f;
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
@@ -1097,16 +1121,15 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
   };
   const std::uint64_t kNoPoseWithout = 8437888975762272235ULL;  // hard frame 60
   for (const HardScene& scene : scenes) {
-    const ImageView image = render_as_in_set(f, scene);
-    const solver::PoseVector prior = encoders_start(f, scene);
     GuidedOptions options;
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
     ASSERT_DOUBLE_EQ(options.insertion_seed_step_mm, 2.0);
     options.bend_seed_step_rad = 0.0;  // the seeds before the bend seeds (tested below)
-    const GuidedRun with = guided_run(f, estimator, image, prior, options, without_grasper());
-    options.insertion_seed_step_mm = 0.0;  // off
-    const GuidedRun without = guided_run(f, estimator, image, prior, options, without_grasper());
-    expect_success_only_with(with, without, 3, scene.seed);
+    const WithAndWithout runs = expect_success_only_with_rule(
+        f, estimator, scene, options, without_grasper(), 3,
+        [](GuidedOptions& o, ExtractorConfig&) { o.insertion_seed_step_mm = 0.0; });
+    const GuidedRun& with = runs.with;
+    const GuidedRun& without = runs.without;
     EXPECT_TRUE(with.guided.insertion_tried);
     EXPECT_TRUE(with.guided.from_insertion);
     EXPECT_FALSE(with.guided.from_start);
@@ -1148,15 +1171,14 @@ TEST(Pipeline, TheStartWithItsBendMovedServesAFrameTheOtherSeedsMiss) {
        16891268673161875406ULL},
   };
   for (const HardScene& scene : scenes) {
-    const ImageView image = render_as_in_set(f, scene);
-    const solver::PoseVector prior = encoders_start(f, scene);
-    GuidedOptions options;
+    const GuidedOptions options;
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
     ASSERT_DOUBLE_EQ(options.bend_seed_step_rad, 0.2);
-    const GuidedRun with = guided_run(f, estimator, image, prior, options, without_grasper());
-    options.bend_seed_step_rad = 0.0;  // off
-    const GuidedRun without = guided_run(f, estimator, image, prior, options, without_grasper());
-    expect_success_only_with(with, without, 3, scene.seed);
+    const WithAndWithout runs = expect_success_only_with_rule(
+        f, estimator, scene, options, without_grasper(), 3,
+        [](GuidedOptions& o, ExtractorConfig&) { o.bend_seed_step_rad = 0.0; });
+    const GuidedRun& with = runs.with;
+    const GuidedRun& without = runs.without;
     EXPECT_TRUE(with.guided.bend_tried) << "seed " << scene.seed;
     EXPECT_TRUE(with.guided.from_bend) << "seed " << scene.seed;
     EXPECT_FALSE(without.guided.bend_tried);
@@ -1190,14 +1212,11 @@ TEST(Pipeline, AValidResultIsCheckedAgainstTheStart) {
        5153157510373863304ULL},
   };
   for (const HardScene& scene : scenes) {
-    const ImageView image = render_as_in_set(f, scene);
-    const solver::PoseVector prior = encoders_start(f, scene);
-    GuidedOptions options;
-    ASSERT_TRUE(options.valid_start_check);
-    const GuidedRun with = guided_run(f, estimator, image, prior, options);
-    options.valid_start_check = false;
-    const GuidedRun without = guided_run(f, estimator, image, prior, options);
-    expect_success_only_with(with, without, 8, scene.seed);
+    const WithAndWithout runs = expect_success_only_with_rule(
+        f, estimator, scene, GuidedOptions{}, ExtractorConfig{}, 8,
+        [](GuidedOptions& o, ExtractorConfig&) { o.valid_start_check = false; });
+    const GuidedRun& with = runs.with;
+    const GuidedRun& without = runs.without;
     EXPECT_EQ(without.guided.estimate.quality, solver::EstimateQuality::Valid) << "seed " << scene.seed;
     EXPECT_FALSE(without.guided.start_checked);
     EXPECT_TRUE(with.guided.start_checked) << "seed " << scene.seed;
@@ -1230,15 +1249,9 @@ TEST(Pipeline, TheTipArcUnderASmearIsReadAtTheBoundaryItself) {
        8234813845077103636ULL},
   };
   for (const HardScene& scene : scenes) {
-    const ImageView image = render_as_in_set(f, scene);
-    const solver::PoseVector prior = encoders_start(f, scene);
-    const GuidedOptions options;
-    ExtractorConfig config = without_grasper();
-    ASSERT_DOUBLE_EQ(config.refine_smear_tip_bias, 0.15);
-    const GuidedRun with = guided_run(f, estimator, image, prior, options, config);
-    config.refine_smear_tip_bias = 0.0;  // off
-    const GuidedRun without = guided_run(f, estimator, image, prior, options, config);
-    expect_success_only_with(with, without, 4, scene.seed);
+    static_cast<void>(expect_success_only_with_rule(  // its checks are the whole test
+        f, estimator, scene, GuidedOptions{}, without_grasper(), 4,
+        [](GuidedOptions&, ExtractorConfig& c) { c.refine_smear_tip_bias = 0.0; }));
   }
 }
 
@@ -1557,6 +1570,23 @@ TEST(Pipeline, AMuchBetterImageFitReplacesAValidResult) {
   }
 }
 
+// Frame 14 of the `lab` set (seed 1), rendered and then JPEG-encoded as
+// the set is, and its encoders' start: the channel 4 mm from its CAD pose,
+// a short insertion (10 mm) bent away.
+struct LabFrame14 {
+  Fixture f;
+  solver::PoseVector scene_r;
+  ImageView image;
+  solver::PoseVector prior;
+  LabFrame14() {
+    scene_r << -15.3447582969, 10.1204875737, 0.066481328094, -0.0246812879931, 10.0, -0.523598775598,
+        -0.349065850399;
+    static_cast<void>(f.render_r(scene_r, 0U, 3726968971190200847ULL));
+    image = f.jpeg_round_trip(92);
+    prior = f.model.geometry().nominal_pose(10.1946135965, -0.543796416338, -0.462404854662);
+  }
+};
+
 // Two stripes along the tube the colours repeat. Frame 14 of the `lab` set
 // (seed 1), rendered and then JPEG-encoded as the set is: the guided
 // rounds hold the stripes two along from the true ones (2 boundaries
@@ -1564,22 +1594,18 @@ TEST(Pipeline, AMuchBetterImageFitReplacesAValidResult) {
 // The pose two stripes back towards the encoders' insertion gives a better
 // fit (5 boundaries), and it is kept (alias_check), with its corners.
 TEST(Pipeline, AResultTwoStripesFromTheEncodersIsTriedAgainTwoStripesBack) {
-  Fixture f;
+  LabFrame14 scene;
+  Fixture& f = scene.f;
   solver::PoseEstimator estimator(f.camera, f.model);
-  solver::PoseVector scene_r;
-  scene_r << -15.3447582969, 10.1204875737, 0.066481328094, -0.0246812879931, 10.0, -0.523598775598, -0.349065850399;
-  static_cast<void>(f.render_r(scene_r, 0U, 3726968971190200847ULL));
-  const ImageView image = f.jpeg_round_trip(92);
-  const solver::PoseVector prior = f.model.geometry().nominal_pose(10.1946135965, -0.543796416338, -0.462404854662);
   for (int rule = 0; rule < 2; ++rule) {
     GuidedOptions options;
     options.alias_check = rule == 1;
     options.longer_run_rms_ratio = 0.0;  // which keeps the first rounds' result here: no alias to check
-    const GuidedRun run = guided_run(f, estimator, image, prior, options, without_grasper());
+    const GuidedRun run = guided_run(f, estimator, scene.image, scene.prior, options, without_grasper());
     ASSERT_GT(run.guided.rounds_kept, 0);
     EXPECT_EQ(run.guided.alias_checked, rule == 1);
     EXPECT_EQ(run.guided.from_alias, rule == 1);
-    const double off_mm = run.guided.estimate.r[solver::kLambda] - prior[solver::kLambda];
+    const double off_mm = run.guided.estimate.r[solver::kLambda] - scene.prior[solver::kLambda];
     if (rule == 0) {
       EXPECT_GT(std::fabs(off_mm), 5.0);
       EXPECT_EQ(run.found, 0);
@@ -1600,19 +1626,15 @@ TEST(Pipeline, AResultTwoStripesFromTheEncodersIsTriedAgainTwoStripesBack) {
 // leaves no estimate. The longer run is kept (longer_run_rms_ratio), with
 // its corners.
 TEST(Pipeline, AtTheSameQualityTheFitThatReadTheLongerRunIsKept) {
-  Fixture f;
+  LabFrame14 scene;
+  Fixture& f = scene.f;
   solver::PoseEstimator estimator(f.camera, f.model);
-  solver::PoseVector scene_r;
-  scene_r << -15.3447582969, 10.1204875737, 0.066481328094, -0.0246812879931, 10.0, -0.523598775598, -0.349065850399;
-  static_cast<void>(f.render_r(scene_r, 0U, 3726968971190200847ULL));
-  const ImageView image = f.jpeg_round_trip(92);
-  const solver::PoseVector prior = f.model.geometry().nominal_pose(10.1946135965, -0.543796416338, -0.462404854662);
   for (int rule = 0; rule < 2; ++rule) {
     GuidedOptions options;
     options.longer_run_rms_ratio = rule == 0 ? 0.0 : GuidedOptions{}.longer_run_rms_ratio;
-    const GuidedRun run = guided_run(f, estimator, image, prior, options);
+    const GuidedRun run = guided_run(f, estimator, scene.image, scene.prior, options);
     ASSERT_GT(run.guided.rounds_kept, 0) << "rule " << rule;
-    const double off_mm = run.guided.estimate.r[solver::kLambda] - scene_r[solver::kLambda];
+    const double off_mm = run.guided.estimate.r[solver::kLambda] - scene.scene_r[solver::kLambda];
     if (rule == 0) {
       EXPECT_GT(std::fabs(off_mm), 5.0);
       EXPECT_LT(run.guided.fit.boundary_run, 3);
@@ -1715,14 +1737,11 @@ TEST(Pipeline, TheBaseRimServesATubeSeenEndOnBehindTheShaft) {
        4872073518384818787ULL},
   };
   for (const HardScene& scene : scenes) {
-    const ImageView image = render_as_in_set(f, scene);
-    const solver::PoseVector prior = encoders_start(f, scene);
-    GuidedOptions options;
-    ASSERT_TRUE(options.base_rim_seed);
-    const GuidedRun with = guided_run(f, estimator, image, prior, options);
-    options.base_rim_seed = false;
-    const GuidedRun without = guided_run(f, estimator, image, prior, options);
-    expect_success_only_with(with, without, 2, scene.seed);
+    const WithAndWithout runs = expect_success_only_with_rule(
+        f, estimator, scene, GuidedOptions{}, ExtractorConfig{}, 2,
+        [](GuidedOptions& o, ExtractorConfig&) { o.base_rim_seed = false; });
+    const GuidedRun& with = runs.with;
+    const GuidedRun& without = runs.without;
     EXPECT_TRUE(with.guided.from_base_rim) << "seed " << scene.seed;
     // The pose its corners were read at: the start with the rim's insertion.
     EXPECT_TRUE(with.guided.fitted_r.allFinite()) << "seed " << scene.seed;
