@@ -234,6 +234,22 @@ void move_onto_classes(FeatureExtractor& extractor, const solver::CameraModel& c
   }
 }
 
+// A seed as the fallback seeds take it: the channel's pose from the shaft
+// (shaft_fit), then moved onto the class image (class_fit). `shafted`: the
+// seed after the shaft fit alone; true when that fit succeeded.
+bool prepare_seed(FeatureExtractor& extractor, const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                  const ImageView& image, const GuidedOptions& options, solver::PoseVector& seed_r,
+                  solver::PoseVector& shafted) noexcept {
+  ShaftFitSummary shaft;
+  const bool channel_known =
+      options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
+  shafted = seed_r;
+  if (options.class_fit) {
+    move_onto_classes(extractor, camera, model, image, options, channel_known, seed_r);
+  }
+  return channel_known;
+}
+
 // The fallback seeds (GuidedOptions), each kept in `out` when better.
 SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                               const solver::CameraModel& camera, const solver::InstrumentModel& model,
@@ -265,17 +281,12 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
     }
     const bool insertion_seed = seed_index == kInsertionForthSeed || seed_index == kInsertionBackSeed;
     const bool bend_seed = seed_index >= kBendSeed;
-    ShaftFitSummary shaft;
-    const bool channel_known =
-        options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
+    solver::PoseVector unmoved;  // the seed with its channel from the shaft, before the class fit
+    const bool channel_known = prepare_seed(extractor, camera, model, image, options, seed_r, unmoved);
     if (seed_index == kStartSeed && options.shaft_fit) {
       tried.start_shaft_fitted = true;
       tried.start_shaft_ok = channel_known;
-      tried.start_shafted = seed_r;
-    }
-    const solver::PoseVector unmoved = seed_r;
-    if (options.class_fit) {
-      move_onto_classes(extractor, camera, model, image, options, channel_known, seed_r);
+      tried.start_shafted = unmoved;
     }
     ++seeds_tried;
     tried.insertion = tried.insertion || insertion_seed;
@@ -434,12 +445,8 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   if (options.rounds > 0 && options.valid_start_check && out.estimate.quality == solver::EstimateQuality::Valid &&
       start.allFinite() && (out.rounds_kept == 0 || out.fit.rms_px > options.valid_start_check_min_rms_px)) {
     solver::PoseVector seed_r = start;
-    ShaftFitSummary shaft;
-    const bool channel_known =
-        options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
-    if (options.class_fit) {
-      move_onto_classes(extractor, camera, model, image, options, channel_known, seed_r);
-    }
+    solver::PoseVector shafted;
+    static_cast<void>(prepare_seed(extractor, camera, model, image, options, seed_r, shafted));  // moved either way
     out.start_checked = true;
     const bool rechecked = out.shaft_rechecked;
     if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out)) {
