@@ -1572,7 +1572,7 @@ TEST(Pipeline, AMuchBetterImageFitReplacesAValidResult) {
 
 // Frame 14 of the `lab` set (seed 1), rendered and then JPEG-encoded as
 // the set is, and its encoders' start: the channel 4 mm from its CAD pose,
-// a short insertion (10 mm) bent away.
+// a short insertion (10 mm) bent 20 deg.
 struct LabFrame14 {
   Fixture f;
   solver::PoseVector scene_r;
