@@ -413,6 +413,19 @@ bool try_base_rim(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
   return true;
 }
 
+// GuidedOptions::max_valid_tcp_disagreement_mm, on the final result.
+void check_against_fit(const solver::InstrumentModel& model, const GuidedOptions& options, GuidedResult& out) noexcept {
+  if (out.rounds_kept == 0 || !out.estimate.r.allFinite() || !out.fitted_r.allFinite()) {
+    return;
+  }
+  out.tcp_disagreement_mm = (model.tcp(out.estimate.r) - model.tcp(out.fitted_r)).norm();
+  if (options.max_valid_tcp_disagreement_mm > 0.0 && out.estimate.quality == solver::EstimateQuality::Valid &&
+      out.tcp_disagreement_mm > options.max_valid_tcp_disagreement_mm) {
+    out.estimate.quality = solver::EstimateQuality::Degraded;
+    out.disagreement_demoted = true;
+  }
+}
+
 }  // namespace
 
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
@@ -465,6 +478,7 @@ GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& e
   }
   static_cast<void>(try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out));
   static_cast<void>(try_base_rim(extractor, estimator, camera, model, image, mode, start, options, tried, out));
+  check_against_fit(model, options, out);
   // After every seed: a kept result's flags come from its own rounds.
   out.unmoved_tried = tried.unmoved;
   out.insertion_tried = tried.insertion;

@@ -157,6 +157,7 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
   TCPEST_TRY(read_bool(doc, "loop.alias_check", l.alias_check));
   TCPEST_TRY(read_bool(doc, "loop.valid_start_check", l.valid_start_check));
   TCPEST_TRY(read_bool(doc, "loop.base_rim_seed", l.base_rim_seed));
+  TCPEST_TRY(read_double(doc, "loop.max_valid_tcp_disagreement_mm", 0.0, 100.0, l.max_valid_tcp_disagreement_mm));
   TCPEST_TRY(read_int_as(doc, "loop.camera_timeout_ms", 1, 60000, l.camera_timeout_ms));
   TCPEST_TRY(read_int_as(doc, "loop.camera_lost_after", 1, 10000, l.camera_lost_after));
   TCPEST_TRY(read_int_as(doc, "loop.retry_ms", 10, 600000, l.retry_ms));

@@ -35,7 +35,7 @@ TEST(LoopConfig, ReadsEverySection) {
       "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
       "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
       "  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n  shaft_recheck: true\n  alias_check: true\n  base_rim_seed: false\n"
-      "  valid_start_check: true\n"
+      "  valid_start_check: true\n  max_valid_tcp_disagreement_mm: 3.5\n"
       "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
       "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
       "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n";
@@ -58,6 +58,7 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_TRUE(config.loop.alias_check);
   EXPECT_TRUE(config.loop.valid_start_check);
   EXPECT_FALSE(config.loop.base_rim_seed);
+  EXPECT_DOUBLE_EQ(config.loop.max_valid_tcp_disagreement_mm, 3.5);
   EXPECT_DOUBLE_EQ(config.loop.encoder_check_lambda_mm, 4.5);
   EXPECT_DOUBLE_EQ(config.loop.encoder_check_bend_rad, 0.0);
   EXPECT_STREQ(config.can.bus, "vcan0");
@@ -89,6 +90,7 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
       {"loop:\n  fallback_seeds: 10\n", "loop.fallback_seeds"},
       {"loop:\n  encoder_check_bend_rad: -0.1\n", "loop.encoder_check_bend_rad"},
       {"loop:\n  encoder_check_lambda_mm: nan\n", "loop.encoder_check_lambda_mm"},
+      {"loop:\n  max_valid_tcp_disagreement_mm: -1\n", "loop.max_valid_tcp_disagreement_mm"},
   };
   for (const auto& b : bad) {
     s = parse(b.text, config);

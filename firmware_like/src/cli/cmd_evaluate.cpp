@@ -161,6 +161,9 @@ double median_of(std::vector<double>& v) noexcept {
 // The robot receives a degraded estimate flagged but still uses it (the
 // protocol's status 1): how far off those are is part of the result.
 constexpr double kDegradedFarMm = 5.0;
+// A valid estimate this far off at the TCP is a gross error the robot
+// would act on (counted in the report).
+constexpr double kValidFarMm = 3.0;
 
 // TCP errors against the sidecars, by the estimate's status: of the valid
 // ones the median and the RMS per axis, of the degraded ones the median,
@@ -181,6 +184,13 @@ struct TcpTally {
   }
   double valid_rms_mm(int axis) const noexcept {
     return valid_mm.empty() ? 0.0 : std::sqrt(valid_sq_mm2[axis] / static_cast<double>(valid_mm.size()));
+  }
+  long valid_far() const noexcept {
+    long far = 0;
+    for (const double e_mm : valid_mm) {
+      far += e_mm > kValidFarMm ? 1 : 0;
+    }
+    return far;
   }
   long degraded_far() const noexcept {
     long far = 0;
@@ -278,6 +288,9 @@ struct EvaluateTotals {
   // a model-guided round was kept, the TCP of the pose the corners were read
   // at (docs/solver.md, "The image fit's pose and the TCP").
   TcpTally solve_tcp, fit_tcp;
+  // The solve's TCP errors of the estimates demoted from valid because that
+  // TCP lay too far from the image fit's (EstimateResult::fit_disagrees).
+  std::vector<double> fit_disagrees_mm;
 
   // Adds one frame; returns its TCP error (mm; -1 without a pose or a true TCP).
   double add(const render::Sidecar& truth, const EstimateResult& result, const CornerScore& score,
@@ -314,6 +327,9 @@ struct EvaluateTotals {
     solve_tcp.add(result.status, result.tcp - truth.instrument.tcp);
     if (result.guided_rounds > 0) {
       fit_tcp.add(result.status, result.fit_tcp - truth.instrument.tcp);
+    }
+    if (result.fit_disagrees) {
+      fit_disagrees_mm.push_back((result.tcp - truth.instrument.tcp).norm());
     }
     return (result.tcp - truth.instrument.tcp).norm();
   }
@@ -357,9 +373,16 @@ struct EvaluateTotals {
                   streaks.read_blurred, streaks.blurred_frames, median_of(streaks.length_errors_px),
                   median_of(streaks.direction_errors_deg), streaks.read_sharp, streaks.sharp_frames);
     }
-    std::printf("valid estimates: %zu; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm\n",
+    std::printf("valid estimates: %zu; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm, over %.0f mm: %ld\n",
                 solve_tcp.valid_mm.size(), median_of(solve_tcp.valid_mm), solve_tcp.valid_rms_mm(0),
-                solve_tcp.valid_rms_mm(1), solve_tcp.valid_rms_mm(2));
+                solve_tcp.valid_rms_mm(1), solve_tcp.valid_rms_mm(2), kValidFarMm, solve_tcp.valid_far());
+    long disagreeing_far = 0;
+    for (const double e_mm : fit_disagrees_mm) {
+      disagreeing_far += e_mm > kValidFarMm ? 1 : 0;
+    }
+    std::printf("valid solves degraded, their TCP too far from the image fit's: %zu; TCP error median %.2f mm, "
+                "over %.0f mm: %ld\n",
+                fit_disagrees_mm.size(), median_of(fit_disagrees_mm), kValidFarMm, disagreeing_far);
     std::printf("degraded estimates: %zu; TCP error median %.2f mm, 90th percentile %.2f mm, over %.0f mm: %ld\n",
                 solve_tcp.degraded_mm.size(), median_of(solve_tcp.degraded_mm),
                 quantile_of(solve_tcp.degraded_mm, 0.9), kDegradedFarMm, solve_tcp.degraded_far());

@@ -237,6 +237,7 @@ int LoopRig::build() noexcept {
   vision->guided_options().alias_check = config.loop.alias_check;
   vision->guided_options().valid_start_check = config.loop.valid_start_check;
   vision->guided_options().base_rim_seed = config.loop.base_rim_seed;
+  vision->guided_options().max_valid_tcp_disagreement_mm = config.loop.max_valid_tcp_disagreement_mm;
   pipeline = std::move(vision_pipeline.value());
   if (source->width() != models.camera.width() || source->height() != models.camera.height()) {
     std::fprintf(stderr, "tcpest %s: the source's frames are %dx%d, the camera calibration is %dx%d\n",

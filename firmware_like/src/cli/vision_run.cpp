@@ -288,6 +288,7 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   out.status = estimate.quality;
   out.corners_rejected = estimate.corners_rejected;
   out.guided_rounds = guided.rounds_kept;
+  out.fit_disagrees = guided.disagreement_demoted;
   out.streak_px = guided.fit.streak_px;
   if (estimate.quality != solver::EstimateQuality::None) {
     out.r = estimate.r;

@@ -70,6 +70,9 @@ struct EstimateResult {
   int corners_rejected = 0;  // dropped as disagreeing with the model at the estimate
   int guided_rounds = 0;     // model-guided rounds kept (0: stage 4's corners)
   bool encoder_disagrees = false;  // demoted one level: beyond the encoders' accuracy (solver::check_against_encoders)
+  // Valid -> Degraded: the solve's TCP lay farther from fit_tcp than
+  // vision::GuidedOptions::max_valid_tcp_disagreement_mm.
+  bool fit_disagrees = false;
   bool extraction_ok = false;
   const char* extraction_error = "";
   // The motion-blur streak the kept image fit read (px, image; its sign is

@@ -9,6 +9,8 @@
 // iterations, one refinement, one estimate).
 #pragma once
 
+#include <limits>
+
 #include "tcpest/solver/pose_estimator.hpp"
 #include "tcpest/vision/features.hpp"
 
@@ -161,6 +163,19 @@ struct GuidedOptions {
   // 2 * kMaxRimScanSteps + 1 rim reads, one refinement and one solve
   // (docs/vision.md, "The tube seen end-on").
   bool base_rim_seed = true;
+  // After every seed, a valid result is checked against its own image fit:
+  // when the TCP of the solve of eq. 8 lies more than
+  // max_valid_tcp_disagreement_mm from the TCP of the pose the corners were
+  // read at (GuidedResult::fitted_r), the estimate is Degraded. The solve's
+  // penalty pulls the channel towards its CAD pose and the joints make up
+  // for it (docs/solver.md, "The image fit's pose and the TCP"): with a
+  // play of 1.5-2 sd the solve lands 3-7 mm off at the TCP, its corner
+  // residual still under the solve's validity limit, while the fitted pose
+  // lies within 0.1-0.7 mm. Only the status changes: the pose, the TCP and
+  // the corners stay (docs/vision.md, "A valid solve that its image fit
+  // contradicts"). 0: not checked. Checked only when a round was kept:
+  // there is no fitted pose otherwise.
+  double max_valid_tcp_disagreement_mm = 2.0;
 };
 constexpr int kMaxGuidedRounds = 4;
 constexpr int kMaxFallbackSeeds = 9;
@@ -188,6 +203,10 @@ struct GuidedResult {
   bool alias_checked = false;     // the result was tried again two stripes along (alias_check)
   bool from_alias = false;        // ... and that result was kept
   bool from_base_rim = false;     // the result is base_rim_seed's
+  // With a round kept: the distance (mm) between the TCP of the estimate's
+  // r and that of fitted_r; NaN without one.
+  double tcp_disagreement_mm = std::numeric_limits<double>::quiet_NaN();
+  bool disagreement_demoted = false;  // Valid -> Degraded by max_valid_tcp_disagreement_mm
 };
 
 // Everything after the first solve (the loop times it as its own step):

@@ -50,6 +50,9 @@ struct LoopSettings {
   bool alias_check = false;            // a result 3 mm off the encoders' insertion tried two stripes back (vision::GuidedOptions)
   bool valid_start_check = false;      // a valid frame tried again from the start seed (vision::GuidedOptions)
   bool base_rim_seed = true;           // no fit kept: the channel from the shaft, the insertion from the base's rim (vision::GuidedOptions)
+  // A valid solve whose TCP lies farther than this from its image fit's
+  // pose's TCP: degraded (vision::GuidedOptions; 0 = not checked).
+  double max_valid_tcp_disagreement_mm = 2.0;
   int camera_timeout_ms = 200;         // a live camera silent this long counts as not ready
   int camera_lost_after = 5;           // consecutive not-ready cycles before the camera is lost
   int retry_ms = 1000;                 // reopen attempts for a lost camera or bus
