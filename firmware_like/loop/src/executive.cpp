@@ -537,6 +537,7 @@ void Executive::step_refine(const ImageView& image) noexcept {
                                      : solver::SolveMode::Adaptive;
   if (parts_.pipeline->refine(image, *estimator_, mode, prior_r_, estimate_)) {
     record_.refined = true;
+    record_.fit_disagrees = parts_.pipeline->refine_degraded_by_fit();
     take_estimate();
   }
 }

@@ -75,6 +75,7 @@ bool VisionPipeline::refine(const ImageView& image, solver::PoseEstimator& estim
                             const solver::PoseVector& start, solver::Estimate& estimate) noexcept {
   const vision::GuidedResult guided =
       vision::guided_rounds(*extractor_, estimator, camera_, model_, image, mode, estimate, start, guided_);
+  degraded_by_fit_ = guided.disagreement_demoted;
   if (guided.rounds_kept == 0) {
     return false;
   }

@@ -328,6 +328,74 @@ class SlowOracle final : public FeaturePipeline {
   OraclePipeline& inner_;
 };
 
+// A pipeline whose model-guided rounds degrade the valid solve, as
+// vision's do when its image fit contradicts it at the TCP
+// (loop.max_valid_tcp_disagreement_mm).
+class FitDegradingOracle final : public FeaturePipeline {
+ public:
+  explicit FitDegradingOracle(OraclePipeline& inner) : inner_(inner) {}
+  const char* name() const noexcept override { return "fit-degrading"; }
+  void begin_frame(const hal::FrameInfo& info) noexcept override { inner_.begin_frame(info); }
+  Status<StageError> classify(const ImageView& image) noexcept override { return inner_.classify(image); }
+  Status<StageError> interpret(PriorSource s, const solver::PoseVector& r) noexcept override {
+    return inner_.interpret(s, r);
+  }
+  Status<StageError> borders(const ImageView& image) noexcept override { return inner_.borders(image); }
+  Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept override {
+    return inner_.corners(image, out);
+  }
+  bool refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
+              const solver::PoseVector& start, solver::Estimate& estimate) noexcept override {
+    static_cast<void>(image);
+    static_cast<void>(estimator);
+    static_cast<void>(mode);
+    static_cast<void>(start);
+    degraded_ = degrade && estimate.quality == solver::EstimateQuality::Valid;
+    if (degraded_) {
+      estimate.quality = solver::EstimateQuality::Degraded;
+    }
+    return true;  // a round kept
+  }
+  bool refine_degraded_by_fit() const noexcept override { return degraded_; }
+  void end_frame(bool success) noexcept override { inner_.end_frame(success); }
+  void drop_track() noexcept override { inner_.drop_track(); }
+  bool has_temporal_prior() const noexcept override { return inner_.has_temporal_prior(); }
+  const char* describe(StageError e) const noexcept override { return inner_.describe(e); }
+  bool degrade = false;
+
+ private:
+  OraclePipeline& inner_;
+  bool degraded_ = false;
+};
+
+// The cycle's record says why a valid solve was published degraded by the
+// model-guided rounds (CycleRecord::fit_disagrees), and only then.
+TEST(Executive, TheRecordSaysWhenTheImageFitDegradedTheSolve) {
+  for (const bool degrade : {true, false}) {
+    Rig rig(3U);
+    FitDegradingOracle pipeline(rig.pipeline);
+    pipeline.degrade = degrade;
+    LoopParts parts;
+    parts.source = rig.source.get();
+    parts.clock = &rig.clock;
+    parts.pipeline = &pipeline;
+    parts.node = &rig.node;
+    parts.camera = &rig.camera;
+    parts.instrument = &rig.model;
+    auto created = Executive::create(rig.config, parts);
+    ASSERT_TRUE(created.ok());
+    Executive& loop = *created.value();
+    loop.start();
+    ASSERT_EQ(loop.run_cycle(), CycleOutcome::kContinue);
+    const CycleRecord& last = loop.last();
+    ASSERT_TRUE(last.solved);
+    EXPECT_TRUE(last.refined);
+    EXPECT_EQ(last.fit_disagrees, degrade);
+    EXPECT_EQ(last.quality, degrade ? solver::EstimateQuality::Degraded : solver::EstimateQuality::Valid);
+    EXPECT_EQ(last.publication.status, degrade ? EstimateStatus::kDegraded : EstimateStatus::kValid);
+  }
+}
+
 TEST(Executive, PeriodTriggerPublishesAtTheTickAndCountsOverrunsAndSlips) {
   Rig rig(100U);
   rig.config.loop.trigger = Trigger::kPeriod;

@@ -68,6 +68,7 @@ struct CycleRecord {
   bool encoder_disagrees = false;   // demoted one level: beyond the encoders' accuracy (loop.encoder_check_*)
   bool solved = false;              // quality != None
   bool refined = false;             // the model-guided rounds gave the estimate
+  bool fit_disagrees = false;       // ... and degraded it from valid: its TCP beside their image fit's (loop.max_valid_tcp_disagreement_mm)
   Publication publication{};        // what this cycle's estimate is (sent now or at the next tick)
   bool camera_lost = false;
   bool bus_lost = false;

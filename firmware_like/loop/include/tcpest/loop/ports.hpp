@@ -58,6 +58,11 @@ class FeaturePipeline {
     static_cast<void>(estimate);
     return false;
   }
+  // After a refine() that returned true: it degraded a valid solve that its
+  // image fit contradicts at the TCP (vision::GuidedOptions::
+  // max_valid_tcp_disagreement_mm), for the cycle's record. A stand-in
+  // pipeline never does.
+  virtual bool refine_degraded_by_fit() const noexcept { return false; }
   // End of a frame: `success` feeds the temporal prior.
   virtual void end_frame(bool success) noexcept = 0;
   // The track is dropped: forget the temporal prior.

@@ -32,6 +32,7 @@ class VisionPipeline final : public FeaturePipeline {
   Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept override;
   bool refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
               const solver::PoseVector& start, solver::Estimate& estimate) noexcept override;
+  bool refine_degraded_by_fit() const noexcept override { return degraded_by_fit_; }
   vision::GuidedOptions& guided_options() noexcept { return guided_; }
   void end_frame(bool success) noexcept override;
   void drop_track() noexcept override { temporal_.reset(); }
@@ -51,6 +52,7 @@ class VisionPipeline final : public FeaturePipeline {
   vision::TemporalPriors temporal_{};
   vision::GuidedOptions guided_{};
   bool interpreted_ = false;
+  bool degraded_by_fit_ = false;  // the last refine()'s GuidedResult::disagreement_demoted
 };
 
 }  // namespace loop
