@@ -50,15 +50,19 @@ struct Rig {
     source = std::make_unique<hal::SimCamera>(*scene, 25.0, false);
     build(other_source != nullptr ? other_source : source.get());
   }
-  void build(hal::FrameSource* s) {
+  // The rig's parts with another pipeline (or source).
+  LoopParts parts_with(FeaturePipeline& p, hal::FrameSource* s) {
     LoopParts parts;
     parts.source = s;
     parts.clock = &clock;
-    parts.pipeline = &pipeline;
+    parts.pipeline = &p;
     parts.node = &node;
     parts.camera = &camera;
     parts.instrument = &model;
-    auto created = Executive::create(config, parts);
+    return parts;
+  }
+  void build(hal::FrameSource* s) {
+    auto created = Executive::create(config, parts_with(pipeline, s));
     ASSERT_TRUE(created.ok());
     loop = std::move(created.value());
     loop->start();
@@ -189,14 +193,8 @@ TEST(Executive, AnEstimateFarFromTheEncodersIsPublishedOneLevelLower) {
 TEST(Executive, ANonFiniteEncoderToleranceIsRefusedAtStartUp) {
   Rig rig(1U);
   rig.config.loop.encoder_check_bend_rad = std::nan("");
-  LoopParts parts;
-  parts.source = rig.source.get();
-  parts.clock = &rig.clock;
-  parts.pipeline = &rig.pipeline;
-  parts.node = &rig.node;
-  parts.camera = &rig.camera;
-  parts.instrument = &rig.model;
-  EXPECT_EQ(Executive::create(rig.config, parts).error(), LoopError::kBadConfig);
+  EXPECT_EQ(Executive::create(rig.config, rig.parts_with(rig.pipeline, rig.source.get())).error(),
+            LoopError::kBadConfig);
 }
 
 TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
@@ -375,14 +373,7 @@ TEST(Executive, TheRecordSaysWhenTheImageFitDegradedTheSolve) {
     Rig rig(3U);
     FitDegradingOracle pipeline(rig.pipeline);
     pipeline.degrade = degrade;
-    LoopParts parts;
-    parts.source = rig.source.get();
-    parts.clock = &rig.clock;
-    parts.pipeline = &pipeline;
-    parts.node = &rig.node;
-    parts.camera = &rig.camera;
-    parts.instrument = &rig.model;
-    auto created = Executive::create(rig.config, parts);
+    auto created = Executive::create(rig.config, rig.parts_with(pipeline, rig.source.get()));
     ASSERT_TRUE(created.ok());
     Executive& loop = *created.value();
     loop.start();
@@ -401,14 +392,7 @@ TEST(Executive, PeriodTriggerPublishesAtTheTickAndCountsOverrunsAndSlips) {
   rig.config.loop.trigger = Trigger::kPeriod;
   rig.config.loop.period_us = 10000;
   SlowOracle slow(rig.clock, rig.pipeline);
-  LoopParts parts;
-  parts.source = rig.source.get();
-  parts.clock = &rig.clock;
-  parts.pipeline = &slow;
-  parts.node = &rig.node;
-  parts.camera = &rig.camera;
-  parts.instrument = &rig.model;
-  auto created = Executive::create(rig.config, parts);
+  auto created = Executive::create(rig.config, rig.parts_with(slow, rig.source.get()));
   ASSERT_TRUE(created.ok());
   Executive& loop = *created.value();
   EXPECT_TRUE(loop.publishes_first());
@@ -446,13 +430,8 @@ TEST(Executive, FrameLimitAndMismatchedCameraSize) {
   other.width = 640;
   const auto camera = solver::CameraModel::create(other);
   ASSERT_TRUE(camera.ok());
-  LoopParts parts;
-  parts.source = rig.source.get();
-  parts.clock = &rig.clock;
-  parts.pipeline = &rig.pipeline;
-  parts.node = &rig.node;
+  LoopParts parts = rig.parts_with(rig.pipeline, rig.source.get());
   parts.camera = &camera.value();
-  parts.instrument = &rig.model;
   EXPECT_EQ(Executive::create(rig.config, parts).error(), LoopError::kBadConfig);
 }
 
