@@ -165,6 +165,15 @@ constexpr double kDegradedFarMm = 5.0;
 // would act on (counted in the report).
 constexpr double kValidFarMm = 3.0;
 
+// How many of the errors lie beyond limit_mm.
+long count_over(const std::vector<double>& errors_mm, double limit_mm) noexcept {
+  long far = 0;
+  for (const double e_mm : errors_mm) {
+    far += e_mm > limit_mm ? 1 : 0;
+  }
+  return far;
+}
+
 // TCP errors against the sidecars, by the estimate's status: of the valid
 // ones the median and the RMS per axis, of the degraded ones the median,
 // the 90th percentile and how many lie beyond kDegradedFarMm.
@@ -185,20 +194,8 @@ struct TcpTally {
   double valid_rms_mm(int axis) const noexcept {
     return valid_mm.empty() ? 0.0 : std::sqrt(valid_sq_mm2[axis] / static_cast<double>(valid_mm.size()));
   }
-  long valid_far() const noexcept {
-    long far = 0;
-    for (const double e_mm : valid_mm) {
-      far += e_mm > kValidFarMm ? 1 : 0;
-    }
-    return far;
-  }
-  long degraded_far() const noexcept {
-    long far = 0;
-    for (const double e_mm : degraded_mm) {
-      far += e_mm > kDegradedFarMm ? 1 : 0;
-    }
-    return far;
-  }
+  long valid_far() const noexcept { return count_over(valid_mm, kValidFarMm); }
+  long degraded_far() const noexcept { return count_over(degraded_mm, kDegradedFarMm); }
 };
 
 // Scores one frame's reported corners (CornerScore above).
@@ -376,13 +373,10 @@ struct EvaluateTotals {
     std::printf("valid estimates: %zu; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm, over %.0f mm: %ld\n",
                 solve_tcp.valid_mm.size(), median_of(solve_tcp.valid_mm), solve_tcp.valid_rms_mm(0),
                 solve_tcp.valid_rms_mm(1), solve_tcp.valid_rms_mm(2), kValidFarMm, solve_tcp.valid_far());
-    long disagreeing_far = 0;
-    for (const double e_mm : fit_disagrees_mm) {
-      disagreeing_far += e_mm > kValidFarMm ? 1 : 0;
-    }
     std::printf("valid solves degraded, their TCP too far from the image fit's: %zu; TCP error median %.2f mm, "
                 "over %.0f mm: %ld\n",
-                fit_disagrees_mm.size(), median_of(fit_disagrees_mm), kValidFarMm, disagreeing_far);
+                fit_disagrees_mm.size(), median_of(fit_disagrees_mm), kValidFarMm,
+                count_over(fit_disagrees_mm, kValidFarMm));
     std::printf("degraded estimates: %zu; TCP error median %.2f mm, 90th percentile %.2f mm, over %.0f mm: %ld\n",
                 solve_tcp.degraded_mm.size(), median_of(solve_tcp.degraded_mm),
                 quantile_of(solve_tcp.degraded_mm, 0.9), kDegradedFarMm, solve_tcp.degraded_far());
