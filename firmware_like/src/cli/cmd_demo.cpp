@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "cli/args.hpp"
+#include "cli/cycles_csv.hpp"
 #include "cli/commands.hpp"
 #include "cli/loop_rig.hpp"
 #include "cli/setup.hpp"
@@ -105,6 +106,8 @@ class DemoObserver final : public loop::CycleObserver {
       : rig_(rig), robot_(robot), csv_(csv), overlay_dir_(overlay_dir), overlay_every_(overlay_every),
         samples_(samples) {}
 
+  bool csv_failed() const noexcept { return csv_failed_; }
+
   bool init() noexcept {
     const int w = rig_.models.camera.width();
     const int h = rig_.models.camera.height();
@@ -114,14 +117,7 @@ class DemoObserver final : public loop::CycleObserver {
       return false;
     }
     encoder_ = std::move(encoder.value());
-    std::fprintf(csv_,
-                 "cycle,frame,t_ms,status,prior,failed_stage,solve_status,corners_detected,corners_used,rms_px,"
-                 "latency_ms,send_offset_ms,total_ms");
-    for (int i = 0; i < loop::kNumSteps; ++i) {
-      std::fprintf(csv_, ",%s_ms", loop::kSchedule[static_cast<std::size_t>(i)].name);
-    }
-    std::fprintf(csv_, ",overrun,slipped,tcp_x_mm,tcp_y_mm,tcp_z_mm,truth_x_mm,truth_y_mm,truth_z_mm,error_mm\n");
-    return true;
+    return write_cycles_csv_header(csv_);
   }
 
   void on_cycle(const loop::CycleRecord& r, const ImageView& frame) noexcept override {
@@ -136,24 +132,8 @@ class DemoObserver final : public loop::CycleObserver {
       t0_ns_ = r.trigger_ns;
     }
     const loop::Publication& p = r.publication;
-    double error = -1.0;
-    if (r.truth.valid && p.status <= loop::EstimateStatus::kDegraded) {
-      error = std::sqrt((p.tcp_mm[0] - r.truth.tcp_mm[0]) * (p.tcp_mm[0] - r.truth.tcp_mm[0]) +
-                        (p.tcp_mm[1] - r.truth.tcp_mm[1]) * (p.tcp_mm[1] - r.truth.tcp_mm[1]) +
-                        (p.tcp_mm[2] - r.truth.tcp_mm[2]) * (p.tcp_mm[2] - r.truth.tcp_mm[2]));
-    }
-    std::fprintf(csv_, "%llu,%u,%.3f,%s,%s,%s,%s,%u,%u,%.3f,%.3f,%.3f,%.3f", static_cast<unsigned long long>(r.cycle),
-                 r.frame_sequence, ms(r.trigger_ns - t0_ns_), loop::to_string(p.status), loop::to_string(r.prior),
-                 r.failed_stage >= 0 ? loop::kSchedule[static_cast<std::size_t>(r.failed_stage)].name : "",
-                 r.failed_stage < 0 && r.have_frame ? solver::to_string(r.solve_status) : "",
-                 static_cast<unsigned>(p.corners_detected), static_cast<unsigned>(p.corners_used), p.rms_px,
-                 r.latency_ns >= 0 ? ms(r.latency_ns) : -1.0, r.send_offset_ns >= 0 ? ms(r.send_offset_ns) : -1.0,
-                 ms(r.total_ns));
-    for (int i = 0; i < loop::kNumSteps; ++i) {
-      std::fprintf(csv_, ",%.3f", ms(r.step_ns[static_cast<std::size_t>(i)]));
-    }
-    std::fprintf(csv_, ",%d,%u,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", r.overrun ? 1 : 0, r.slipped, p.tcp_mm[0],
-                 p.tcp_mm[1], p.tcp_mm[2], r.truth.tcp_mm[0], r.truth.tcp_mm[1], r.truth.tcp_mm[2], error);
+    // A refused row is reported once, with the outputs, at the end.
+    csv_failed_ = !write_cycles_csv_row(csv_, r, t0_ns_) || csv_failed_;
     if (samples_.size() < samples_.capacity()) {
       Sample s;
       s.t_s = ms(r.trigger_ns - t0_ns_) / 1000.0;
@@ -220,6 +200,7 @@ class DemoObserver final : public loop::CycleObserver {
   std::unique_ptr<std::uint8_t[]> overlay_;
   std::unique_ptr<render::JpegEncoder> encoder_;
   std::int64_t t0_ns_ = -1;
+  bool csv_failed_ = false;  // a row the stream refused
 };
 
 double percentile(std::vector<double> v, double q) {
@@ -585,7 +566,7 @@ int cmd_demo(int argc, char** argv) {
   robot.send_prior(rig.sim->encoder_reading(0U));
   const loop::CycleOutcome outcome = rig.executive->run(stop);
   robot.drain();
-  const bool csv_ok = std::fclose(csv) == 0;
+  const bool csv_ok = std::fclose(csv) == 0 && !observer.csv_failed();
   if (rig.logging) {
     static_cast<void>(rig.log.flush());  // checked by close() in the rig's destructor path below
   }

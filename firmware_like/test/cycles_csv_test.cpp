@@ -1,0 +1,146 @@
+// cycles.csv: every row has the header's columns, and the row says why its
+// estimate has its status (the last four columns).
+#include "cli/cycles_csv.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+namespace tcpest {
+namespace cli {
+namespace {
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> fields;
+  std::string field;
+  for (const char c : line) {
+    if (c == ',') {
+      fields.push_back(field);
+      field.clear();
+    } else if (c != '\n') {
+      field += c;
+    }
+  }
+  fields.push_back(field);
+  return fields;
+}
+
+// The header and one row of `r`, written through a temporary file.
+std::vector<std::vector<std::string>> header_and_row(const loop::CycleRecord& r, std::int64_t t0_ns) {
+  std::FILE* f = std::tmpfile();
+  EXPECT_NE(f, nullptr);
+  if (f == nullptr) {
+    return {};
+  }
+  EXPECT_TRUE(write_cycles_csv_header(f));
+  EXPECT_TRUE(write_cycles_csv_row(f, r, t0_ns));
+  std::rewind(f);
+  std::vector<std::vector<std::string>> lines;
+  char buffer[4096];
+  while (std::fgets(buffer, sizeof buffer, f) != nullptr) {
+    lines.push_back(split(buffer));
+  }
+  static_cast<void>(std::fclose(f));  // a read-back stream: nothing to lose
+  return lines;
+}
+
+// The value of column `name` in `row`, by the header.
+std::string column(const std::vector<std::vector<std::string>>& lines, const std::string& name) {
+  for (std::size_t i = 0U; i < lines[0].size(); ++i) {
+    if (lines[0][i] == name) {
+      return lines[1][i];
+    }
+  }
+  ADD_FAILURE() << "no column " << name;
+  return "";
+}
+
+loop::CycleRecord degraded_by_the_image_fit() {
+  loop::CycleRecord r;
+  r.cycle = 7U;
+  r.frame_sequence = 6U;
+  r.have_frame = true;
+  r.trigger_ns = 2'040'000'000;
+  r.total_ns = 3'500'000;
+  r.latency_ns = 4'000'000;
+  r.send_offset_ns = 100'000;
+  r.solve_status = solver::SolveStatus::ConvergedStep;
+  r.quality = solver::EstimateQuality::Degraded;
+  r.solved = true;
+  r.refined = true;
+  r.fit_disagrees = true;
+  r.corners_rejected = 2;
+  r.publication.status = loop::EstimateStatus::kDegraded;
+  r.publication.tcp_mm[0] = 3.0;
+  r.publication.tcp_mm[1] = 4.0;
+  r.publication.tcp_mm[2] = 50.0;
+  r.publication.corners_detected = 11U;
+  r.publication.corners_used = 9U;
+  r.truth.valid = true;
+  r.truth.tcp_mm[2] = 50.0;
+  return r;
+}
+
+TEST(CyclesCsv, EveryRowHasTheHeadersColumns) {
+  const auto lines = header_and_row(degraded_by_the_image_fit(), 2'000'000'000);
+  ASSERT_EQ(lines.size(), 2U);
+  EXPECT_EQ(lines[1].size(), lines[0].size());
+  // Appended last, so that a reader of the first columns by position keeps working.
+  const std::size_t n = lines[0].size();
+  ASSERT_GE(n, 4U);
+  EXPECT_EQ(lines[0][n - 4U], "refined");
+  EXPECT_EQ(lines[0][n - 3U], "corners_rejected");
+  EXPECT_EQ(lines[0][n - 2U], "encoder_disagrees");
+  EXPECT_EQ(lines[0][n - 1U], "fit_disagrees");
+  EXPECT_EQ(lines[0][0], "cycle");
+  for (const auto& step : loop::kSchedule) {
+    EXPECT_NE(column(lines, std::string(step.name) + "_ms"), "");
+  }
+}
+
+TEST(CyclesCsv, TheRowSaysWhyTheEstimateIsDegraded) {
+  const auto lines = header_and_row(degraded_by_the_image_fit(), 2'000'000'000);
+  ASSERT_EQ(lines.size(), 2U);
+  EXPECT_EQ(column(lines, "status"), "degraded");
+  EXPECT_EQ(column(lines, "t_ms"), "40.000");
+  EXPECT_EQ(column(lines, "error_mm"), "5.000");  // (3, 4, 0) mm from the truth
+  EXPECT_EQ(column(lines, "refined"), "1");
+  EXPECT_EQ(column(lines, "corners_rejected"), "2");
+  EXPECT_EQ(column(lines, "encoder_disagrees"), "0");
+  EXPECT_EQ(column(lines, "fit_disagrees"), "1");
+  EXPECT_EQ(column(lines, "failed_stage"), "");
+}
+
+TEST(CyclesCsv, AFailedStageAndNoTruthAreSaidSo) {
+  loop::CycleRecord r = degraded_by_the_image_fit();
+  r.failed_stage = 1;  // classify
+  r.solved = false;
+  r.refined = false;
+  r.fit_disagrees = false;
+  r.encoder_disagrees = true;
+  r.publication.status = loop::EstimateStatus::kHeld;
+  r.truth.valid = false;
+  r.latency_ns = -1;
+  const auto lines = header_and_row(r, r.trigger_ns);
+  ASSERT_EQ(lines.size(), 2U);
+  EXPECT_EQ(column(lines, "failed_stage"), loop::kSchedule[1].name);
+  EXPECT_EQ(column(lines, "solve_status"), "");
+  EXPECT_EQ(column(lines, "error_mm"), "-1.000");
+  EXPECT_EQ(column(lines, "latency_ms"), "-1.000");
+  EXPECT_EQ(column(lines, "encoder_disagrees"), "1");
+  EXPECT_EQ(column(lines, "fit_disagrees"), "0");
+}
+
+TEST(CyclesCsv, AStreamThatRefusesTheWriteIsReported) {
+  std::FILE* read_only = std::fopen("/dev/null", "r");
+  ASSERT_NE(read_only, nullptr);
+  EXPECT_FALSE(write_cycles_csv_header(read_only));
+  EXPECT_FALSE(write_cycles_csv_row(read_only, degraded_by_the_image_fit(), 0));
+  static_cast<void>(std::fclose(read_only));  // opened for reading: nothing to flush
+}
+
+}  // namespace
+}  // namespace cli
+}  // namespace tcpest
