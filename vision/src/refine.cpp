@@ -19,6 +19,7 @@
 
 #include <Eigen/Dense>
 
+#include "blurred_edge.hpp"
 #include "robust_step.hpp"
 #include "sampling.hpp"
 #include "tcpest/vision/features.hpp"
@@ -80,6 +81,10 @@ constexpr int kMinStreakWidths = 8;
 constexpr double kOuterEndShare = 0.3;
 constexpr double kOuterEndMarginPx = 2.0;  // the profile runs this far past window + smear / 2
 constexpr int kMaxOuterEndProfile = 161;   // 0.5 px apart: +/- 40 px
+// Or by the blurred edge's model (refine_streak_edge_model): its profile
+// runs this far past the window and half the smear, so that both levels
+// (the tube's shading inside, the tissue outside) are seen.
+constexpr double kBlurredEdgeMarginPx = 4.0;
 
 // ceil(v) as an int within [lo, hi]: clamped before the cast (a window
 // from a projection next to the camera can be huge, or NaN: lo).
@@ -549,12 +554,45 @@ class Refiner {
   // (the default) and more flattens the gradient's peak into a plateau as wide as the
   // smear, whose centre the tube's shading pulls inwards and whose ends
   // often lie beyond edge()'s window (docs/vision.md).
-  bool edge_across(const solver::Vec2& p, const solver::Vec2& normal, double window_px, double& offset_px,
-                   bool& outer_end) const noexcept {
+  bool edge_across(const solver::Vec2& p, const solver::Vec2& normal, double window_px, double half_width_px,
+                   double& offset_px, bool& outer_end) const noexcept {
     const double across_px = std::fabs(streak_px_.dot(normal));
     outer_end = across_px > 0.0 && across_px >= config_.refine_streak_across_px;
-    return outer_end ? edge_outer_end(p, normal, window_px, across_px, offset_px)
-                     : edge(p, normal, window_px, offset_px);
+    if (!outer_end) {
+      return edge(p, normal, window_px, offset_px);
+    }
+    if (config_.refine_streak_edge_model && half_width_px > 1.0) {
+      return edge_blurred(p, normal, window_px, across_px, half_width_px, offset_px);
+    }
+    return edge_outer_end(p, normal, window_px, across_px, offset_px);
+  }
+
+  // The silhouette at mid-exposure by the blurred edge's model
+  // (detail::fit_blurred_edge): the linear-light profile along `normal`
+  // through p, over the window, half the smear across and a margin for the
+  // levels on both sides; px from p, outwards positive.
+  bool edge_blurred(const solver::Vec2& p, const solver::Vec2& normal, double window_px, double across_px,
+                    double half_width_px, double& offset_px) const noexcept {
+    const double window = std::min(window_px, detail::kMaxBlurredEdgeWindowPx);
+    const double reach_px = window + 0.5 * across_px + kBlurredEdgeMarginPx;
+    detail::BlurredEdgeProfile profile;
+    profile.half = ceil_within(reach_px / detail::kBlurredEdgeSampleStepPx, 2, (detail::kMaxBlurredEdgeSamples - 1) / 2);
+    const detail::LinearLight& linear = detail::linear_light();
+    for (int i = 0; i <= 2 * profile.half; ++i) {
+      const double t = detail::kBlurredEdgeSampleStepPx * static_cast<double>(i - profile.half);
+      Rgb q;
+      if (!sample(image_, p.x() + t * normal.x(), p.y() + t * normal.y(), q)) {
+        return false;
+      }
+      profile.rgb[static_cast<std::size_t>(i)] = {linear(q.r), linear(q.g), linear(q.b)};
+    }
+    detail::BlurredEdgeFit fit;
+    if (!detail::fit_blurred_edge_and_smear(profile, across_px, config_.refine_streak_edge_smear_search_px,
+                                            half_width_px, window, fit)) {
+      return false;
+    }
+    offset_px = fit.edge_px;
+    return true;
   }
 
   // The outer end of the linear-light colour gradient's plateau along
@@ -1170,10 +1208,18 @@ SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorCon
              !behind_tube_end(camera, model, f, point);
         break;
     }
+    double half_width_px = 0.0;  // the part's apparent half width at s (the blurred edge's model)
+    if (at && part != Part::kGrasper) {
+      const solver::CircleLimbs limbs =
+          part == Part::kTube ? model.limbs(camera, f, s) : model.shaft_limbs(camera, f, s);
+      if (limbs.present[0] && limbs.present[1]) {
+        half_width_px = 0.5 * (limbs.pixel[0] - limbs.pixel[1]).norm();
+      }
+    }
     double e = 0.0;
     bool outer_end = false;
     const bool read = at && (part == Part::kGrasper ? neutral_edge(refiner.image(), point, normal, edge_window_px, e)
-                                                    : refiner.edge_across(point, normal, edge_window_px, e, outer_end));
+                                                    : refiner.edge_across(point, normal, edge_window_px, half_width_px, e, outer_end));
     if (!read) {
       return false;
     }

@@ -247,6 +247,19 @@ struct ExtractorConfig {
   bool refine_streak = true;
   double refine_streak_min_px = 6.0;
   double refine_streak_across_px = 5.0;
+  // Under that smear the silhouette is read by a model of the blurred edge
+  // (the tube's shading falling to its limb, then the tissue, averaged over
+  // the smear across) fitted to the linear-light profile, instead of the
+  // gradient plateau's outer end moved in by half the smear: the outer end
+  // leans on the streak's length and the plateau's shape, which the
+  // shading bends (docs/vision.md "The blurred edge's model"). false: the
+  // outer end.
+  bool refine_streak_edge_model = true;
+  // ... with the smear across also tried this much shorter and longer than
+  // the read one, the fit of the least residual kept (0: the read smear
+  // alone; docs/vision.md: three fits per reading, 2 px apart, did as well
+  // as seven 1 px apart).
+  double refine_streak_edge_smear_search_px = 2.0;
   // A smear across the tube leaves the arcs sharp, so they never read as
   // smeared: the streak is then also read at the first fine iteration that
   // reads refine_streak_unsmeared_min_boundaries boundaries or more (a pose
