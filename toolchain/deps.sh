@@ -26,6 +26,11 @@ TCPEST_BUILD_PACKAGES=(cmake make g++ libeigen3-dev libjpeg62-turbo-dev libturbo
 # What the tests and checks need on top.
 TCPEST_TEST_PACKAGES=(libgtest-dev libgmock-dev libbenchmark-dev clang clang-tidy cppcheck
                       can-utils user-mode-linux kmod iproute2 python3 g++-aarch64-linux-gnu)
+# The vcan tests' qemu guest (tests/vcan/README.md), x86-64 hosts only; its
+# kernel is fetched by run-vcan.sh with apt-get download, not installed.
+if [ "$(uname -m)" = "x86_64" ]; then
+  TCPEST_TEST_PACKAGES+=(qemu-system-x86 busybox-static)
+fi
 # Optional peer libraries, only for the comparison benchmarks (vision_bench
 # compares stage 1 with OpenCV); nothing else needs them.
 TCPEST_PEER_PACKAGES=(libopencv-dev)

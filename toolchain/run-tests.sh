@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Every test and check of tcpest, as CI runs it: installs what is missing,
 # builds (release, sanitizers, clang, aarch64 cross), runs the unit and
-# integration tests, the static analysers, and the vcan tests in a
-# user-mode-linux guest. `--quick` runs only the release build and its tests.
+# integration tests, the static analysers, and the vcan tests (on the host
+# or in a guest: tests/vcan/README.md). `--quick` runs only the release build
+# and its tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source toolchain/deps.sh
