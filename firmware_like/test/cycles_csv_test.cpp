@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -57,6 +58,18 @@ std::string column(const std::vector<std::vector<std::string>>& lines, const std
   return "";
 }
 
+struct Expected {
+  const char* column;
+  std::string value;
+};
+
+// Each named column of the row holds its value.
+void expect_columns(const std::vector<std::vector<std::string>>& lines, std::initializer_list<Expected> expected) {
+  for (const Expected& e : expected) {
+    EXPECT_EQ(column(lines, e.column), e.value) << e.column;
+  }
+}
+
 loop::CycleRecord degraded_by_the_image_fit() {
   loop::CycleRecord r;
   r.cycle = 7U;
@@ -103,14 +116,14 @@ TEST(CyclesCsv, EveryRowHasTheHeadersColumns) {
 TEST(CyclesCsv, TheRowSaysWhyTheEstimateIsDegraded) {
   const auto lines = header_and_row(degraded_by_the_image_fit(), 2'000'000'000);
   ASSERT_EQ(lines.size(), 2U);
-  EXPECT_EQ(column(lines, "status"), "degraded");
-  EXPECT_EQ(column(lines, "t_ms"), "40.000");
-  EXPECT_EQ(column(lines, "error_mm"), "5.000");  // (3, 4, 0) mm from the truth
-  EXPECT_EQ(column(lines, "refined"), "1");
-  EXPECT_EQ(column(lines, "corners_rejected"), "2");
-  EXPECT_EQ(column(lines, "encoder_disagrees"), "0");
-  EXPECT_EQ(column(lines, "fit_disagrees"), "1");
-  EXPECT_EQ(column(lines, "failed_stage"), "");
+  expect_columns(lines, {{"status", "degraded"},
+                         {"t_ms", "40.000"},
+                         {"error_mm", "5.000"},  // (3, 4, 0) mm from the truth
+                         {"refined", "1"},
+                         {"corners_rejected", "2"},
+                         {"encoder_disagrees", "0"},
+                         {"fit_disagrees", "1"},
+                         {"failed_stage", ""}});
 }
 
 TEST(CyclesCsv, AFailedStageAndNoTruthAreSaidSo) {
@@ -125,12 +138,12 @@ TEST(CyclesCsv, AFailedStageAndNoTruthAreSaidSo) {
   r.latency_ns = -1;
   const auto lines = header_and_row(r, r.trigger_ns);
   ASSERT_EQ(lines.size(), 2U);
-  EXPECT_EQ(column(lines, "failed_stage"), loop::kSchedule[1].name);
-  EXPECT_EQ(column(lines, "solve_status"), "");
-  EXPECT_EQ(column(lines, "error_mm"), "-1.000");
-  EXPECT_EQ(column(lines, "latency_ms"), "-1.000");
-  EXPECT_EQ(column(lines, "encoder_disagrees"), "1");
-  EXPECT_EQ(column(lines, "fit_disagrees"), "0");
+  expect_columns(lines, {{"failed_stage", loop::kSchedule[1].name},
+                         {"solve_status", ""},
+                         {"error_mm", "-1.000"},
+                         {"latency_ms", "-1.000"},
+                         {"encoder_disagrees", "1"},
+                         {"fit_disagrees", "0"}});
 }
 
 TEST(CyclesCsv, AStreamThatRefusesTheWriteIsReported) {
