@@ -11,15 +11,11 @@ namespace detail {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr int kMaxEdgeHalf = 68;  // ceil((kMaxBlurredEdgeWindowPx + 1) / kBlurredEdgeGridPx)
-constexpr int kSampleCells = 2;   // kBlurredEdgeSampleStepPx / kBlurredEdgeGridPx
-constexpr int kMaxSampleHalf = (kMaxBlurredEdgeSamples - 1) / 2;
-// The table of d = edge - t, on the grid: +/- (edge reach + profile reach + 1 cell).
-constexpr int kMaxTableHalf = kMaxEdgeHalf + kSampleCells * kMaxSampleHalf + 1;
-constexpr int kMaxTable = 2 * kMaxTableHalf + 1;
-constexpr int kMaxEdges = 2 * kMaxEdgeHalf + 1;
+constexpr int kSampleCells = BlurredEdgeScratch::kSampleCells;
+constexpr int kMaxSampleHalf = BlurredEdgeScratch::kMaxSampleHalf;
+constexpr int kMaxEdges = BlurredEdgeScratch::kMaxEdges;
 
-static_assert(kMaxEdgeHalf * kBlurredEdgeGridPx >= kMaxBlurredEdgeWindowPx + 1.0, "the edge grid covers the window");
+static_assert(BlurredEdgeScratch::kMaxEdgeHalf * kBlurredEdgeGridPx >= kMaxBlurredEdgeWindowPx + 1.0, "the edge grid covers the window");
 static_assert(kSampleCells * kBlurredEdgeGridPx == kBlurredEdgeSampleStepPx, "samples lie on the grid");
 
 // The integral of the sharp shading sqrt(2u - u^2) from the limb (u = 0) to
@@ -78,145 +74,19 @@ void blurred_bases(double d_px, double smear_px, double half_width_px, double& s
   inside = std::min(1.0, std::max(0.0, hi / smear_px));
 }
 
-// Sums over the n samples of a table entry taken at k0, k0 - 2, ...,
-// k0 - 2 (n - 1): stride-2 prefix sums, so each sum is one difference.
-struct StridedSums {
-  std::array<double, kMaxTable> prefix{};
-  void build(const std::array<double, kMaxTable>& values, int count) noexcept {
-    for (int k = 0; k < count; ++k) {
-      const auto kk = static_cast<std::size_t>(k);
-      prefix[kk] = values[kk] + (k >= kSampleCells ? prefix[kk - kSampleCells] : 0.0);
-    }
-  }
-  double sum(int k0, int n) const noexcept {
-    const int before = k0 - kSampleCells * n;
-    return prefix[static_cast<std::size_t>(k0)] - (before >= 0 ? prefix[static_cast<std::size_t>(before)] : 0.0);
-  }
-};
-
-// The model of one profile under one smear: the blurred bases tabulated
-// over d = edge - t, their strided sums, and the profile's own sums.
-class EdgeModel {
- public:
-  // False when a sample is not finite.
-  bool prepare(const BlurredEdgeProfile& profile, double smear_px, double half_width_px, double window_px) noexcept {
-    profile_ = &profile;
-    half_ = profile.half;
-    n_ = 2 * half_ + 1;
-    edge_half_ = static_cast<int>(std::ceil((window_px + 1.0) / kBlurredEdgeGridPx));
-    table_half_ = edge_half_ + kSampleCells * half_ + 1;
-    const int table_count = 2 * table_half_ + 1;
-    for (int k = 0; k < table_count; ++k) {
-      const auto kk = static_cast<std::size_t>(k);
-      blurred_bases(kBlurredEdgeGridPx * static_cast<double>(k - table_half_), smear_px, half_width_px, shading_[kk],
-                    inside_[kk]);
-    }
-    std::array<double, kMaxTable> product{};
-    const auto build = [&](StridedSums& sums, const auto& value) noexcept {
-      for (int k = 0; k < table_count; ++k) {
-        product[static_cast<std::size_t>(k)] = value(static_cast<std::size_t>(k));
-      }
-      sums.build(product, table_count);
-    };
-    build(s_ss_, [&](std::size_t k) noexcept { return shading_[k] * shading_[k]; });
-    build(s_si_, [&](std::size_t k) noexcept { return shading_[k] * inside_[k]; });
-    build(s_s_, [&](std::size_t k) noexcept { return shading_[k]; });
-    build(s_ii_, [&](std::size_t k) noexcept { return inside_[k] * inside_[k]; });
-    build(s_i_, [&](std::size_t k) noexcept { return inside_[k]; });
-    sum_c_ = {0.0, 0.0, 0.0};
-    sum_c2_ = 0.0;
-    for (int i = 0; i < n_; ++i) {
-      for (std::size_t ch = 0U; ch < 3U; ++ch) {
-        const double c = profile.rgb[static_cast<std::size_t>(i)][ch];
-        if (!std::isfinite(c)) {
-          return false;
-        }
-        sum_c_[ch] += c;
-        sum_c2_ += c * c;
-      }
-    }
-    return true;
-  }
-
-  int edges() const noexcept { return 2 * edge_half_ + 1; }
-  // Grid index e's edge, px from the profile's centre.
-  double edge_px(double e) const noexcept { return kBlurredEdgeGridPx * (e - static_cast<double>(edge_half_)); }
-
-  // The residual with the edge at grid index e, the levels solved (the
-  // normal equations' symmetric 3 x 3 matrix inverted by cofactors).
-  bool residual(int e, double& out) const noexcept {
-    // Sample i (t = step (i - half)) of edge e (at grid (e - edge_half))
-    // reads table entry k = (e - edge_half) - cells (i - half) + table_half.
-    const int k0 = (e - edge_half_) + kSampleCells * half_ + table_half_;  // i = 0
-    const double a00 = s_ss_.sum(k0, n_);
-    const double a01 = s_si_.sum(k0, n_);
-    const double a02 = s_s_.sum(k0, n_);
-    const double a11 = s_ii_.sum(k0, n_);
-    const double a12 = s_i_.sum(k0, n_);
-    const double a22 = static_cast<double>(n_);
-    const double c00 = a11 * a22 - a12 * a12;
-    const double c01 = a02 * a12 - a01 * a22;
-    const double c02 = a01 * a12 - a02 * a11;
-    const double c11 = a00 * a22 - a02 * a02;
-    const double c12 = a01 * a02 - a00 * a12;
-    const double c22 = a00 * a11 - a01 * a01;
-    const double det = a00 * c00 + a01 * c01 + a02 * c02;
-    // The shading is nil where the edge leaves the profile: no level is
-    // then defined, and this position explains nothing.
-    if (!(std::fabs(det) > 1e-12 * (1.0 + std::fabs(a00 * a11 * a22)))) {
-      out = sum_c2_;
-      return true;
-    }
-    std::array<double, 3> rs{};
-    std::array<double, 3> ri{};
-    for (int i = 0; i < n_; ++i) {
-      const auto k = static_cast<std::size_t>(k0 - kSampleCells * i);
-      const auto& c = profile_->rgb[static_cast<std::size_t>(i)];
-      for (std::size_t ch = 0U; ch < 3U; ++ch) {
-        rs[ch] += shading_[k] * c[ch];
-        ri[ch] += inside_[k] * c[ch];
-      }
-    }
-    double explained = 0.0;
-    for (std::size_t ch = 0U; ch < 3U; ++ch) {
-      // b^T A^-1 b with b = (rs, ri, sum_c), A^-1 = C / det.
-      const double b0 = rs[ch];
-      const double b1 = ri[ch];
-      const double b2 = sum_c_[ch];
-      explained += (b0 * (c00 * b0 + c01 * b1 + c02 * b2) + b1 * (c01 * b0 + c11 * b1 + c12 * b2) +
-                    b2 * (c02 * b0 + c12 * b1 + c22 * b2)) /
-                   det;
-    }
-    out = sum_c2_ - explained;
-    return std::isfinite(out);
-  }
-
- private:
-  const BlurredEdgeProfile* profile_ = nullptr;
-  int half_ = 0;
-  int n_ = 0;
-  int edge_half_ = 0;
-  int table_half_ = 0;  // entry k of the tables: d = kBlurredEdgeGridPx (k - table_half_) px inside the edge
-  std::array<double, kMaxTable> shading_{};
-  std::array<double, kMaxTable> inside_{};
-  StridedSums s_ss_, s_si_, s_s_, s_ii_, s_i_;
-  std::array<double, 3> sum_c_{};
-  double sum_c2_ = 0.0;
-};
-
 // The grid index of the least residual: every other position first, then
 // those beside the least (a neighbour can undercut it), so that the least
 // and both its neighbours are known in `sse`. False when a residual fails.
-bool least_residual(const EdgeModel& model, std::array<double, kMaxEdges>& sse, int& best) noexcept {
+bool least_residual(const BlurredEdgeScratch& scratch, std::array<double, kMaxEdges>& sse, int& best) noexcept {
   std::array<bool, kMaxEdges> done{};
-  const int edges = model.edges();
+  const int edges = scratch.edges();
   const auto compute = [&](int e) noexcept {
     const auto ee = static_cast<std::size_t>(e);
     if (e < 0 || e >= edges || done[ee]) {
       return true;
     }
     done[ee] = true;
-    return model.residual(e, sse[ee]);
+    return scratch.residual(e, sse[ee]);
   };
   best = -1;
   for (int e = 0; e < edges; e += 2) {  // edges is odd: both ends are tried
@@ -242,27 +112,123 @@ bool least_residual(const EdgeModel& model, std::array<double, kMaxEdges>& sse, 
 
 }  // namespace
 
+void BlurredEdgeScratch::StridedSums::build(const std::array<double, kMaxTable>& values, int count) noexcept {
+  for (int k = 0; k < count; ++k) {
+    const auto kk = static_cast<std::size_t>(k);
+    prefix[kk] = values[kk] + (k >= kSampleCells ? prefix[kk - kSampleCells] : 0.0);
+  }
+}
+
+double BlurredEdgeScratch::StridedSums::sum(int k0, int n) const noexcept {
+  const int before = k0 - kSampleCells * n;
+  return prefix[static_cast<std::size_t>(k0)] - (before >= 0 ? prefix[static_cast<std::size_t>(before)] : 0.0);
+}
+
+bool BlurredEdgeScratch::prepare(const BlurredEdgeProfile& profile, double smear_px, double half_width_px,
+                               double window_px) noexcept {
+  profile_ = &profile;
+  half_ = profile.half;
+  n_ = 2 * half_ + 1;
+  edge_half_ = static_cast<int>(std::ceil((window_px + 1.0) / kBlurredEdgeGridPx));
+  table_half_ = edge_half_ + kSampleCells * half_ + 1;
+  const int table_count = 2 * table_half_ + 1;
+  for (int k = 0; k < table_count; ++k) {
+    const auto kk = static_cast<std::size_t>(k);
+    blurred_bases(kBlurredEdgeGridPx * static_cast<double>(k - table_half_), smear_px, half_width_px, shading_[kk],
+                  inside_[kk]);
+  }
+  const auto build = [&](StridedSums& sums, const auto& value) noexcept {
+    for (int k = 0; k < table_count; ++k) {
+      product_[static_cast<std::size_t>(k)] = value(static_cast<std::size_t>(k));
+    }
+    sums.build(product_, table_count);
+  };
+  build(s_ss_, [&](std::size_t k) noexcept { return shading_[k] * shading_[k]; });
+  build(s_si_, [&](std::size_t k) noexcept { return shading_[k] * inside_[k]; });
+  build(s_s_, [&](std::size_t k) noexcept { return shading_[k]; });
+  build(s_ii_, [&](std::size_t k) noexcept { return inside_[k] * inside_[k]; });
+  build(s_i_, [&](std::size_t k) noexcept { return inside_[k]; });
+  sum_c_ = {0.0, 0.0, 0.0};
+  sum_c2_ = 0.0;
+  for (int i = 0; i < n_; ++i) {
+    for (std::size_t ch = 0U; ch < 3U; ++ch) {
+      const double c = profile.rgb[static_cast<std::size_t>(i)][ch];
+      if (!std::isfinite(c)) {
+        return false;
+      }
+      sum_c_[ch] += c;
+      sum_c2_ += c * c;
+    }
+  }
+  return true;
+}
+
+// The residual with the edge at grid index e, the levels solved (the
+// normal equations' symmetric 3 x 3 matrix inverted by cofactors).
+bool BlurredEdgeScratch::residual(int e, double& out) const noexcept {
+  // Sample i (t = step (i - half)) of edge e (at grid (e - edge_half))
+  // reads table entry k = (e - edge_half) - cells (i - half) + table_half.
+  const int k0 = (e - edge_half_) + kSampleCells * half_ + table_half_;  // i = 0
+  const double a00 = s_ss_.sum(k0, n_);
+  const double a01 = s_si_.sum(k0, n_);
+  const double a02 = s_s_.sum(k0, n_);
+  const double a11 = s_ii_.sum(k0, n_);
+  const double a12 = s_i_.sum(k0, n_);
+  const double a22 = static_cast<double>(n_);
+  const double c00 = a11 * a22 - a12 * a12;
+  const double c01 = a02 * a12 - a01 * a22;
+  const double c02 = a01 * a12 - a02 * a11;
+  const double c11 = a00 * a22 - a02 * a02;
+  const double c12 = a01 * a02 - a00 * a12;
+  const double c22 = a00 * a11 - a01 * a01;
+  const double det = a00 * c00 + a01 * c01 + a02 * c02;
+  // The shading is nil where the edge leaves the profile: no level is
+  // then defined, and this position explains nothing.
+  if (!(std::fabs(det) > 1e-12 * (1.0 + std::fabs(a00 * a11 * a22)))) {
+    out = sum_c2_;
+    return true;
+  }
+  std::array<double, 3> rs{};
+  std::array<double, 3> ri{};
+  for (int i = 0; i < n_; ++i) {
+    const auto k = static_cast<std::size_t>(k0 - kSampleCells * i);
+    const auto& c = profile_->rgb[static_cast<std::size_t>(i)];
+    for (std::size_t ch = 0U; ch < 3U; ++ch) {
+      rs[ch] += shading_[k] * c[ch];
+      ri[ch] += inside_[k] * c[ch];
+    }
+  }
+  double explained = 0.0;
+  for (std::size_t ch = 0U; ch < 3U; ++ch) {
+    // b^T A^-1 b with b = (rs, ri, sum_c), A^-1 = C / det.
+    const double b0 = rs[ch];
+    const double b1 = ri[ch];
+    const double b2 = sum_c_[ch];
+    explained += (b0 * (c00 * b0 + c01 * b1 + c02 * b2) + b1 * (c01 * b0 + c11 * b1 + c12 * b2) +
+                  b2 * (c02 * b0 + c12 * b1 + c22 * b2)) /
+                 det;
+  }
+  out = sum_c2_ - explained;
+  return std::isfinite(out);
+}
+
 bool fit_blurred_edge(const BlurredEdgeProfile& profile, double smear_px, double half_width_px, double window_px,
-                      BlurredEdgeFit& fit) noexcept {
+                      BlurredEdgeScratch& scratch, BlurredEdgeFit& fit) noexcept {
   if (profile.half < 2 || profile.half > kMaxSampleHalf || !(half_width_px > 1.0) || !std::isfinite(half_width_px) ||
       !(smear_px >= 0.0) || !std::isfinite(smear_px) || !(window_px > 0.0)) {
     return false;
   }
   const double smear = std::max(smear_px, 1.0);  // a sharp edge still spreads over about a pixel
   const double window = std::min(window_px, kMaxBlurredEdgeWindowPx);
-  // The tables (some 30 KB) are scratch of this thread, not of the stack
-  // (the image fit already holds its readings there): rebuilt for every
-  // reading, no state carries over.
-  static thread_local EdgeModel model;
-  if (!model.prepare(profile, smear, half_width_px, window)) {
+  if (!scratch.prepare(profile, smear, half_width_px, window)) {
     return false;
   }
   std::array<double, kMaxEdges> sse{};
   int best = -1;
-  if (!least_residual(model, sse, best)) {
+  if (!least_residual(scratch, sse, best)) {
     return false;
   }
-  if (best <= 0 || best >= model.edges() - 1) {
+  if (best <= 0 || best >= scratch.edges() - 1) {
     return false;  // at the search's end: the edge may lie beyond it
   }
   const double before = sse[static_cast<std::size_t>(best) - 1U];
@@ -270,14 +236,15 @@ bool fit_blurred_edge(const BlurredEdgeProfile& profile, double smear_px, double
   const double after = sse[static_cast<std::size_t>(best) + 1U];
   const double curvature = before - 2.0 * at + after;
   const double fraction = curvature > 0.0 ? 0.5 * (before - after) / curvature : 0.0;
-  fit.edge_px = model.edge_px(static_cast<double>(best) + fraction);
+  fit.edge_px = scratch.edge_px(static_cast<double>(best) + fraction);
   fit.smear_px = smear;
   fit.residual = at;
   return std::fabs(fit.edge_px) <= window;
 }
 
 bool fit_blurred_edge_and_smear(const BlurredEdgeProfile& profile, double smear_px, double smear_search_px,
-                                double half_width_px, double window_px, BlurredEdgeFit& fit) noexcept {
+                                double half_width_px, double window_px, BlurredEdgeScratch& scratch,
+                                BlurredEdgeFit& fit) noexcept {
   if (!std::isfinite(smear_px) || !(smear_search_px >= 0.0) || !std::isfinite(smear_search_px)) {
     return false;
   }
@@ -286,7 +253,7 @@ bool fit_blurred_edge_and_smear(const BlurredEdgeProfile& profile, double smear_
   for (int k = -steps; k <= steps; ++k) {
     const double smear = smear_px + kBlurredEdgeSmearStepPx * static_cast<double>(k);
     BlurredEdgeFit tried;
-    if (smear >= 1.0 && fit_blurred_edge(profile, smear, half_width_px, window_px, tried) &&
+    if (smear >= 1.0 && fit_blurred_edge(profile, smear, half_width_px, window_px, scratch, tried) &&
         (!found || tried.residual < fit.residual)) {
       fit = tried;
       found = true;

@@ -215,15 +215,20 @@ bool shaft_silhouette_at(const solver::CameraModel& camera, const solver::Instru
 
 class Refiner {
  public:
+  // `edge_scratch`: the blurred edge's model's tables (the extractor's);
+  // without them the silhouette under a streak is read at the outer end.
   Refiner(const ImageView& image, const ColorModel& colors, const ExtractorConfig& config,
-          const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& frames)
-      noexcept : image_(image), colors_(colors), config_(config), camera_(camera), model_(model), frames_(frames) {}
+          const solver::CameraModel& camera, const solver::InstrumentModel& model, const solver::PoseFrames& frames,
+          detail::BlurredEdgeScratch* edge_scratch) noexcept
+      : image_(image), colors_(colors), config_(config), camera_(camera), model_(model), frames_(frames),
+        edge_scratch_(edge_scratch) {}
 
   const ImageView& image() const noexcept { return image_; }
 
   // The motion-blur streak (px, image; zero: none) under which the
   // silhouette is read by edge_across.
   void use_streak(const solver::Vec2& streak_px) noexcept { streak_px_ = streak_px; }
+  bool has_streak() const noexcept { return streak_px_.squaredNorm() > 0.0; }
 
   // Median shift (mm along the tube) that puts the visible arc of the
   // circle at s on the colour change; false when too few arc points see it.
@@ -561,7 +566,7 @@ class Refiner {
     if (!outer_end) {
       return edge(p, normal, window_px, offset_px);
     }
-    if (config_.refine_streak_edge_model && half_width_px > 1.0) {
+    if (config_.refine_streak_edge_model && edge_scratch_ != nullptr && half_width_px > 1.0) {
       return edge_blurred(p, normal, window_px, across_px, half_width_px, offset_px);
     }
     return edge_outer_end(p, normal, window_px, across_px, offset_px);
@@ -588,7 +593,7 @@ class Refiner {
     }
     detail::BlurredEdgeFit fit;
     if (!detail::fit_blurred_edge_and_smear(profile, across_px, config_.refine_streak_edge_smear_search_px,
-                                            half_width_px, window, fit)) {
+                                            half_width_px, window, *edge_scratch_, fit)) {
       return false;
     }
     offset_px = fit.edge_px;
@@ -659,6 +664,7 @@ class Refiner {
   const solver::InstrumentModel& model_;
   const solver::PoseFrames& frames_;
   solver::Vec2 streak_px_ = solver::Vec2::Zero();
+  detail::BlurredEdgeScratch* edge_scratch_;
 };
 
 
@@ -1208,8 +1214,10 @@ SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorCon
              !behind_tube_end(camera, model, f, point);
         break;
     }
-    double half_width_px = 0.0;  // the part's apparent half width at s (the blurred edge's model)
-    if (at && part != Part::kGrasper) {
+    // The part's apparent half width at s, for the blurred edge's model:
+    // only a frame with a streak reads that way.
+    double half_width_px = 0.0;
+    if (at && part != Part::kGrasper && refiner.has_streak()) {
       const solver::CircleLimbs limbs =
           part == Part::kTube ? model.limbs(camera, f, s) : model.shaft_limbs(camera, f, s);
       if (limbs.present[0] && limbs.present[1]) {
@@ -1449,7 +1457,7 @@ Status<VisionError> FeatureExtractor::fit_insertion_to_base_rim(const ImageView&
     if (!base_face_visible(model, frames)) {
       continue;
     }
-    Refiner refiner(image, colors_, config_, camera, model, frames);
+    Refiner refiner(image, colors_, config_, camera, model, frames, edge_scratch_.get());
     double shift_mm = 0.0;
     if (refiner.rim_shift(rim_radius, shift_mm)) {
       // The rim moves the base, and the tube with it, along the axis:
@@ -1481,7 +1489,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   solver::Vec2 streak_px = solver::Vec2::Zero();
   for (int it = 0; it < iterations; ++it) {
     const solver::PoseFrames f = model.frames(x);
-    Refiner refiner(image, colors_, config_, camera, model, f);
+    Refiner refiner(image, colors_, config_, camera, model, f, edge_scratch_.get());
     fit.count = 0;
     // From a coarse start (a pose from the regions) the first iterations
     // search wider windows and may see fewer boundaries.
@@ -1809,7 +1817,7 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
   for (int it = 0; it < kShaftIterations; ++it) {
     const double window = kShaftWindowsPx[std::min(it, 2)];
     const solver::PoseFrames f = model.frames(x);
-    const Refiner refiner(image, colors_, config_, camera, model, f);
+    const Refiner refiner(image, colors_, config_, camera, model, f, edge_scratch_.get());
     read_shaft(image, refiner, camera, model, f, x[solver::kLambda], window, neutral_chroma, it >= kShaftRefineFrom,
                readings);
     summary.iterations = it + 1;
@@ -1850,7 +1858,7 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     return Status<VisionError>::failure(VisionError::BadImage);
   }
   const solver::PoseFrames frames = model.frames(r);
-  Refiner refiner(image, colors_, config_, camera, model, frames);
+  Refiner refiner(image, colors_, config_, camera, model, frames, edge_scratch_.get());
   refiner.use_streak(streak_px);
   const auto& g = model.geometry();
   for (int j = 0; j < kNumBoundaries; ++j) {

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <new>
 
+#include "blurred_edge.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -155,6 +156,8 @@ double Region::extent_along(double dx, double dy) const noexcept {
   return 2.0 * std::sqrt(v > 0.0 ? v : 0.0);
 }
 
+FeatureExtractor::~FeatureExtractor() = default;
+
 Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(const ExtractorConfig& config,
                                                                                 const ColorModel& colors) noexcept {
   using R = Result<std::unique_ptr<FeatureExtractor>, VisionError>;
@@ -167,7 +170,9 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
       !(config.refine_streak_unsmeared_min_px >= 0.0) || config.refine_streak_unsmeared_min_boundaries < 0 ||
       config.refine_streak_unsmeared_min_boundaries > kNumBoundaries || !(config.refine_rim_scan_step_mm > 0.0) ||
       !(config.refine_rim_scan_range_mm >= 0.0) ||
-      !(config.refine_rim_scan_range_mm <= config.refine_rim_scan_step_mm * FeatureExtractor::kMaxRimScanSteps)) {
+      !(config.refine_rim_scan_range_mm <= config.refine_rim_scan_step_mm * FeatureExtractor::kMaxRimScanSteps) ||
+      !(config.refine_streak_edge_smear_search_px >= 0.0 &&
+        config.refine_streak_edge_smear_search_px <= kMaxStreakEdgeSmearSearchPx)) {
     return R::failure(VisionError::BadParameter);
   }
   std::unique_ptr<FeatureExtractor> e(new (std::nothrow) FeatureExtractor());
@@ -191,8 +196,10 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   for (auto& d : e->class_distance_) {
     d.reset(new (std::nothrow) std::uint16_t[pixels]);
   }
+  e->edge_scratch_.reset(new (std::nothrow) detail::BlurredEdgeScratch());
   if (e->classes_ == nullptr || e->runs_ == nullptr || e->region_of_root_ == nullptr || e->candidates_ == nullptr ||
-      e->grid_row_ == nullptr || e->class_distance_[0] == nullptr || e->class_distance_[1] == nullptr) {
+      e->grid_row_ == nullptr || e->class_distance_[0] == nullptr || e->class_distance_[1] == nullptr ||
+      e->edge_scratch_ == nullptr) {
     return R::failure(VisionError::BadParameter);
   }
   return R::success(std::move(e));

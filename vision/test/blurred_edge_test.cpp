@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "../src/blurred_edge.hpp"
 
@@ -11,6 +12,12 @@ namespace tcpest {
 namespace vision {
 namespace detail {
 namespace {
+
+// The fits' tables, as the extractor owns them (allocated once).
+BlurredEdgeScratch& scratch() {
+  static const std::unique_ptr<BlurredEdgeScratch> tables = std::make_unique<BlurredEdgeScratch>();
+  return *tables;
+}
 
 struct Levels {
   double tube[3] = {0.30, 0.25, 0.05};     // the tube's linear radiance at its crest
@@ -54,7 +61,7 @@ TEST(BlurredEdge, FindsTheEdgeAtMidExposureForEverySmear) {
     for (const double edge : {-2.3, 0.0, 1.1, 3.4}) {
       const int half = static_cast<int>(std::ceil((4.0 + 0.5 * smear + 4.0) / 0.5));
       BlurredEdgeFit found;
-      ASSERT_TRUE(fit_blurred_edge(render(edge, smear, 22.0, half), smear, 22.0, 4.0, found))
+      ASSERT_TRUE(fit_blurred_edge(render(edge, smear, 22.0, half), smear, 22.0, 4.0, scratch(), found))
           << "smear " << smear << " edge " << edge;
       EXPECT_NEAR(found.edge_px, edge, 0.05) << "smear " << smear;
       EXPECT_DOUBLE_EQ(found.smear_px, smear);
@@ -66,34 +73,34 @@ TEST(BlurredEdge, ANarrowPartAndNoiseStillGiveTheEdge) {
   const double smear = 9.0;
   const int half = 25;
   BlurredEdgeFit found;
-  ASSERT_TRUE(fit_blurred_edge(render(0.7, smear, 6.0, half), smear, 6.0, 4.0, found));  // the crest within reach
+  ASSERT_TRUE(fit_blurred_edge(render(0.7, smear, 6.0, half), smear, 6.0, 4.0, scratch(), found));  // the crest within reach
   EXPECT_NEAR(found.edge_px, 0.7, 0.05);
-  ASSERT_TRUE(fit_blurred_edge(render(-1.2, smear, 20.0, half, 0.01), smear, 20.0, 4.0, found));
+  ASSERT_TRUE(fit_blurred_edge(render(-1.2, smear, 20.0, half, 0.01), smear, 20.0, 4.0, scratch(), found));
   EXPECT_NEAR(found.edge_px, -1.2, 0.3);
 }
 
 TEST(BlurredEdge, AnEdgeBeyondTheWindowIsNotRead) {
   const double smear = 8.0;
   BlurredEdgeFit found;
-  EXPECT_FALSE(fit_blurred_edge(render(9.0, smear, 20.0, 30), smear, 20.0, 4.0, found));
-  EXPECT_FALSE(fit_blurred_edge_and_smear(render(9.0, smear, 20.0, 30), smear, 3.0, 20.0, 4.0, found));
+  EXPECT_FALSE(fit_blurred_edge(render(9.0, smear, 20.0, 30), smear, 20.0, 4.0, scratch(), found));
+  EXPECT_FALSE(fit_blurred_edge_and_smear(render(9.0, smear, 20.0, 30), smear, 3.0, 20.0, 4.0, scratch(), found));
 }
 
 TEST(BlurredEdge, BadInputIsRefused) {
   const BlurredEdgeProfile p = render(0.0, 8.0, 20.0, 20);
   BlurredEdgeFit found;
-  EXPECT_FALSE(fit_blurred_edge(p, 8.0, 0.5, 4.0, found));  // no width to shade
-  EXPECT_FALSE(fit_blurred_edge(p, std::numeric_limits<double>::quiet_NaN(), 20.0, 4.0, found));
-  EXPECT_FALSE(fit_blurred_edge(p, 8.0, std::numeric_limits<double>::infinity(), 4.0, found));
-  EXPECT_FALSE(fit_blurred_edge(p, 8.0, 20.0, 0.0, found));
+  EXPECT_FALSE(fit_blurred_edge(p, 8.0, 0.5, 4.0, scratch(), found));  // no width to shade
+  EXPECT_FALSE(fit_blurred_edge(p, std::numeric_limits<double>::quiet_NaN(), 20.0, 4.0, scratch(), found));
+  EXPECT_FALSE(fit_blurred_edge(p, 8.0, std::numeric_limits<double>::infinity(), 4.0, scratch(), found));
+  EXPECT_FALSE(fit_blurred_edge(p, 8.0, 20.0, 0.0, scratch(), found));
   BlurredEdgeProfile too_long = p;
   too_long.half = kMaxBlurredEdgeSamples;  // beyond the buffer
-  EXPECT_FALSE(fit_blurred_edge(too_long, 8.0, 20.0, 4.0, found));
+  EXPECT_FALSE(fit_blurred_edge(too_long, 8.0, 20.0, 4.0, scratch(), found));
   BlurredEdgeProfile broken = p;
   broken.rgb[3][1] = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_FALSE(fit_blurred_edge(broken, 8.0, 20.0, 4.0, found));
-  EXPECT_FALSE(fit_blurred_edge_and_smear(p, 8.0, -1.0, 20.0, 4.0, found));
-  EXPECT_FALSE(fit_blurred_edge_and_smear(p, std::numeric_limits<double>::infinity(), 3.0, 20.0, 4.0, found));
+  EXPECT_FALSE(fit_blurred_edge(broken, 8.0, 20.0, 4.0, scratch(), found));
+  EXPECT_FALSE(fit_blurred_edge_and_smear(p, 8.0, -1.0, 20.0, 4.0, scratch(), found));
+  EXPECT_FALSE(fit_blurred_edge_and_smear(p, std::numeric_limits<double>::infinity(), 3.0, 20.0, 4.0, scratch(), found));
 }
 
 TEST(BlurredEdge, ASmearReadTwoPixelsShortIsFoundBySearching) {
@@ -103,16 +110,16 @@ TEST(BlurredEdge, ASmearReadTwoPixelsShortIsFoundBySearching) {
   const double read_smear = 9.0;
   const BlurredEdgeProfile p = render(0.5, true_smear, 18.0, 26);
   BlurredEdgeFit fixed;
-  ASSERT_TRUE(fit_blurred_edge(p, read_smear, 18.0, 4.0, fixed));
+  ASSERT_TRUE(fit_blurred_edge(p, read_smear, 18.0, 4.0, scratch(), fixed));
   BlurredEdgeFit searched;
-  ASSERT_TRUE(fit_blurred_edge_and_smear(p, read_smear, 3.0, 18.0, 4.0, searched));
+  ASSERT_TRUE(fit_blurred_edge_and_smear(p, read_smear, 3.0, 18.0, 4.0, scratch(), searched));
   EXPECT_DOUBLE_EQ(searched.smear_px, true_smear);
   EXPECT_NEAR(searched.edge_px, 0.5, 0.05);
   EXPECT_LT(searched.residual, fixed.residual);
   EXPECT_GT(std::fabs(fixed.edge_px - 0.5), 0.2);
   // A search of 0 is the read smear alone.
   BlurredEdgeFit none;
-  ASSERT_TRUE(fit_blurred_edge_and_smear(p, read_smear, 0.0, 18.0, 4.0, none));
+  ASSERT_TRUE(fit_blurred_edge_and_smear(p, read_smear, 0.0, 18.0, 4.0, scratch(), none));
   EXPECT_DOUBLE_EQ(none.edge_px, fixed.edge_px);
 }
 
@@ -124,7 +131,7 @@ TEST(BlurredEdge, TheLevelsOnEitherSideDoNotMoveTheEdge) {
   dark_tissue.tissue[1] = 0.04;
   dark_tissue.tissue[2] = 0.03;
   BlurredEdgeFit found;
-  ASSERT_TRUE(fit_blurred_edge(render(0.4, 12.0, 18.0, 26, 0.0, dark_tissue), 12.0, 18.0, 4.0, found));
+  ASSERT_TRUE(fit_blurred_edge(render(0.4, 12.0, 18.0, 26, 0.0, dark_tissue), 12.0, 18.0, 4.0, scratch(), found));
   EXPECT_NEAR(found.edge_px, 0.4, 0.05);
 }
 

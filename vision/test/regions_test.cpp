@@ -263,6 +263,15 @@ TEST(Regions, CreateRejectsBadConfiguration) {
   }
   rim.refine_rim_scan_range_mm = 0.5 * FeatureExtractor::kMaxRimScanSteps;
   EXPECT_TRUE(FeatureExtractor::create(rim, default_color_model()).ok());
+  // The blurred edge's smear search: 0 (the read smear alone) to
+  // kMaxStreakEdgeSmearSearchPx, never NaN.
+  ExtractorConfig edge;
+  for (const double bad_search : {-1.0, kMaxStreakEdgeSmearSearchPx + 0.5, std::nan("")}) {
+    edge.refine_streak_edge_smear_search_px = bad_search;
+    EXPECT_FALSE(FeatureExtractor::create(edge, default_color_model()).ok()) << bad_search;
+  }
+  edge.refine_streak_edge_smear_search_px = 0.0;
+  EXPECT_TRUE(FeatureExtractor::create(edge, default_color_model()).ok());
 }
 
 }  // namespace

@@ -155,6 +155,10 @@ struct Extraction {
   std::array<double, kNumBoundaries> boundary_shift_mm{};
 };
 
+// The largest smear search of the blurred edge's model (px either way;
+// ExtractorConfig::refine_streak_edge_smear_search_px): 16 fits a reading.
+constexpr double kMaxStreakEdgeSmearSearchPx = 16.0;
+
 struct ExtractorConfig {
   int max_width = 1920;
   int max_height = 1080;
@@ -259,7 +263,7 @@ struct ExtractorConfig {
   // the read one, the fit of the least residual kept (0: the read smear
   // alone; docs/vision.md: three fits per reading, 2 px apart, did as well
   // as seven 1 px apart).
-  double refine_streak_edge_smear_search_px = 2.0;
+  double refine_streak_edge_smear_search_px = 2.0;  // 0..kMaxStreakEdgeSmearSearchPx
   // A smear across the tube leaves the arcs sharp, so they never read as
   // smeared: the streak is then also read at the first fine iteration that
   // reads refine_streak_unsmeared_min_boundaries boundaries or more (a pose
@@ -338,9 +342,19 @@ constexpr std::int64_t kAutoStepMinPixels = std::int64_t{4} * 720 * 576;
 // The step stage 1 uses for an image of this size (resolves 0 = auto).
 int classify_step_for(int configured_step, int width, int height) noexcept;
 
+namespace detail {
+class BlurredEdgeScratch;  // src/blurred_edge.hpp
+}  // namespace detail
+
 class FeatureExtractor {
  public:
   FeatureExtractor() noexcept = default;
+  ~FeatureExtractor();  // out of line: the blurred edge's scratch is an incomplete type here
+  // Owned through create()'s pointer, never copied or moved (its buffers are sized at create()).
+  FeatureExtractor(const FeatureExtractor&) = delete;
+  FeatureExtractor& operator=(const FeatureExtractor&) = delete;
+  FeatureExtractor(FeatureExtractor&&) = delete;
+  FeatureExtractor& operator=(FeatureExtractor&&) = delete;
   // Allocates every buffer (start-up only). The model and camera are used for
   // the model-predicted priors; the colour model builds the lookup table.
   static Result<std::unique_ptr<FeatureExtractor>, VisionError> create(const ExtractorConfig& config,
@@ -513,6 +527,9 @@ class FeatureExtractor {
   // nearest blue [0] and yellow [1] pixel of the class image, capped;
   // computed by fit_pose_to_classes once per frame.
   std::unique_ptr<std::uint16_t[]> class_distance_[2];
+  // The blurred edge's model's tables (refine_streak_edge_model), allocated
+  // at create() and rebuilt by every reading that uses them.
+  std::unique_ptr<detail::BlurredEdgeScratch> edge_scratch_;
   bool class_distance_ready_ = false;
   std::array<int, 4> distance_box_{};  // x0, y0, x1, y1 (inclusive) where the distances were computed
   void compute_class_distances() noexcept;
