@@ -38,6 +38,10 @@ using detail::tukey_cut_px;
 constexpr double kDsMm = 1e-3;        // finite difference along the tube
 constexpr int kMaxArcSamples = 32;
 constexpr int kMaxProfile = 96;       // along-tube profile points (1 px apart)
+constexpr int kMaxClearReach = 8;     // a crossing's clear colours at most this many samples away
+// refine_streak_arc_retry widens an arc's reading where the smear along its
+// normal is this long or longer (shorter: the sharp reading's reach holds).
+constexpr double kStreakArcMinAlongPx = 3.0;
 constexpr int kEdgeOffsets = 8;
 constexpr double kEdgeOffsetsMm[kEdgeOffsets] = {-2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0};
 constexpr int kMaxEdgeProfile = 64;   // across profile points (0.5 px apart)
@@ -411,7 +415,6 @@ class Refiner {
       }
     }
     constexpr double kClear = 0.15;  // |profile| of a reading clearly on one side
-    constexpr int kMaxClearReach = 8;
     const int reach = std::min(std::max(clear_reach, 1), kMaxClearReach);
     double best_sharp = 0.0;
     double best_smeared = 0.0;
@@ -953,6 +956,27 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
   return streak_px.allFinite();
 }
 
+// refine_streak_arc_retry: true when a fine iteration that read too few
+// boundaries is to be read again with the arcs widened under the streak;
+// the streak read at the frames f when none is held yet (a smear along the
+// tube can hide every arc, so the arcs never read as smeared).
+bool streak_for_arc_retry(const ImageView& image, const ExtractorConfig& config, const solver::CameraModel& camera,
+                          const solver::InstrumentModel& model, const solver::PoseFrames& f,
+                          solver::Vec2& streak_px) noexcept {
+  if (!config.refine_streak_arc_retry || !config.refine_streak) {
+    return false;
+  }
+  if (streak_px.norm() > 0.0) {
+    return true;
+  }
+  if (!read_streak(image, config, camera, model, f, streak_px) ||
+      !(streak_px.norm() >= config.refine_streak_arc_retry_min_px)) {
+    streak_px = solver::Vec2::Zero();
+    return false;
+  }
+  return true;
+}
+
 // The pose fit's readings of one iteration (bounded by kMaxReadings: fixed
 // sample counts) and where the model puts each.
 struct FitReadings {
@@ -1021,7 +1045,7 @@ struct ArcReadout {
 // (motion blur), not one stripe's: a large share of many readings.
 ArcReadout read_fit_arcs(const Refiner& refiner, const ExtractorConfig& config, const solver::CameraModel& camera,
                          const solver::InstrumentModel& model, const solver::PoseFrames& f, double window_mm,
-                         const solver::Vec2& streak_px, FitReadings& fit) noexcept {
+                         const solver::Vec2& streak_px, bool widen_under_streak, FitReadings& fit) noexcept {
   const double radius = model.geometry().radius_mm;
   std::array<Reading, kMaxSmearedReadings> smeared{};
   std::array<solver::Vec2, kMaxSmearedReadings> smeared_at{};
@@ -1058,8 +1082,20 @@ ArcReadout read_fit_arcs(const Refiner& refiner, const ExtractorConfig& config, 
       rd.boundary = j;
       rd.angle_rad = a;
       double tau = 0.0;
-      const Crossing read =
-          refiner.crossing(p, normal, window_mm * px_per_mm, colours, config.refine_smear_clear_reach, tau);
+      // Under a streak along this normal the change is a ramp as long as
+      // the smear: clear colours lie up to half of it from the crossing
+      // (refine_streak_arc_retry).
+      const double along_px = std::fabs(streak_px.dot(normal));
+      const bool ramp = widen_under_streak && along_px >= kStreakArcMinAlongPx;
+      const int reach = ramp ? std::min(kMaxClearReach, std::max(config.refine_smear_clear_reach,
+                                                                 static_cast<int>(std::ceil(0.5 * along_px)) + 1))
+                             : config.refine_smear_clear_reach;
+      const double arc_window_px =
+          ramp ? std::max(window_mm * px_per_mm, static_cast<double>(reach) + 2.0) : window_mm * px_per_mm;
+      Crossing read = refiner.crossing(p, normal, arc_window_px, colours, reach, tau);
+      if (ramp && read == Crossing::kSmeared) {
+        read = Crossing::kSharp;  // the frame's smear, read: not one stripe's
+      }
       if (colours.margin && read != Crossing::kNone) {
         // The tip arc (j = 0 is not read): under the streak read in an
         // earlier iteration (zero on a sharp frame), refine_smear_tip_bias.
@@ -1481,8 +1517,9 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   solver::PoseVector x = r;
   FitReadings fit;
   double rms = 0.0;
-  const int iterations =
+  int iterations =
       std::min(std::max(config_.refine_fit_iterations, 1) + (coarse_start ? kCoarseIterations : 0), kMaxFitIterations);
+  bool widen_arcs = false;  // refine_streak_arc_retry, once set for the rest of the fit
   // The motion-blur streak, read once, at the first iteration whose arcs
   // read as smeared (a sharp frame never pays for it).
   bool streak_tried = false;
@@ -1498,7 +1535,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     const double window_mm =
         coarse_it ? config_.refine_coarse_search_mm : (fine_it == 0 ? config_.refine_search_mm : 0.6);
     const double edge_window_px = coarse_it ? config_.refine_coarse_edge_search_px : config_.refine_edge_search_px;
-    const ArcReadout arcs = read_fit_arcs(refiner, config_, camera, model, f, window_mm, streak_px, fit);
+    const ArcReadout arcs = read_fit_arcs(refiner, config_, camera, model, f, window_mm, streak_px, widen_arcs, fit);
     summary.smeared = arcs.smeared;
     int boundaries = 0;
     int boundary_run = 0;
@@ -1539,6 +1576,13 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     // A coarse one, from a rough seed, needs the silhouette.
     const bool arcs_hold = boundaries >= 2 ||
                            (boundaries == 1 && silhouette.plain >= config_.refine_one_boundary_min_silhouette);
+    if (!coarse_it && !arcs_hold && !widen_arcs &&
+        streak_for_arc_retry(image, config_, camera, model, f, streak_px)) {
+      streak_tried = true;
+      widen_arcs = true;
+      ++iterations;  // the same pose read again, once per fit: at most kMaxFitIterations + 1
+      continue;
+    }
     if ((!coarse_it && !arcs_hold) || (coarse_it && silhouette.readings < 10)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }

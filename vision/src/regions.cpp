@@ -167,7 +167,8 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
       config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0) ||
       config.classify_step < 0 || config.classify_step > 2 ||
       !(config.refine_smear_tip_bias >= 0.0 && config.refine_smear_tip_bias <= 0.5) ||
-      !(config.refine_streak_unsmeared_min_px >= 0.0) || config.refine_streak_unsmeared_min_boundaries < 0 ||
+      !(config.refine_streak_unsmeared_min_px >= 0.0) || !(config.refine_streak_arc_retry_min_px >= 0.0) ||
+      config.refine_streak_unsmeared_min_boundaries < 0 ||
       config.refine_streak_unsmeared_min_boundaries > kNumBoundaries || !(config.refine_rim_scan_step_mm > 0.0) ||
       !(config.refine_rim_scan_range_mm >= 0.0) ||
       !(config.refine_rim_scan_range_mm <= config.refine_rim_scan_step_mm * FeatureExtractor::kMaxRimScanSteps) ||

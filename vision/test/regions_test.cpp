@@ -249,6 +249,14 @@ TEST(Regions, CreateRejectsBadConfiguration) {
   streak.refine_streak_unsmeared_min_boundaries = 4;
   streak.refine_streak_unsmeared_min_px = std::nan("");
   EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());
+  // The arcs' retry under a streak: its length gate not negative or NaN.
+  ExtractorConfig retry;
+  for (const double bad_min : {-1.0, std::nan("")}) {
+    retry.refine_streak_arc_retry_min_px = bad_min;
+    EXPECT_FALSE(FeatureExtractor::create(retry, default_color_model()).ok()) << bad_min;
+  }
+  retry.refine_streak_arc_retry_min_px = 0.0;
+  EXPECT_TRUE(FeatureExtractor::create(retry, default_color_model()).ok());
   // The base-rim scan: a positive step, a range it covers within
   // kMaxRimScanSteps steps each way, never NaN.
   ExtractorConfig rim;

@@ -273,6 +273,22 @@ struct ExtractorConfig {
   bool refine_streak_unsmeared = true;
   int refine_streak_unsmeared_min_boundaries = 4;
   double refine_streak_unsmeared_min_px = 7.0;
+  // A smear along the tube turns every boundary's colour change into a ramp
+  // as long as the smear, clear only half of it from the crossing: at a
+  // pose a few pixels off, the arcs read too few boundaries to hold the
+  // tube and the fit fails. Then (at a fine iteration, once per fit) the
+  // streak is read at that pose if none is held yet, and held when
+  // refine_streak_arc_retry_min_px long or longer; with a streak the same
+  // pose is read again, and every later iteration too, with each arc's
+  // clear reach widened to half the smear along its normal plus one sample
+  // (at most 8) and its window to that reach plus 2 px, its readings kept
+  // as the frame's smear, and the silhouette read under that streak as
+  // under any held one (docs/vision.md "Arcs under a streak"). Only a fit
+  // that would have failed reads differently. The length gate is the
+  // unsmeared read's, for the same reason: a sharp frame's widths at a pose
+  // off the tube add up to 6-8 px (lab frame 180; 6 px lost 4 hard frames).
+  bool refine_streak_arc_retry = true;
+  double refine_streak_arc_retry_min_px = 7.0;
   // Under that streak, the tip arc's colour change (blue to the grey
   // grasper) crosses the blue margin's zero where the smeared mix is about
   // 65 % blue (L*a*b* chroma is not linear in the mix), not at its middle:
