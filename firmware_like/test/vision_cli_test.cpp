@@ -93,6 +93,9 @@ TEST(VisionCommands, UsageErrorsAndHelp) {
   EXPECT_EQ(run({"estimate", "--guided-rounds", "5", "x.jpg"}), kExitUsage);
   EXPECT_EQ(run({"estimate", "--fallback-seeds", "10", "x.jpg"}), kExitUsage);
   EXPECT_EQ(run({"evaluate", "--fallback-seeds", "-1", "/tmp"}), kExitUsage);
+  // A bad value is a usage error whatever the directory holds (before, an
+  // empty or missing one answered first, with the configuration's code).
+  EXPECT_EQ(run({"evaluate", "--guided-rounds", "9", "/nonexistent-dir"}), kExitUsage);
 }
 
 TEST(VisionCommands, EstimateGoesOnAfterABadImageAndWritesOverlays) {

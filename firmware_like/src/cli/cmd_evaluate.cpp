@@ -521,6 +521,14 @@ int cmd_evaluate(int argc, char** argv) {
   if (!read_evaluate_options(args, options)) {
     return kExitUsage;
   }
+  // The pipeline's options and files first: a usage error is reported as
+  // one, whatever the datasets hold.
+  ModelSetup setup;
+  static EstimatePipeline pipeline;
+  int exit_code = kExitOk;
+  if (!init_pipeline_from_args("evaluate", args, setup, pipeline, exit_code)) {
+    return exit_code;
+  }
   // Every directory is listed before any image is processed: a typo in the
   // last one fails at once, not after the others have run.
   const std::size_t dataset_count = args.positional_count();
@@ -531,12 +539,6 @@ int cmd_evaluate(int argc, char** argv) {
     if (!list_sidecars(datasets[i].dir, sidecars[i])) {
       return kExitConfig;
     }
-  }
-  ModelSetup setup;
-  static EstimatePipeline pipeline;
-  int exit_code = kExitOk;
-  if (!init_pipeline_from_args("evaluate", args, setup, pipeline, exit_code)) {
-    return exit_code;
   }
   ImageReader reader;
   if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {
