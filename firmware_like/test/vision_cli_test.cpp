@@ -315,10 +315,11 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessPerHardCase) {
 }
 
 // An extraction with corner k found at `pixel`, and nothing else.
-vision::Extraction one_corner(std::size_t k, vision::Point pixel) {
+vision::Extraction one_corner(std::size_t k, vision::Point pixel, double confidence = 0.9) {
   vision::Extraction extraction;
   extraction.corners[k].found = true;
   extraction.corners[k].pixel = pixel;
+  extraction.corners[k].confidence = confidence;
   return extraction;
 }
 
@@ -331,8 +332,31 @@ TEST(VisionCommands, EstimateJsonLineHasEveryMember) {
   const std::string s(line);
   for (const char* key : {"\"image\": \"a \\\"quoted\\\" name.jpg\"", "\"status\": \"none\"", "\"tcp\": null",
                           "\"r\": null", "\"corners\": [null, null, null, [12.500, 40.250], null",
-                          "\"rms_px\"", "\"iterations\"", "\"time_us\""}) {
+                          "\"corner_confidence\": [null, null, null, 0.90, null", "\"rms_px\"",
+                          "\"iterations\"", "\"time_us\""}) {
     EXPECT_NE(s.find(key), std::string::npos) << key << " in " << s;
+  }
+}
+
+// A corner's confidence travels with it: null exactly where its position is.
+TEST(VisionCommands, EstimateJsonGivesAConfidenceWithEachReportedCorner) {
+  vision::Extraction extraction = one_corner(11U, vision::Point{3.0, 4.0}, 0.5);
+  extraction.corners[2].found = true;
+  extraction.corners[2].confidence = 0.9;
+  struct Case {
+    bool extraction_ok;  // false: this frame's extraction failed and no round re-measured the corners
+    const char* expected;
+  };
+  const Case cases[] = {
+      {false, "\"corner_confidence\": [null, null, null, null, null, null, null, null, null, null, null, null]"},
+      {true, "\"corner_confidence\": [null, null, 0.90, null, null, null, null, null, null, null, null, 0.50]"},
+  };
+  for (const Case& c : cases) {
+    EstimateResult result;
+    result.extraction_ok = c.extraction_ok;
+    char line[4096];
+    format_estimate_json("x.jpg", result, extraction, line, sizeof line);
+    EXPECT_NE(std::string(line).find(c.expected), std::string::npos) << line;
   }
 }
 
