@@ -314,6 +314,27 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessPerHardCase) {
   EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
 }
 
+TEST(VisionCommands, EvaluateTalliesFrameSuccessByVisibleCorners) {
+  VisibleCornersTally tally;
+  char line[512];
+  format_visible_corners_tally(tally, line, sizeof line);
+  EXPECT_STREQ(line, "");
+  tally.add(0, true);  // no visible corner: not counted
+  format_visible_corners_tally(tally, line, sizeof line);
+  EXPECT_STREQ(line, "");
+  for (const int visible : {1, 3, 4, 7, 8, 12}) {
+    tally.add(visible, visible != 3);
+  }
+  tally.add(12, false);
+  format_visible_corners_tally(tally, line, sizeof line);
+  EXPECT_STREQ(line, "frame success by visible corners: 1-3 50.0 % of 2, 4-5 100.0 % of 1, 6-7 100.0 % of 1, "
+                     "8-12 66.7 % of 3");
+  char small[20];
+  format_visible_corners_tally(tally, small, sizeof small);
+  EXPECT_EQ(std::strlen(small), sizeof small - 1U);
+  EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
+}
+
 // An extraction with corner k found at `pixel`, and nothing else.
 vision::Extraction one_corner(std::size_t k, vision::Point pixel, double confidence = 0.9) {
   vision::Extraction extraction;

@@ -271,6 +271,7 @@ struct EvaluateTotals {
   long wrong = 0;
   long mislabelled = 0;
   HardCaseTally by_case;  // frame success per hard case
+  VisibleCornersTally by_visible;  // ... and by the frame's visible corners
   // The frames with visible corners that did not succeed, by the estimate's
   // status; of those without a pose, the ones that reported no corner at
   // all (stage 4 found nothing and no seed's image fit held: the reading
@@ -300,6 +301,7 @@ struct EvaluateTotals {
     static_cast<void>(dataset.corners.add(score));  // the same verdict as `success`
     if (score.visible > 0) {
       by_case.add(truth.hard_cases, success);
+      by_visible.add(score.visible, success);
       if (!success) {
         switch (result.status) {
           case EstimateStatus::None:
@@ -361,6 +363,10 @@ struct EvaluateTotals {
                 failed_valid);
     char case_line[512];
     format_hard_case_tally(by_case, case_line, sizeof case_line);
+    if (case_line[0] != '\0') {
+      std::printf("%s\n", case_line);
+    }
+    format_visible_corners_tally(by_visible, case_line, sizeof case_line);
     if (case_line[0] != '\0') {
       std::printf("%s\n", case_line);
     }

@@ -483,5 +483,37 @@ void format_hard_case_tally(const HardCaseTally& tally, char* out, std::size_t c
   item("none", tally.clear_frames, tally.clear_successes);
 }
 
+void VisibleCornersTally::add(int visible, bool success) noexcept {
+  if (visible <= 0) {
+    return;
+  }
+  const int bucket = visible <= 3 ? 0 : (visible <= 5 ? 1 : (visible <= 7 ? 2 : 3));
+  ++frames[static_cast<std::size_t>(bucket)];
+  successes[static_cast<std::size_t>(bucket)] += success ? 1 : 0;
+}
+
+void format_visible_corners_tally(const VisibleCornersTally& tally, char* out, std::size_t capacity) noexcept {
+  if (capacity == 0U) {
+    return;
+  }
+  out[0] = '\0';
+  static constexpr const char* kNames[VisibleCornersTally::kBuckets] = {"1-3", "4-5", "6-7", "8-12"};
+  std::size_t used = 0U;
+  bool any = false;
+  for (std::size_t b = 0U; b < static_cast<std::size_t>(VisibleCornersTally::kBuckets); ++b) {
+    const int n = tally.frames[b];
+    if (n <= 0 || used + 1U >= capacity) {
+      continue;
+    }
+    const int written = std::snprintf(out + used, capacity - used, "%s%s %.1f %% of %d",
+                                      any ? ", " : "frame success by visible corners: ", kNames[b],
+                                      100.0 * tally.successes[b] / n, n);
+    if (written > 0) {
+      used = std::min(capacity - 1U, used + static_cast<std::size_t>(written));
+    }
+    any = true;
+  }
+}
+
 }  // namespace cli
 }  // namespace tcpest

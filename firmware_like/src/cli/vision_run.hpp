@@ -151,5 +151,19 @@ struct HardCaseTally {
 // no frame carried a hard case.
 void format_hard_case_tally(const HardCaseTally& tally, char* out, std::size_t capacity) noexcept;
 
+// `tcpest evaluate`'s frame success by how many corners a frame shows: the
+// success rule asks for 80 % of them, so a frame with 1-4 visible corners
+// may miss none (docs/vision.md). Buckets 1-3, 4-5, 6-7, 8-12.
+struct VisibleCornersTally {
+  static constexpr int kBuckets = 4;
+  std::array<int, kBuckets> frames{};
+  std::array<int, kBuckets> successes{};
+  void add(int visible, bool success) noexcept;  // a frame without a visible corner is not counted
+};
+// "frame success by visible corners: 1-3 35.5 % of 62, ..., 8-12 84.3 % of
+// 1797" (no newline; empty buckets left out); an empty string when no
+// frame was counted.
+void format_visible_corners_tally(const VisibleCornersTally& tally, char* out, std::size_t capacity) noexcept;
+
 }  // namespace cli
 }  // namespace tcpest
