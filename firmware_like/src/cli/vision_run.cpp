@@ -448,25 +448,42 @@ void HardCaseTally::add(std::uint32_t hard_cases, bool success) noexcept {
   }
 }
 
-void format_hard_case_tally(const HardCaseTally& tally, char* out, std::size_t capacity) noexcept {
-  if (capacity == 0U) {
-    return;
+namespace {
+
+// A "HEAD: name x % of n, name x % of n ..." line written item by item into
+// a caller's buffer; items without frames are left out, and a full buffer
+// keeps what fitted, terminated.
+class ShareLine {
+ public:
+  ShareLine(const char* head, char* out, std::size_t capacity) noexcept : head_(head), out_(out), capacity_(capacity) {
+    if (capacity_ > 0U) {
+      out_[0] = '\0';
+    }
   }
-  out[0] = '\0';
-  std::size_t used = 0U;
-  bool any = false;
-  // Appends one "name x % of n" item; a full buffer keeps what fitted.
-  const auto item = [&](const char* name, int n, int ok) noexcept {
-    if (n <= 0 || used >= capacity) {
+  void item(const char* name, int frames, int successes) noexcept {
+    if (frames <= 0 || used_ + 1U >= capacity_) {
       return;
     }
-    const int written = std::snprintf(out + used, capacity - used, "%s%s %.1f %% of %d", any ? ", " : "", name,
-                                      100.0 * ok / n, n);
+    const int written = std::snprintf(out_ + used_, capacity_ - used_, "%s%s %.1f %% of %d", any_ ? ", " : head_,
+                                      name, 100.0 * successes / frames, frames);
     if (written > 0) {
-      used = std::min(capacity - 1U, used + static_cast<std::size_t>(written));
+      used_ = std::min(capacity_ - 1U, used_ + static_cast<std::size_t>(written));
     }
-    any = true;
-  };
+    any_ = true;
+  }
+
+ private:
+  const char* head_;
+  char* out_;
+  std::size_t capacity_;
+  std::size_t used_ = 0U;
+  bool any_ = false;
+};
+
+}  // namespace
+
+void format_hard_case_tally(const HardCaseTally& tally, char* out, std::size_t capacity) noexcept {
+  ShareLine line("frame success by hard case: ", out, capacity);
   bool hard = false;
   for (const int n : tally.frames) {
     hard = hard || n > 0;
@@ -474,13 +491,11 @@ void format_hard_case_tally(const HardCaseTally& tally, char* out, std::size_t c
   if (!hard) {
     return;
   }
-  const int head = std::snprintf(out, capacity, "frame success by hard case: ");
-  used = head > 0 ? std::min(capacity - 1U, static_cast<std::size_t>(head)) : 0U;
   for (int bit = 0; bit < render::kNumHardCases; ++bit) {
     const auto b = static_cast<std::size_t>(bit);
-    item(render::hard_case_name(bit), tally.frames[b], tally.successes[b]);
+    line.item(render::hard_case_name(bit), tally.frames[b], tally.successes[b]);
   }
-  item("none", tally.clear_frames, tally.clear_successes);
+  line.item("none", tally.clear_frames, tally.clear_successes);
 }
 
 void VisibleCornersTally::add(int visible, bool success) noexcept {
@@ -493,25 +508,10 @@ void VisibleCornersTally::add(int visible, bool success) noexcept {
 }
 
 void format_visible_corners_tally(const VisibleCornersTally& tally, char* out, std::size_t capacity) noexcept {
-  if (capacity == 0U) {
-    return;
-  }
-  out[0] = '\0';
   static constexpr const char* kNames[VisibleCornersTally::kBuckets] = {"1-3", "4-5", "6-7", "8-12"};
-  std::size_t used = 0U;
-  bool any = false;
+  ShareLine line("frame success by visible corners: ", out, capacity);
   for (std::size_t b = 0U; b < static_cast<std::size_t>(VisibleCornersTally::kBuckets); ++b) {
-    const int n = tally.frames[b];
-    if (n <= 0 || used + 1U >= capacity) {
-      continue;
-    }
-    const int written = std::snprintf(out + used, capacity - used, "%s%s %.1f %% of %d",
-                                      any ? ", " : "frame success by visible corners: ", kNames[b],
-                                      100.0 * tally.successes[b] / n, n);
-    if (written > 0) {
-      used = std::min(capacity - 1U, used + static_cast<std::size_t>(written));
-    }
-    any = true;
+    line.item(kNames[b], tally.frames[b], tally.successes[b]);
   }
 }
 
