@@ -420,7 +420,8 @@ void format_estimate_json(const char* image, const EstimateResult& result, const
     }
   }
   // Each reported corner's confidence (0..1, vision::Corner): 0.9 read on
-  // the image, 0.5 a limb point of the fitted pose (its arc not read).
+  // the image around the fitted pose, 0.5 a limb point of that pose (its
+  // arc not read); stage 4's own corners 0.45-1 (docs/vision.md).
   advance(std::snprintf(out + used, capacity - used, "], \"corner_confidence\": ["));
   for (std::size_t k = 0U; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
     const char* separator = k == 0U ? "" : ", ";
