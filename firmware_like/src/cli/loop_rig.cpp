@@ -268,6 +268,22 @@ int LoopRig::open_all(const RigRequest& r) noexcept {
   return code;
 }
 
+void print_steps(std::FILE* out, const loop::Executive& executive) noexcept {
+  const loop::LoopStats& s = executive.stats();
+  std::fprintf(out, "%-13s %9s %9s %9s %9s %9s %9s %9s\n", "step (ms)", "budget", "p50", "p99", "p99.9", "max",
+               "mean", "overruns");
+  for (int i = 0; i < loop::kNumSteps; ++i) {
+    const auto& h = s.step[static_cast<std::size_t>(i)];
+    std::fprintf(out, "%-13s %9.3f %9.3f %9.3f %9.3f %9.3f %9.3f %9llu\n", loop::kSchedule[static_cast<std::size_t>(i)].name,
+                 static_cast<double>(loop::kSchedule[static_cast<std::size_t>(i)].budget_us) / 1000.0,
+                 ms(h.quantile_ns(0.5)), ms(h.quantile_ns(0.99)), ms(h.quantile_ns(0.999)), ms(h.max_ns()),
+                 h.mean_ns() / 1e6, static_cast<unsigned long long>(s.step_overruns[static_cast<std::size_t>(i)]));
+  }
+  std::fprintf(out, "%-13s %9.3f %9.3f %9.3f %9.3f %9.3f %9.3f %9llu\n", "total", ms(executive.cycle_budget_ns()),
+               ms(s.total.quantile_ns(0.5)), ms(s.total.quantile_ns(0.99)), ms(s.total.quantile_ns(0.999)),
+               ms(s.total.max_ns()), s.total.mean_ns() / 1e6, static_cast<unsigned long long>(s.cycle_overruns));
+}
+
 void print_summary(std::FILE* out, const loop::Executive& executive) noexcept {
   const loop::LoopStats& s = executive.stats();
   const std::uint64_t camera_cycles = s.status[0] + s.status[1] + s.status[2] + s.status[3];
@@ -288,18 +304,7 @@ void print_summary(std::FILE* out, const loop::Executive& executive) noexcept {
   std::fprintf(out, "overruns %llu (cycle budget %.2f ms), slips %llu\n",
                static_cast<unsigned long long>(s.cycle_overruns), ms(executive.cycle_budget_ns()),
                static_cast<unsigned long long>(s.slips));
-  std::fprintf(out, "%-13s %9s %9s %9s %9s %9s %9s %9s\n", "step (ms)", "budget", "p50", "p99", "p99.9", "max",
-               "mean", "overruns");
-  for (int i = 0; i < loop::kNumSteps; ++i) {
-    const auto& h = s.step[static_cast<std::size_t>(i)];
-    std::fprintf(out, "%-13s %9.3f %9.3f %9.3f %9.3f %9.3f %9.3f %9llu\n", loop::kSchedule[static_cast<std::size_t>(i)].name,
-                 static_cast<double>(loop::kSchedule[static_cast<std::size_t>(i)].budget_us) / 1000.0,
-                 ms(h.quantile_ns(0.5)), ms(h.quantile_ns(0.99)), ms(h.quantile_ns(0.999)), ms(h.max_ns()),
-                 h.mean_ns() / 1e6, static_cast<unsigned long long>(s.step_overruns[static_cast<std::size_t>(i)]));
-  }
-  std::fprintf(out, "%-13s %9.3f %9.3f %9.3f %9.3f %9.3f %9.3f %9llu\n", "total", ms(executive.cycle_budget_ns()),
-               ms(s.total.quantile_ns(0.5)), ms(s.total.quantile_ns(0.99)), ms(s.total.quantile_ns(0.999)),
-               ms(s.total.max_ns()), s.total.mean_ns() / 1e6, static_cast<unsigned long long>(s.cycle_overruns));
+  print_steps(out, executive);
   if (s.latency.count() > 0U) {
     std::fprintf(out, "latency frame -> CAN send (ms): p50 %.3f, p99 %.3f, p99.9 %.3f, max %.3f\n",
                  ms(s.latency.quantile_ns(0.5)), ms(s.latency.quantile_ns(0.99)), ms(s.latency.quantile_ns(0.999)),

@@ -79,6 +79,9 @@ const std::atomic<bool>* install_stop_signals() noexcept;
 
 // Per-step and total percentiles, counters, latency.
 void print_summary(std::FILE* out, const loop::Executive& executive) noexcept;
+// The per-step and total lines of print_summary alone (budget, percentiles,
+// overruns).
+void print_steps(std::FILE* out, const loop::Executive& executive) noexcept;
 // "p50 1.23 ms" helpers.
 double ms(std::int64_t ns) noexcept;
 
