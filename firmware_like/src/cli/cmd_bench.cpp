@@ -170,8 +170,8 @@ int jitter(const RigRequest& request, std::int64_t period_us, double seconds, co
   }
   const loop::LoopStats& s = rig->executive->stats();
   // The loop's steps: which one took the time when a cycle overran. (Not
-  // its latency: each bare block holds the replay, so the first frame after
-  // it is a block old.)
+  // its latency: a bare block pauses the loop, so the first send after it
+  // carries a frame acquired a block earlier.)
   print_steps(stdout, *rig->executive);
   std::printf("%-34s %8s %9s %9s %9s %9s\n", "|actual - nominal| (us)", "n", "p50", "p99", "p99.9", "max");
   print_jitter_row("bare clock_nanosleep wake-up", *bare);
