@@ -41,6 +41,8 @@ std::size_t AllocationScope::count() const noexcept { return t_allocations - sta
 
 #if TCPEST_COUNT_MALLOC
 extern "C" {
+// glibc's own allocator entry points: the reserved names are glibc's, and the
+// counting malloc below must reach them without calling itself.
 void* __libc_malloc(std::size_t size);                          // NOLINT(bugprone-reserved-identifier)
 void* __libc_calloc(std::size_t n, std::size_t size);           // NOLINT(bugprone-reserved-identifier)
 void* __libc_realloc(void* p, std::size_t size);                // NOLINT(bugprone-reserved-identifier)
