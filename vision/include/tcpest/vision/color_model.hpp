@@ -59,8 +59,9 @@ struct ColorModel {
   bool valid() const noexcept;
 };
 
-// The model shipped in config/colors.json (trained on rendered frames), built
-// in so that the loop works without any file.
+// The model shipped in config/colors.json, built in so that the loop works
+// without any file. Trained on lab frames rendered by revision fe795fd; how to
+// reproduce it, and why it was not retrained: docs/vision.md, "Colour model (offline)".
 ColorModel default_color_model() noexcept;
 
 // Reads a colour model file (JSON, format "tcpest-colors-1", see
