@@ -177,6 +177,7 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
   TCPEST_TRY(read_int_as(doc, "rt.fifo_priority", 0, 99, r.fifo_priority));
   TCPEST_TRY(read_int_as(doc, "rt.cpu", -1, 1023, r.cpu));
   TCPEST_TRY(read_int_as(doc, "rt.prefault_stack_kb", 0, 65536, r.prefault_stack_kb));
+  TCPEST_TRY(read_int_as(doc, "rt.cpu_latency_us", -1, 1000000, r.cpu_latency_us));
 
   const char* sections[] = {"loop", "can", "rt"};
   for (const char* section : sections) {

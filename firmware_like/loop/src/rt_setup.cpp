@@ -1,11 +1,14 @@
 #include "tcpest/loop/rt_setup.hpp"
 
 #include <alloca.h>
+#include <fcntl.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
+#include <unistd.h>
 
 #include <cerrno>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 
@@ -34,6 +37,26 @@ __attribute__((noinline)) void prefault_stack(std::size_t bytes) noexcept {
   for (std::size_t i = 0; i < bytes; i += 4096U) {
     block[i] = 0U;
   }
+}
+
+// Asks the kernel to keep every CPU's wake-up latency at or below
+// `latency_us` (PM QoS): the request is the 32-bit value written to the open
+// device, and holds while the file stays open. Returns the descriptor, or -1
+// with the failure noted.
+int request_cpu_latency(RtReport& report, int latency_us) noexcept {
+  const int fd = ::open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
+  if (fd < 0) {
+    note(report, "rt.cpu_latency_us: open /dev/cpu_dma_latency", errno);
+    return -1;
+  }
+  const std::int32_t value = latency_us;
+  const ssize_t written = ::write(fd, &value, sizeof value);
+  if (written != static_cast<ssize_t>(sizeof value)) {
+    note(report, "rt.cpu_latency_us: write /dev/cpu_dma_latency", written < 0 ? errno : EIO);
+    static_cast<void>(::close(fd));  // nothing was requested; a close error changes nothing
+    return -1;
+  }
+  return fd;
 }
 
 }  // namespace
@@ -72,7 +95,17 @@ RtReport apply_rt_settings(const RtSettings& settings) noexcept {
     prefault_stack(static_cast<std::size_t>(settings.prefault_stack_kb) * 1024U);
     report.stack_prefaulted = true;
   }
+  if (settings.cpu_latency_us >= 0) {
+    report.cpu_latency_fd = request_cpu_latency(report, settings.cpu_latency_us);
+  }
   return report;
+}
+
+void release_cpu_latency(RtReport& report) noexcept {
+  if (report.cpu_latency_fd >= 0) {
+    static_cast<void>(::close(report.cpu_latency_fd));  // closing withdraws the request; nothing to do on error
+    report.cpu_latency_fd = -1;
+  }
 }
 
 }  // namespace loop

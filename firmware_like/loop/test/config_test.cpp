@@ -1,7 +1,10 @@
 #include "tcpest/loop/config.hpp"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <cstdint>
 #include <cstring>
 #include <memory>
 
@@ -27,6 +30,7 @@ TEST(LoopConfig, DefaultsWithoutSections) {
   EXPECT_EQ(config.can.node_id, 0x10U);
   EXPECT_EQ(config.can.heartbeat_ms, 100);
   EXPECT_FALSE(config.rt.lock_memory);
+  EXPECT_EQ(config.rt.cpu_latency_us, -1);  // no request unless asked
 }
 
 TEST(LoopConfig, ReadsEverySection) {
@@ -38,7 +42,8 @@ TEST(LoopConfig, ReadsEverySection) {
       "  valid_start_check: true\n  max_valid_tcp_disagreement_mm: 3.5\n"
       "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
       "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
-      "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n";
+      "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n"
+      "  cpu_latency_us: 0\n";
   const auto s = parse(text, config);
   ASSERT_TRUE(s.ok());
   EXPECT_EQ(config.loop.trigger, Trigger::kPeriod);
@@ -67,6 +72,8 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_TRUE(config.rt.lock_memory);
   EXPECT_EQ(config.rt.fifo_priority, 80);
   EXPECT_EQ(config.rt.cpu, 1);
+  EXPECT_EQ(config.rt.prefault_stack_kb, 512);
+  EXPECT_EQ(config.rt.cpu_latency_us, 0);
 }
 
 TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
@@ -91,6 +98,8 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
       {"loop:\n  encoder_check_bend_rad: -0.1\n", "loop.encoder_check_bend_rad"},
       {"loop:\n  encoder_check_lambda_mm: nan\n", "loop.encoder_check_lambda_mm"},
       {"loop:\n  max_valid_tcp_disagreement_mm: -1\n", "loop.max_valid_tcp_disagreement_mm"},
+      {"rt:\n  cpu_latency_us: -2\n", "rt.cpu_latency_us"},
+      {"rt:\n  cpu_latency_us: 2000000\n", "rt.cpu_latency_us"},
   };
   for (const auto& b : bad) {
     s = parse(b.text, config);
@@ -122,6 +131,38 @@ TEST(RtSetup, FailuresAreReportedNotFatal) {
   EXPECT_NE(std::strstr(report.messages[0], "rt.cpu"), nullptr);
   const RtReport nothing = apply_rt_settings(RtSettings{0 != 0, 0, -1, 0});
   EXPECT_EQ(nothing.message_count, 0U);
+  EXPECT_EQ(nothing.cpu_latency_fd, -1);
+}
+
+// Reads the kernel's aggregate CPU latency request (us), -1 if unreadable.
+std::int32_t current_cpu_latency_us() {
+  const int fd = ::open("/dev/cpu_dma_latency", O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    return -1;
+  }
+  std::int32_t value = -1;
+  const ssize_t got = ::read(fd, &value, sizeof value);
+  static_cast<void>(::close(fd));  // read-only probe
+  return got == static_cast<ssize_t>(sizeof value) ? value : -1;
+}
+
+TEST(RtSetup, CpuLatencyIsHeldUntilReleasedOrReported) {
+  const std::int32_t before_us = current_cpu_latency_us();
+  RtSettings settings{0 != 0, 0, -1, 0};
+  settings.cpu_latency_us = 0;
+  RtReport report = apply_rt_settings(settings);
+  if (report.cpu_latency_fd < 0) {
+    // No device or no privilege here: reported once, not fatal.
+    ASSERT_EQ(report.message_count, 1U);
+    EXPECT_NE(std::strstr(report.messages[0], "rt.cpu_latency_us"), nullptr);
+    return;
+  }
+  EXPECT_EQ(report.message_count, 0U);
+  EXPECT_EQ(current_cpu_latency_us(), 0);  // the request is in force while held
+  release_cpu_latency(report);
+  EXPECT_EQ(report.cpu_latency_fd, -1);
+  EXPECT_EQ(current_cpu_latency_us(), before_us);  // withdrawn: back to what it was
+  release_cpu_latency(report);             // a second release is harmless
 }
 
 }  // namespace

@@ -223,7 +223,9 @@ int cmd_bench(int argc, char** argv) {
   request.calib_path = args.value("calib");
   request.quiet = true;
   {
-    // The rt: section applies to the benchmark too (report, not fatal).
+    // The rt: section applies to the benchmark too (report, not fatal). A
+    // CPU latency request stays in force until the process exits: both the
+    // loop and the bare timer loop are measured under it.
     static yaml::Document scratch;
     loop::LoopConfig config;
     if (loop::load_loop_config(request.config_path, scratch, config).ok()) {
