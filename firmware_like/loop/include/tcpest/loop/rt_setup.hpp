@@ -1,8 +1,8 @@
 // Optional real-time setup of the loop's thread, each item from the `rt:`
 // configuration section: lock all memory (mlockall), SCHED_FIFO priority,
-// CPU affinity, pre-faulted stack, CPU wake-up latency request. Every item that cannot be had (no
-// privilege, no such CPU) is reported once, in the returned report, and the
-// loop runs without it: none is fatal.
+// CPU affinity, pre-faulted stack, CPU wake-up latency request. Every item
+// that cannot be had (no privilege, no such CPU, no such device) is reported
+// once, in the returned report, and the loop runs without it: none is fatal.
 #pragma once
 
 #include <cstddef>
@@ -20,7 +20,7 @@ struct RtReport {
   // The open /dev/cpu_dma_latency: the kernel holds the request while it is
   // open, and drops it when the process ends (also on a crash). -1 = none.
   int cpu_latency_fd = -1;
-  static constexpr std::size_t kMaxMessages = 4U;
+  static constexpr std::size_t kMaxMessages = 4U;  // one per item that can fail
   static constexpr std::size_t kMessageLength = 160U;
   char messages[kMaxMessages][kMessageLength] = {};
   std::size_t message_count = 0U;
