@@ -102,6 +102,31 @@ Mat3 rotation_x(double a) noexcept { return rotation_x_cs(std::cos(a), std::sin(
 Mat3 rotation_y(double a) noexcept { return rotation_y_cs(std::cos(a), std::sin(a)); }
 Mat3 rotation_z(double a) noexcept { return rotation_z_cs(std::cos(a), std::sin(a)); }
 
+PoseVector nearest_equivalent_joints(const PoseVector& r, const PoseVector& reference) noexcept {
+  if (!r.allFinite() || !reference.allFinite()) {
+    return r;
+  }
+  const double phi_ref = reference[kPhi];
+  const double theta_ref = reference[kTheta];
+  // std::remainder(x, 2 pi) lies in [-pi, pi]: the turn of phi nearest the reference's.
+  const double phi_same = phi_ref + std::remainder(r[kPhi] - phi_ref, 2.0 * kPi);
+  const double phi_turned = phi_ref + std::remainder(r[kPhi] + kPi - phi_ref, 2.0 * kPi);
+  const double theta_same = r[kTheta];
+  const double theta_turned = -r[kTheta];
+  const double cost_same =
+      (phi_same - phi_ref) * (phi_same - phi_ref) + (theta_same - theta_ref) * (theta_same - theta_ref);
+  const double cost_turned =
+      (phi_turned - phi_ref) * (phi_turned - phi_ref) + (theta_turned - theta_ref) * (theta_turned - theta_ref);
+  PoseVector out = r;
+  if (cost_turned < cost_same) {
+    out[kPhi] = phi_turned;
+    out[kTheta] = theta_turned;
+  } else {
+    out[kPhi] = phi_same;
+  }
+  return out;
+}
+
 PoseVector InstrumentGeometry::nominal_pose(double lambda_mm, double phi_rad, double theta_rad) const noexcept {
   PoseVector r;
   r << nominal_x_ch_mm, nominal_y_ch_mm, nominal_psi_rad, nominal_mu_rad, lambda_mm, phi_rad, theta_rad;

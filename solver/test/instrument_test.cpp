@@ -94,6 +94,84 @@ TEST(Instrument, CornersAreOnTheLimb) {
   }
 }
 
+// (phi + pi, -theta) and phi + 2 pi n are the same instrument: corners
+// (labels included, the sides being the image's) and TCP. The pair returned
+// is the one nearest the reference, whatever turn the solve ended on.
+TEST(Instrument, EquivalentJointsNearestTheReference) {
+  const CameraModel cam = vectors_camera();
+  const auto model = InstrumentModel::create(InstrumentGeometry{});
+  ASSERT_TRUE(model.ok());
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> turns(-12, 12);
+  std::normal_distribution<double> encoder_error_rad(0.0, 0.2);
+  for (int trial = 0; trial < 200; ++trial) {
+    const PoseVector truth = random_pose(rng);
+    PoseVector reference = truth;
+    reference[kPhi] += encoder_error_rad(rng);
+    reference[kTheta] += encoder_error_rad(rng);
+    for (int mirrored = 0; mirrored < 2; ++mirrored) {
+      PoseVector solved = truth;  // as a solve may end: another turn, the other way round
+      solved[kPhi] += 2.0 * kPi * static_cast<double>(turns(rng)) + (mirrored == 1 ? kPi : 0.0);
+      solved[kTheta] = mirrored == 1 ? -truth[kTheta] : truth[kTheta];
+      CornerSet expected;
+      CornerSet got;
+      model.value().corners(cam, truth, expected);
+      model.value().corners(cam, solved, got);
+      for (int k = 0; k < kNumCorners; ++k) {
+        ASSERT_EQ(got.present[k], expected.present[k]) << k;
+        if (expected.present[k]) {
+          EXPECT_NEAR((got.pixel[k] - expected.pixel[k]).norm(), 0.0, 1e-7) << k;
+        }
+      }
+      EXPECT_NEAR((model.value().tcp(solved) - model.value().tcp(truth)).norm(), 0.0, 1e-9);
+
+      const PoseVector out = nearest_equivalent_joints(solved, reference);
+      for (int i = 0; i < kNumParams; ++i) {
+        if (i != kPhi && i != kTheta) {
+          EXPECT_EQ(out[i], solved[i]);
+        }
+      }
+      EXPECT_LE(std::fabs(out[kPhi] - reference[kPhi]), kPi + 1e-12);
+      if (std::fabs(truth[kTheta]) > 0.5) {  // the encoders' 0.2 rad cannot hide the bend's sign
+        EXPECT_NEAR(out[kPhi], truth[kPhi], 1e-9);
+        EXPECT_NEAR(out[kTheta], truth[kTheta], 1e-12);
+      }
+      EXPECT_NEAR((model.value().tcp(out) - model.value().tcp(truth)).norm(), 0.0, 1e-9);
+    }
+  }
+}
+
+TEST(Instrument, EquivalentJointsEdgeCases) {
+  PoseVector reference = InstrumentGeometry{}.nominal_pose(20.0, 0.0, 0.0);
+  // The generic reference (phi = theta = 0): phi within a quarter turn of 0.
+  PoseVector r = InstrumentGeometry{}.nominal_pose(20.0, -58.1369437134, 0.383);
+  PoseVector out = nearest_equivalent_joints(r, reference);
+  EXPECT_NEAR(out[kPhi], std::remainder(-58.1369437134, 2.0 * kPi) + kPi, 1e-9);  // -1.588 + pi
+  EXPECT_LE(std::fabs(out[kPhi]), kPi / 2.0);
+  EXPECT_EQ(out[kTheta], -0.383);
+  r[kPhi] = 2.5;
+  out = nearest_equivalent_joints(r, reference);
+  EXPECT_NEAR(out[kPhi], 2.5 - kPi, 1e-12);
+  EXPECT_EQ(out[kTheta], -0.383);
+  // A reference beyond pi (the robot's own count) keeps its turn.
+  reference[kPhi] = 3.0;
+  reference[kTheta] = 0.4;
+  r[kPhi] = 3.3 - 2.0 * kPi;
+  r[kTheta] = 0.38;
+  out = nearest_equivalent_joints(r, reference);
+  EXPECT_NEAR(out[kPhi], 3.3, 1e-12);
+  EXPECT_EQ(out[kTheta], 0.38);
+  // Non-finite: returned as is.
+  r[kPhi] = std::numeric_limits<double>::quiet_NaN();
+  out = nearest_equivalent_joints(r, reference);
+  EXPECT_TRUE(std::isnan(out[kPhi]));
+  r[kPhi] = 1.0;
+  reference[kTheta] = std::numeric_limits<double>::infinity();
+  out = nearest_equivalent_joints(r, reference);
+  EXPECT_EQ(out[kPhi], 1.0);
+  EXPECT_EQ(out[kTheta], 0.38);
+}
+
 // The limb points at an arbitrary arc length are the corners at s = s_j.
 TEST(Instrument, LimbsAtABoundaryAreItsCorners) {
   const CameraModel camera = vectors_camera();

@@ -112,6 +112,17 @@ Mat3 rotation_x(double angle_rad) noexcept;
 Mat3 rotation_y(double angle_rad) noexcept;
 Mat3 rotation_z(double angle_rad) noexcept;
 
+// The joints (phi, theta) and (phi + pi, -theta) bend the section alike (the
+// arc turns the other way in a base frame turned half round), and phi counts
+// modulo 2 pi: the image gives the shape, not which of these joint values
+// the robot holds. Returns `r` with (phi, theta) replaced by the equivalent
+// pair nearest `reference`'s (the encoders' joints, or the start's): phi
+// within pi of the reference's, and of the two turns the one with the least
+// (phi - phi_ref)^2 + (theta - theta_ref)^2 (a tie keeps theta's sign). The
+// other five values, the corners and the TCP are unchanged. A non-finite
+// `r` or `reference` returns `r` as it is.
+PoseVector nearest_equivalent_joints(const PoseVector& r, const PoseVector& reference) noexcept;
+
 class InstrumentModel {
  public:
   InstrumentModel() noexcept = default;
