@@ -5,6 +5,7 @@
 
 #include <sys/stat.h>
 
+#include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -333,6 +334,47 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessByVisibleCorners) {
   format_visible_corners_tally(tally, small, sizeof small);
   EXPECT_EQ(std::strlen(small), sizeof small - 1U);
   EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
+}
+
+// The image shows the shape, not which of the equivalent joints, (phi,
+// theta), (phi + pi, -theta) or phi + 2 pi n, the robot holds: the estimate
+// reports the prior's (what JOINTS sends and the encoders compare with).
+// Lab seed 1 frame 188 (true phi 0, theta -0.35 rad; encoders 0.09, -0.17)
+// is one whose solve ended on the other turn (phi -3.26, theta 0.31).
+TEST(VisionCommands, EstimateReportsTheJointsInThePriorsRepresentation) {
+  const std::string dir = ::testing::TempDir() + "vision_cli_joints";
+  ASSERT_EQ(run({"render", "--set", "lab", "--seed", "1", "--start", "188", "--n", "1", "--quiet", "--out", dir}),
+            kExitOk);
+  const auto sidecar = render::read_sidecar_file((dir + "/0188.json").c_str());
+  ASSERT_TRUE(sidecar.ok());
+  ASSERT_TRUE(sidecar.value().has_prior);
+  ModelSetup setup;
+  ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
+  EstimatePipeline pipeline;
+  ASSERT_TRUE(pipeline.init("test", setup, vision::default_color_model(), false));
+  ImageReader reader;
+  ASSERT_TRUE(reader.init(setup.camera.width(), setup.camera.height()));
+  std::vector<std::uint8_t> pixels;
+  ImageView view{};
+  char error[256];
+  ASSERT_TRUE(reader.read((dir + "/0188.jpg").c_str(), pixels, view, error, sizeof error)) << error;
+  const std::array<double, 3>& encoders = sidecar.value().prior;
+  const double priors[3][3] = {{encoders[0], encoders[1], encoders[2]},
+                               {encoders[0], encoders[1] + solver::kPi, -encoders[2]},
+                               {encoders[0], encoders[1] - 4.0 * solver::kPi, encoders[2]}};
+  solver::Vec3 first_tcp = solver::Vec3::Zero();
+  for (int i = 0; i < 3; ++i) {
+    pipeline.reset_sequence();
+    const EstimateResult result = pipeline.process(view, priors[i]);
+    ASSERT_NE(result.status, EstimateStatus::None) << i;
+    EXPECT_NEAR(result.r[solver::kPhi], priors[i][1], 0.3) << i;
+    EXPECT_NEAR(result.r[solver::kTheta], priors[i][2], 0.3) << i;
+    if (i == 0) {
+      first_tcp = result.tcp;
+    } else {
+      EXPECT_NEAR((result.tcp - first_tcp).norm(), 0.0, 0.05) << i;  // the same instrument
+    }
+  }
 }
 
 // An extraction with corner k found at `pixel`, and nothing else.

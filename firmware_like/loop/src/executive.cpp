@@ -549,6 +549,9 @@ void Executive::take_estimate() noexcept {
   if (record_.prior == PriorSource::kEncoder) {
     record_.encoder_disagrees = solver::check_against_encoders(estimate_, prior_r_, encoder_check_);
   }
+  // The joints the robot is sent (JOINTS) and the next frame starts from:
+  // the prior's turn of phi and sign of theta, not whichever the solve ended on.
+  estimate_.r = solver::nearest_equivalent_joints(estimate_.r, prior_r_);
   record_.solve_status = estimate_.summary.status;
   record_.quality = estimate_.quality;
   record_.corners_rejected = estimate_.corners_rejected;

@@ -75,7 +75,9 @@ void solve_one(const CornersInput& input, const ModelSetup& setup, solver::Solve
   solver::PoseSolver solver_instance(setup.camera, setup.instrument);  // a few KB of fixed-size scratch
   const double* joints = input.has_prior ? input.prior : default_prior;
   solver::PoseVector r = setup.instrument.geometry().nominal_pose(joints[0], joints[1], joints[2]);
+  const solver::PoseVector start = r;
   const solver::SolveSummary summary = solver_instance.solve(input.observed, mode, r);
+  r = solver::nearest_equivalent_joints(r, start);  // the start's turn of phi and sign of theta
   char buffer[kMaxOutputLine];
   if (format_solve_json(summary, r, setup.instrument.tcp(r), buffer, sizeof buffer)) {
     std::fputs(buffer, out);

@@ -280,6 +280,8 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   if (prior_joints != nullptr) {  // `start` holds the encoders' joints
     out.encoder_disagrees = solver::check_against_encoders(estimate, start, encoder_check_);
   }
+  // The prior's turn of phi and sign of theta (the loop reports the same).
+  estimate.r = solver::nearest_equivalent_joints(estimate.r, start);
   const vision::Extraction& e = fx.result();
   const auto t6 = std::chrono::steady_clock::now();
   out.summary = estimate.summary;
