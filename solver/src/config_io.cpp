@@ -25,6 +25,63 @@ bool read_number(const yaml::Document& doc, const char* path, double& out, Diagn
   return true;
 }
 
+// A matrix's `rows`/`cols`, when given, must be the expected size; false
+// with the field named.
+bool check_size(const yaml::Document& doc, const char* matrix, long long rows, long long cols,
+                Diagnostic& error) noexcept {
+  const char* const keys[2] = {"rows", "cols"};
+  const long long expected[2] = {rows, cols};
+  for (int i = 0; i < 2; ++i) {
+    char path[yaml::kMaxPath] = {};
+    static_cast<void>(std::snprintf(path, sizeof path, "%s.%s", matrix, keys[i]));  // short constant names
+    if (!doc.has(path)) {
+      continue;
+    }
+    const auto value = doc.integer(path);
+    if (!value.ok()) {
+      error = value.error();
+      return false;
+    }
+    if (value.value() != expected[i]) {
+      char message[64] = {};
+      static_cast<void>(std::snprintf(message, sizeof message, "must be %lld", expected[i]));  // fits
+      error = doc.error_at(doc.find(path), path, message);
+      return false;
+    }
+  }
+  return true;
+}
+
+// The matrices a monocular camera_info carries but the raw image does not
+// use (the rectified camera's rotation and projection): when given, they
+// must still be well formed (their size, and finite numbers), so that a
+// damaged file is refused rather than half read.
+bool check_unused_matrices(const yaml::Document& doc, Diagnostic& error) noexcept {
+  struct Unused {
+    const char* matrix;
+    const char* data;
+    long long rows;
+    long long cols;
+  };
+  const Unused unused[2] = {{"rectification_matrix", "rectification_matrix.data", 3, 3},
+                            {"projection_matrix", "projection_matrix.data", 3, 4}};
+  for (const Unused& u : unused) {
+    if (!check_size(doc, u.matrix, u.rows, u.cols, error)) {
+      return false;
+    }
+    if (!doc.has(u.data)) {
+      continue;
+    }
+    double values[12] = {};
+    const auto status = doc.numbers(u.data, values, static_cast<std::size_t>(u.rows * u.cols));
+    if (!status.ok()) {
+      error = status.error();
+      return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc) noexcept {
@@ -46,6 +103,10 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
   k.width = static_cast<int>(width.value());
   k.height = static_cast<int>(height.value());
 
+  Diagnostic size_error;
+  if (!check_size(doc, "camera_matrix", 3, 3, size_error) || !check_unused_matrices(doc, size_error)) {
+    return CameraResult::failure(size_error);
+  }
   double m[9] = {};
   auto status = doc.numbers("camera_matrix.data", m, 9U);
   if (!status.ok()) {
@@ -87,6 +148,23 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
   const yaml::Entry* dist = doc.find("distortion_coefficients.data");
   if (count < 4U) {
     return CameraResult::failure(doc.error_at(dist, "distortion_coefficients.data", "expected 5 values (k1 k2 p1 p2 k3)"));
+  }
+  // rows x cols, when given, is the number of coefficients (1 x N, or N x 1 as OpenCV writes them).
+  if (doc.has("distortion_coefficients.rows") && doc.has("distortion_coefficients.cols")) {
+    const auto rows = doc.integer("distortion_coefficients.rows");
+    const auto cols = doc.integer("distortion_coefficients.cols");
+    if (!rows.ok()) {
+      return CameraResult::failure(rows.error());
+    }
+    if (!cols.ok()) {
+      return CameraResult::failure(cols.error());
+    }
+    const bool in_range = rows.value() >= 1 && rows.value() <= 14 && cols.value() >= 1 && cols.value() <= 14;
+    if (!in_range || rows.value() * cols.value() != static_cast<long long>(count) ||
+        (rows.value() != 1 && cols.value() != 1)) {
+      return CameraResult::failure(doc.error_at(doc.find("distortion_coefficients.cols"), "distortion_coefficients.cols",
+                                                "rows x cols is not the number of coefficients in data"));
+    }
   }
   for (std::size_t i = 5U; i < count; ++i) {
     if (d[i] != 0.0) {

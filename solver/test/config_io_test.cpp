@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <string>
 
 namespace tcpest {
 namespace solver {
@@ -73,6 +74,47 @@ TEST(ConfigIo, NamesTheFieldOfEveryBadCamera) {
     ASSERT_FALSE(cam.ok()) << c.text;
     EXPECT_EQ(cam.error().line, c.line) << c.text;
     EXPECT_STREQ(cam.error().field, c.field) << c.text;
+  }
+}
+
+// The matrices the raw image does not use (R, P) and the matrices' sizes,
+// when a file gives them, must be well formed: a damaged file is refused,
+// not half read. OpenCV's N x 1 distortion vector is accepted.
+TEST(ConfigIo, RefusesDamagedMatricesItDoesNotUse) {
+  const std::string good(kGood);
+  const std::string full = good +
+                           "rectification_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n"
+                           "projection_matrix:\n  rows: 3\n  cols: 4\n"
+                           "  data: [400, 0, 359.5, 0, 0, 400, 287.5, 0, 0, 0, 1, 0]\n";
+  ASSERT_TRUE(camera_from(full.c_str()).ok());
+  std::string column = full;
+  column.replace(column.find("rows: 1\n  cols: 5"), 17, "rows: 5\n  cols: 1");
+  EXPECT_TRUE(camera_from(column.c_str()).ok()) << column;
+  struct Damage {
+    const char* from;
+    const char* to;
+    const char* field;
+  };
+  const Damage damages[] = {
+      {"287.5, 0, 0, 0, 1, 0]", "287.5, 0, 0, 0, 1, nan]", "projection_matrix.data"},
+      {"0, 400, 287.5, 0, 0, 0, 1, 0]", "0, 400, 287.5, 0, 0, 0, 1]", "projection_matrix.data"},
+      {"[1, 0, 0, 0, 1, 0, 0, 0, 1]", "[1, 0, 0, 0, 1, 0, 0, 0, 1e999]", "rectification_matrix.data"},
+      {"[1, 0, 0, 0, 1, 0, 0, 0, 1]", "[1, 0, 0, 0, 1, 0, \"0, 0, 1]", "rectification_matrix.data"},
+      {"  rows: 3\n  cols: 4", "  rows: 3\n  cols: 5", "projection_matrix.cols"},
+      {"camera_matrix:\n  rows: 3", "camera_matrix:\n  rows: 34294967296", "camera_matrix.rows"},
+      {"camera_matrix:\n  rows: 3\n  cols: 3", "camera_matrix:\n  rows: 3\n  cols: x", "camera_matrix.cols"},
+      {"rows: 1\n  cols: 5", "rows: 1\n  cols: 6", "distortion_coefficients.cols"},
+      {"rows: 1\n  cols: 5", "rows: 4611686018427387904\n  cols: 4", "distortion_coefficients.cols"},
+  };
+  for (const Damage& d : damages) {
+    std::string text = full;
+    const std::size_t at = text.find(d.from);
+    ASSERT_NE(at, std::string::npos) << d.from;
+    text.replace(at, std::strlen(d.from), d.to);
+    const auto cam = camera_from(text.c_str());
+    ASSERT_FALSE(cam.ok()) << text;
+    EXPECT_STREQ(cam.error().field, d.field) << text;
+    EXPECT_GT(cam.error().line, 0U) << text;
   }
 }
 
