@@ -43,7 +43,7 @@ __attribute__((noinline)) void prefault_stack(std::size_t bytes) noexcept {
 // `latency_us` (PM QoS): the request is the 32-bit value written to the open
 // device, and holds while the file stays open. Returns the descriptor, or -1
 // with the failure noted.
-int request_cpu_latency(RtReport& report, int latency_us) noexcept {
+int open_cpu_latency_request(RtReport& report, int latency_us) noexcept {
   const int fd = ::open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
   if (fd < 0) {
     note(report, "rt.cpu_latency_us: open /dev/cpu_dma_latency", errno);
@@ -96,17 +96,28 @@ RtReport apply_rt_settings(const RtSettings& settings) noexcept {
     report.stack_prefaulted = true;
   }
   if (settings.cpu_latency_us >= 0) {
-    report.cpu_latency_fd = request_cpu_latency(report, settings.cpu_latency_us);
+    report.cpu_latency = CpuLatencyRequest(open_cpu_latency_request(report, settings.cpu_latency_us));
   }
   return report;
 }
 
-void release_cpu_latency(RtReport& report) noexcept {
-  if (report.cpu_latency_fd >= 0) {
-    static_cast<void>(::close(report.cpu_latency_fd));  // closing withdraws the request; nothing to do on error
-    report.cpu_latency_fd = -1;
+CpuLatencyRequest& CpuLatencyRequest::operator=(CpuLatencyRequest&& other) noexcept {
+  if (this != &other) {
+    release();
+    fd_ = other.fd_;
+    other.fd_ = -1;
+  }
+  return *this;
+}
+
+void CpuLatencyRequest::release() noexcept {
+  if (fd_ >= 0) {
+    static_cast<void>(::close(fd_));  // closing withdraws the request; nothing to do on error
+    fd_ = -1;
   }
 }
+
+void release_cpu_latency(RtReport& report) noexcept { report.cpu_latency.release(); }
 
 }  // namespace loop
 }  // namespace tcpest

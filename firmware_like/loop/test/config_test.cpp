@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <utility>
 
 namespace tcpest {
 namespace loop {
@@ -131,7 +132,7 @@ TEST(RtSetup, FailuresAreReportedNotFatal) {
   EXPECT_NE(std::strstr(report.messages[0], "rt.cpu"), nullptr);
   const RtReport nothing = apply_rt_settings(RtSettings{0 != 0, 0, -1, 0});
   EXPECT_EQ(nothing.message_count, 0U);
-  EXPECT_EQ(nothing.cpu_latency_fd, -1);
+  EXPECT_FALSE(nothing.cpu_latency.held());
 }
 
 // Reads the kernel's aggregate CPU latency request (us), -1 if unreadable.
@@ -151,7 +152,7 @@ TEST(RtSetup, CpuLatencyIsHeldUntilReleasedOrReported) {
   RtSettings settings{0 != 0, 0, -1, 0};
   settings.cpu_latency_us = 0;
   RtReport report = apply_rt_settings(settings);
-  if (report.cpu_latency_fd < 0) {
+  if (!report.cpu_latency.held()) {
     // No device or no privilege here: reported once, not fatal.
     ASSERT_EQ(report.message_count, 1U);
     EXPECT_NE(std::strstr(report.messages[0], "rt.cpu_latency_us"), nullptr);
@@ -160,9 +161,19 @@ TEST(RtSetup, CpuLatencyIsHeldUntilReleasedOrReported) {
   EXPECT_EQ(report.message_count, 0U);
   EXPECT_EQ(current_cpu_latency_us(), 0);  // the request is in force while held
   release_cpu_latency(report);
-  EXPECT_EQ(report.cpu_latency_fd, -1);
+  EXPECT_FALSE(report.cpu_latency.held());
   EXPECT_EQ(current_cpu_latency_us(), before_us);  // withdrawn: back to what it was
-  release_cpu_latency(report);             // a second release is harmless
+  release_cpu_latency(report);                     // a second release is harmless
+  // One owner: a moved report carries the request, and its end withdraws it.
+  {
+    RtReport first = apply_rt_settings(settings);
+    ASSERT_TRUE(first.cpu_latency.held());
+    const RtReport second = std::move(first);
+    EXPECT_FALSE(first.cpu_latency.held());  // NOLINT(bugprone-use-after-move): the moved-from state is the point
+    EXPECT_TRUE(second.cpu_latency.held());
+    EXPECT_EQ(current_cpu_latency_us(), 0);
+  }
+  EXPECT_EQ(current_cpu_latency_us(), before_us);
 }
 
 }  // namespace

@@ -222,14 +222,15 @@ int cmd_bench(int argc, char** argv) {
   request.config_path = args.value("config");
   request.calib_path = args.value("calib");
   request.quiet = true;
+  // The rt: section applies to the benchmark too (report, not fatal). A
+  // CPU latency request stays in force until the command returns: both the
+  // loop and the bare timer loop are measured under it.
+  loop::RtReport rt;
   {
-    // The rt: section applies to the benchmark too (report, not fatal). A
-    // CPU latency request stays in force until the process exits: both the
-    // loop and the bare timer loop are measured under it.
     static yaml::Document scratch;
     loop::LoopConfig config;
     if (loop::load_loop_config(request.config_path, scratch, config).ok()) {
-      const loop::RtReport rt = loop::apply_rt_settings(config.rt);
+      rt = loop::apply_rt_settings(config.rt);
       for (std::size_t i = 0; i < rt.message_count; ++i) {
         std::fprintf(stderr, "tcpest bench: %s\n", rt.messages[i]);
       }

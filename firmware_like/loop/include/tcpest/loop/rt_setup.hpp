@@ -12,14 +12,35 @@
 namespace tcpest {
 namespace loop {
 
+// A CPU wake-up latency request: the open /dev/cpu_dma_latency. The kernel
+// holds the request while the file is open and drops it when it is closed
+// or the process ends (also on a crash). One owner: move-only, so that the
+// request is withdrawn once, by release() or by the destructor.
+class CpuLatencyRequest {
+ public:
+  CpuLatencyRequest() noexcept = default;
+  explicit CpuLatencyRequest(int fd) noexcept : fd_(fd) {}
+  CpuLatencyRequest(const CpuLatencyRequest&) = delete;
+  CpuLatencyRequest& operator=(const CpuLatencyRequest&) = delete;
+  CpuLatencyRequest(CpuLatencyRequest&& other) noexcept : fd_(other.fd_) { other.fd_ = -1; }
+  CpuLatencyRequest& operator=(CpuLatencyRequest&& other) noexcept;
+  ~CpuLatencyRequest() { release(); }
+
+  bool held() const noexcept { return fd_ >= 0; }
+  // Withdraws the request, if one is held; a second call does nothing.
+  void release() noexcept;
+
+ private:
+  int fd_ = -1;
+};
+
+// What apply_rt_settings() obtained. Move-only (it owns the latency request).
 struct RtReport {
   bool memory_locked = false;
   bool fifo = false;
   bool pinned = false;
   bool stack_prefaulted = false;
-  // The open /dev/cpu_dma_latency: the kernel holds the request while it is
-  // open, and drops it when the process ends (also on a crash). -1 = none.
-  int cpu_latency_fd = -1;
+  CpuLatencyRequest cpu_latency;  // held while the report lives, or until released
   static constexpr std::size_t kMaxMessages = 4U;  // one per item that can fail
   static constexpr std::size_t kMessageLength = 160U;
   char messages[kMaxMessages][kMessageLength] = {};
@@ -31,7 +52,7 @@ struct RtReport {
 RtReport apply_rt_settings(const RtSettings& settings) noexcept;
 
 // Withdraws the CPU latency request, if one is held (the other items stay).
-// Optional: a request held until the process exits is withdrawn then.
+// Optional: the report's end withdraws it too.
 void release_cpu_latency(RtReport& report) noexcept;
 
 }  // namespace loop
