@@ -82,6 +82,62 @@ bool check_unused_matrices(const yaml::Document& doc, Diagnostic& error) noexcep
   return true;
 }
 
+// distortion_model (plumb_bob only) and its coefficients into `k`; false
+// with the field named. rows x cols, when given, is the number of
+// coefficients (1 x N, or N x 1 as OpenCV writes them).
+bool read_distortion(const yaml::Document& doc, CameraIntrinsics& k, Diagnostic& error) noexcept {
+  char model[32] = {};
+  auto status = doc.text("distortion_model", model, sizeof model);
+  if (!status.ok()) {
+    error = status.error();
+    return false;
+  }
+  if (std::strcmp(model, "plumb_bob") != 0) {
+    error = doc.error_at(doc.find("distortion_model"), "distortion_model", "only plumb_bob is supported");
+    return false;
+  }
+  double d[14] = {};
+  std::size_t count = 0U;
+  status = doc.numbers_upto("distortion_coefficients.data", d, 14U, count);
+  if (!status.ok()) {
+    error = status.error();
+    return false;
+  }
+  const yaml::Entry* dist = doc.find("distortion_coefficients.data");
+  if (count < 4U) {
+    error = doc.error_at(dist, "distortion_coefficients.data", "expected 5 values (k1 k2 p1 p2 k3)");
+    return false;
+  }
+  if (doc.has("distortion_coefficients.rows") && doc.has("distortion_coefficients.cols")) {
+    const auto rows = doc.integer("distortion_coefficients.rows");
+    const auto cols = doc.integer("distortion_coefficients.cols");
+    if (!rows.ok() || !cols.ok()) {
+      error = rows.ok() ? cols.error() : rows.error();
+      return false;
+    }
+    const bool in_range = rows.value() >= 1 && rows.value() <= 14 && cols.value() >= 1 && cols.value() <= 14;
+    if (!in_range || rows.value() * cols.value() != static_cast<long long>(count) ||
+        (rows.value() != 1 && cols.value() != 1)) {
+      error = doc.error_at(doc.find("distortion_coefficients.cols"), "distortion_coefficients.cols",
+                           "rows x cols is not the number of coefficients in data");
+      return false;
+    }
+  }
+  for (std::size_t i = 5U; i < count; ++i) {
+    if (d[i] != 0.0) {
+      error = doc.error_at(dist, "distortion_coefficients.data",
+                           "coefficients beyond k3 (rational/thin-prism models) are not supported");
+      return false;
+    }
+  }
+  k.k1 = d[0];
+  k.k2 = d[1];
+  k.p1 = d[2];
+  k.p2 = d[3];
+  k.k3 = (count >= 5U) ? d[4] : 0.0;
+  return true;
+}
+
 }  // namespace
 
 Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc) noexcept {
@@ -130,53 +186,10 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
         doc.error_at(matrix, "camera_matrix.data", "focal lengths must be positive (the matrix is singular)"));
   }
 
-  char model[32] = {};
-  status = doc.text("distortion_model", model, sizeof model);
-  if (!status.ok()) {
-    return CameraResult::failure(status.error());
+  Diagnostic distortion_error;
+  if (!read_distortion(doc, k, distortion_error)) {
+    return CameraResult::failure(distortion_error);
   }
-  if (std::strcmp(model, "plumb_bob") != 0) {
-    return CameraResult::failure(doc.error_at(doc.find("distortion_model"), "distortion_model",
-                                              "only plumb_bob is supported"));
-  }
-  double d[14] = {};
-  std::size_t count = 0U;
-  status = doc.numbers_upto("distortion_coefficients.data", d, 14U, count);
-  if (!status.ok()) {
-    return CameraResult::failure(status.error());
-  }
-  const yaml::Entry* dist = doc.find("distortion_coefficients.data");
-  if (count < 4U) {
-    return CameraResult::failure(doc.error_at(dist, "distortion_coefficients.data", "expected 5 values (k1 k2 p1 p2 k3)"));
-  }
-  // rows x cols, when given, is the number of coefficients (1 x N, or N x 1 as OpenCV writes them).
-  if (doc.has("distortion_coefficients.rows") && doc.has("distortion_coefficients.cols")) {
-    const auto rows = doc.integer("distortion_coefficients.rows");
-    const auto cols = doc.integer("distortion_coefficients.cols");
-    if (!rows.ok()) {
-      return CameraResult::failure(rows.error());
-    }
-    if (!cols.ok()) {
-      return CameraResult::failure(cols.error());
-    }
-    const bool in_range = rows.value() >= 1 && rows.value() <= 14 && cols.value() >= 1 && cols.value() <= 14;
-    if (!in_range || rows.value() * cols.value() != static_cast<long long>(count) ||
-        (rows.value() != 1 && cols.value() != 1)) {
-      return CameraResult::failure(doc.error_at(doc.find("distortion_coefficients.cols"), "distortion_coefficients.cols",
-                                                "rows x cols is not the number of coefficients in data"));
-    }
-  }
-  for (std::size_t i = 5U; i < count; ++i) {
-    if (d[i] != 0.0) {
-      return CameraResult::failure(doc.error_at(
-          dist, "distortion_coefficients.data", "coefficients beyond k3 (rational/thin-prism models) are not supported"));
-    }
-  }
-  k.k1 = d[0];
-  k.k2 = d[1];
-  k.p1 = d[2];
-  k.p2 = d[3];
-  k.k3 = (count >= 5U) ? d[4] : 0.0;
 
   const auto model_check = CameraModel::create(k);
   if (!model_check.ok()) {
