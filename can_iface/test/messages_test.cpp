@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "tcpest/test/mutate.hpp"
+
 namespace tcpest {
 namespace can {
 namespace {
@@ -146,6 +148,61 @@ TEST(Messages, DecodersRejectWrongIdLengthCrcCounter) {
   counter15.data[6] = 0x0F;
   counter15.data[7] = e2e_crc(counter15.id, counter15);
   EXPECT_EQ(decode_tcp(kNode, counter15).error(), CanError::kBadCounter);
+}
+
+// Random frames, most of them near a real one (its id, a byte or the
+// length damaged, the CRC sometimes made right again), into every decoder:
+// an error value or a message whose E2E bytes check, never a read past the
+// frame (the sanitizer build runs this); a length beyond 8 is refused.
+TEST(Messages, RandomFramesAreRefusedOrCheckOut) {
+  test::Mutator random(17U);
+  Frame valid[3];
+  ASSERT_TRUE(encode_tcp(kNode, TcpMessage{}, valid[0]).ok());
+  ASSERT_TRUE(encode_encoder_prior(kNode, EncoderPriorMessage{}, valid[1]).ok());
+  ASSERT_TRUE(encode_heartbeat(kNode, NmtState::kOperational, valid[2]).ok());
+  int accepted = 0;
+  for (int i = 0; i < 100000; ++i) {
+    Frame frame = valid[random.below(3U)];
+    switch (random.below(4U)) {
+      case 0U:
+        frame.id = static_cast<std::uint32_t>(random.below(0x800U));
+        break;
+      case 1U:
+        frame.length = static_cast<std::uint8_t>(random.below(256U));
+        break;
+      case 2U:
+        frame.data[random.below(kMaxDataLength)] = static_cast<std::uint8_t>(random.below(256U));
+        break;
+      default:
+        frame.data[random.below(7U)] = static_cast<std::uint8_t>(random.below(256U));
+        frame.data[7] = e2e_crc(frame.id, frame);  // a sender's bug, not line noise
+        break;
+    }
+    const bool e2e_ok = frame.length == kMaxDataLength && frame.data[7] == e2e_crc(frame.id, frame) &&
+                        (frame.data[6] & 0x0FU) != 0x0FU;
+    const auto tcp = decode_tcp(kNode, frame);
+    const auto joints = decode_joints(kNode, frame);
+    const auto prior = decode_encoder_prior(kNode, frame);
+    const auto mechanical = decode_mechanical(kNode, frame);
+    const auto quality = decode_quality(kNode, frame);
+    const auto heartbeat = decode_heartbeat(kNode, frame);
+    const auto emcy = decode_emcy(kNode, frame);
+    const auto nmt = decode_nmt(frame);
+    const auto sync = decode_sync(frame);
+    for (const bool protected_ok : {tcp.ok(), joints.ok(), prior.ok()}) {
+      EXPECT_TRUE(!protected_ok || e2e_ok) << i;
+    }
+    if (prior.ok()) {
+      EXPECT_TRUE(std::isfinite(prior.value().lambda_mm) && std::isfinite(prior.value().phi_rad) &&
+                  std::isfinite(prior.value().theta_rad));
+      ++accepted;
+    }
+    for (const bool any_ok : {tcp.ok(), joints.ok(), prior.ok(), mechanical.ok(), quality.ok(), heartbeat.ok(),
+                              emcy.ok(), nmt.ok(), sync.ok()}) {
+      EXPECT_TRUE(!any_ok || frame.length <= kMaxDataLength) << i;
+    }
+  }
+  EXPECT_GT(accepted, 1000);  // the re-protected damage still reaches the decoder's values
 }
 
 TEST(Messages, UndefinedStatusNibbleReadsAsInvalid) {

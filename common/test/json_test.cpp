@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
+#include <string>
+
+#include "tcpest/test/mutate.hpp"
 
 namespace tcpest {
 namespace json {
@@ -63,6 +67,61 @@ TEST(Json, RefusesNonFiniteNumbers) {
   Parsed p;
   ASSERT_TRUE(p.parse("[1e999]"));
   EXPECT_FALSE(p.doc.number(1U).ok());
+}
+
+// Seeded damage to a valid document: a parse is refused with an offset
+// inside the text, or every token can be walked and read (numbers, strings
+// into a short buffer, members, elements) without reading past the text or
+// the token array (the sanitizer build runs this).
+TEST(Json, DamagedTextIsRefusedOrSafeToWalk) {
+  const std::string valid =
+      R"({"format": "x-1", "corners": [[1.5, -2e3], null, [3, 4]], "prior": [0.1, 0.2, 0.3], "s": "a\"b\\u00e9",)"
+      R"( "nested": {"a": [true, false, null, {"b": [[], {}]}]}, "n": -0.0})";
+  test::Mutator mutator(3U);
+  int refused = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const std::string text = mutator.damage(valid);
+    Token tokens[64];
+    Document doc(tokens, 64U);
+    const auto status = doc.parse(text.data(), text.size());
+    if (!status.ok()) {
+      EXPECT_LE(status.error().offset, text.size()) << text;
+      ++refused;
+      continue;
+    }
+    ASSERT_GE(doc.token_count(), 1U) << text;
+    ASSERT_LE(doc.token_count(), 64U) << text;
+    for (std::size_t t = 0; t < doc.token_count(); ++t) {
+      const Token& token = doc.token(t);
+      EXPECT_LE(token.start, token.end) << text;
+      EXPECT_LE(token.end, text.size()) << text;
+      EXPECT_LE(token.subtree_end, doc.token_count()) << text;
+      char out[4];
+      switch (token.type) {
+        case TokenType::Number: {
+          const auto number = doc.number(t);
+          EXPECT_TRUE(!number.ok() || std::isfinite(number.value())) << text;
+          break;
+        }
+        case TokenType::String:
+          static_cast<void>(doc.string(t, out, sizeof out));  // TooLong is an answer too
+          static_cast<void>(doc.string_equals(t, "a"));
+          break;
+        case TokenType::Object:
+          static_cast<void>(doc.member(t, "corners"));
+          break;
+        case TokenType::Array:
+          for (std::size_t e = 0; e <= doc.array_size(t); ++e) {
+            static_cast<void>(doc.element(t, e));  // one past the end: OutOfRange
+          }
+          break;
+        default:
+          break;
+      }
+    }
+  }
+  EXPECT_GT(refused, 2000);
+  EXPECT_GT(20000 - refused, 400);
 }
 
 }  // namespace

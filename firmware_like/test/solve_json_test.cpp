@@ -11,6 +11,7 @@
 #include "cli/corners_json.hpp"
 #include "cli/play_study.hpp"
 #include "cli/setup.hpp"
+#include "tcpest/test/mutate.hpp"
 
 namespace tcpest {
 namespace cli {
@@ -76,6 +77,34 @@ TEST(CornersJson, RefusesMalformedInputWithAMessage) {
     EXPECT_FALSE(parse_corners_json(text, std::strlen(text), in, error, sizeof error)) << text;
     EXPECT_GT(std::strlen(error), 5U) << text;
   }
+}
+
+// Seeded damage to a valid input line: refused with a message, or every
+// corner it marks visible and its prior finite (what the solver may take).
+TEST(CornersJson, DamagedInputIsRefusedOrFinite) {
+  const std::string valid =
+      "{\"corners\": [[1, 2], null, [3.5, -4], null, [10, 20], null, null, null, null, null, null, [700, 500]],"
+      " \"prior\": [20, -0.5, 1.25], \"image\": \"ignored.jpg\"}";
+  test::Mutator mutator(5U);
+  int refused = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const std::string text = mutator.damage(valid);
+    CornersInput in;
+    char error[128] = "";
+    if (!parse_corners_json(text.data(), text.size(), in, error, sizeof error)) {
+      EXPECT_GT(std::strlen(error), 5U) << text;
+      ++refused;
+      continue;
+    }
+    for (int k = 0; k < solver::kNumCorners; ++k) {
+      EXPECT_TRUE(!in.observed.visible[k] || in.observed.pixel[k].allFinite()) << text;
+    }
+    EXPECT_TRUE(!in.has_prior || (std::isfinite(in.prior[0]) && std::isfinite(in.prior[1]) &&
+                                  std::isfinite(in.prior[2])))
+        << text;
+  }
+  EXPECT_GT(refused, 2000);
+  EXPECT_GT(20000 - refused, 400);
 }
 
 TEST(CornersJson, SolveLineHasEveryMemberAndNullsForRefusedInput) {

@@ -2,8 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <string>
+
+#include "tcpest/test/mutate.hpp"
 
 namespace tcpest {
 namespace solver {
@@ -171,6 +174,50 @@ TEST(ConfigIo, MarkerColoursAreFiveBlueOrYellow) {
     EXPECT_STREQ(result.error().message, b.message) << b.text;
     EXPECT_EQ(result.error().line, 2U) << b.text;
   }
+}
+
+// Seeded damage to the shipped files: each damaged file is refused with
+// the field named, or it is usable as it reads (a camera model that
+// projects, a geometry that validates). Never a crash or a half-read value.
+TEST(ConfigIo, DamagedFilesAreRefusedOrUsable) {
+  const std::string camera_text = test::read_text_file(TCPEST_TEST_DATA_DIR "/../../config/pal_camera.yaml");
+  const std::string geometry_text = test::read_text_file(TCPEST_TEST_DATA_DIR "/../../config/instrument.yaml");
+  ASSERT_FALSE(camera_text.empty());
+  ASSERT_FALSE(geometry_text.empty());
+  test::Mutator mutator(20261127U);
+  int refused = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const std::string text = mutator.damage(i % 2 == 0 ? camera_text : geometry_text);
+    const auto parsed = scratch().parse(text.data(), text.size(), "damaged.yaml");
+    if (!parsed.ok()) {
+      EXPECT_NE(parsed.error().message[0], '\0') << text;
+      ++refused;
+      continue;
+    }
+    if (i % 2 == 0) {
+      const auto cam = read_camera_info(scratch());
+      if (!cam.ok()) {
+        EXPECT_NE(cam.error().field[0], '\0') << text;
+        ++refused;
+        continue;
+      }
+      const CameraIntrinsics& k = cam.value();
+      EXPECT_TRUE(k.width > 0 && k.height > 0) << text;
+      EXPECT_TRUE(std::isfinite(k.fx) && k.fx > 0.0 && std::isfinite(k.fy) && k.fy > 0.0) << text;
+      EXPECT_TRUE(CameraModel::create(k).ok()) << text;
+    } else {
+      const auto geometry = read_instrument_config(scratch());
+      if (!geometry.ok()) {
+        EXPECT_NE(geometry.error().field[0], '\0') << text;
+        ++refused;
+        continue;
+      }
+      EXPECT_TRUE(validate(geometry.value()).ok()) << text;
+      EXPECT_TRUE(InstrumentModel::create(geometry.value()).ok()) << text;
+    }
+  }
+  EXPECT_GT(refused, 2000);
+  EXPECT_GT(20000 - refused, 400);  // and some damage is harmless (a comment, a digit)  // the damage does reach the readers' checks
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include "tcpest/vision/classifier_lut.hpp"
 #include "tcpest/vision/color_model.hpp"
+#include "tcpest/test/mutate.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -148,6 +149,28 @@ TEST(ClassifierLut, AgreesWithExactClassifierOnAllButATinyFraction) {
   const double fraction = static_cast<double>(disagree) / static_cast<double>(total);
   std::printf("LUT disagreement: %ld of %ld colours (%.4f %%)\n", disagree, total, 100.0 * fraction);
   EXPECT_LT(fraction, 0.005);
+}
+
+// Seeded damage to the shipped model: refused with the field named, or a
+// valid model (finite means, positive definite covariances, positive
+// thresholds: valid()). Never a crash or a half-read model.
+TEST(ColorModel, DamagedFilesAreRefusedOrValid) {
+  const std::string shipped = test::read_text_file(TCPEST_TEST_DATA_DIR "/../../config/colors.json");
+  ASSERT_FALSE(shipped.empty());
+  test::Mutator mutator(7U);
+  int refused = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const std::string text = mutator.damage(shipped);
+    const auto model = parse_color_model(text.data(), text.size(), "damaged.json");
+    if (!model.ok()) {
+      EXPECT_NE(model.error().message[0], '\0') << text;
+      ++refused;
+      continue;
+    }
+    EXPECT_TRUE(model.value().valid()) << text;
+  }
+  EXPECT_GT(refused, 2000);
+  EXPECT_GT(20000 - refused, 400);  // and some damage is harmless (a comment, a digit)
 }
 
 }  // namespace

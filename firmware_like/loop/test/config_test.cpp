@@ -7,7 +7,10 @@
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <string>
 #include <utility>
+
+#include "tcpest/test/mutate.hpp"
 
 namespace tcpest {
 namespace loop {
@@ -120,6 +123,37 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
 namespace tcpest {
 namespace loop {
 namespace {
+
+// Seeded damage to a configuration with every section: refused with the
+// line or field named, or read. Never a crash or an overrun.
+TEST(LoopConfig, DamagedFilesAreRefusedWithAPlace) {
+  const std::string valid =
+      "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
+      "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n"
+      "  max_rms_valid_px: 1.5\n  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n"
+      "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
+      "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
+      "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n  cpu_latency_us: 0\n";
+  test::Mutator mutator(13U);
+  static yaml::Document doc;
+  int refused = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const std::string text = mutator.damage(valid);
+    LoopConfig config;
+    const auto parsed = doc.parse(text.data(), text.size(), "damaged.yaml");
+    const auto read = parsed.ok() ? read_loop_config(doc, config) : parsed;
+    if (!read.ok()) {
+      EXPECT_TRUE(read.error().line > 0U || read.error().field[0] != '\0') << text;
+      EXPECT_NE(read.error().message[0], '\0') << text;
+      ++refused;
+      continue;
+    }
+    EXPECT_GT(config.loop.period_us, 0) << text;
+    EXPECT_GE(config.rt.cpu_latency_us, -1) << text;
+  }
+  EXPECT_GT(refused, 2000);
+  EXPECT_GT(20000 - refused, 400);
+}
 
 TEST(RtSetup, FailuresAreReportedNotFatal) {
   RtSettings settings;

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "render_test_support.hpp"
+#include "tcpest/test/mutate.hpp"
 
 namespace tcpest {
 namespace render {
@@ -165,6 +166,38 @@ TEST(Sidecar, ErrorsNameTheField) {
   const char* broken = "{\"corners\": [";
   EXPECT_FALSE(parse_sidecar(broken, std::strlen(broken), "broken.json").ok());
   EXPECT_FALSE(parse_sidecar("[1]", 3U, "array.json").ok());
+}
+
+// Seeded damage to a rendered sidecar: refused with the field named, or
+// read with every value it reports finite and within its array. Never a
+// crash or an overrun (the sanitizer build runs this).
+TEST(Sidecar, DamagedFilesAreRefusedOrSound) {
+  char valid[kSidecarMaxBytes];
+  const std::size_t length = format_sidecar(rendered_sidecar(true), valid, sizeof valid);
+  ASSERT_GT(length, 0U);
+  const std::string text_valid(valid, length);
+  tcpest::test::Mutator mutator(11U);
+  int refused = 0;
+  for (int i = 0; i < 5000; ++i) {
+    const std::string text = mutator.damage(text_valid);
+    const auto parsed = parse_sidecar(text.data(), text.size(), "damaged.json");
+    if (!parsed.ok()) {
+      EXPECT_NE(parsed.error().message[0], '\0') << text;
+      ++refused;
+      continue;
+    }
+    const Sidecar& s = parsed.value();
+    EXPECT_GE(s.width, 0) << text;
+    EXPECT_GE(s.height, 0) << text;
+    EXPECT_NE(std::memchr(s.image, '\0', sizeof s.image), nullptr) << text;
+    EXPECT_TRUE(!s.instrument.has_r || s.instrument.r.allFinite()) << text;
+    EXPECT_TRUE(!s.instrument.has_tcp || s.instrument.tcp.allFinite()) << text;
+    for (std::size_t k = 0; k < 12U; ++k) {
+      EXPECT_TRUE(!s.instrument.corner_present[k] || s.instrument.corners[k].allFinite()) << text;
+    }
+  }
+  EXPECT_GT(refused, 500);
+  EXPECT_GT(5000 - refused, 100);  // and some damage is harmless (a comment, a digit)
 }
 
 }  // namespace
