@@ -1,5 +1,7 @@
 #include "tcpest/loop/oracle_pipeline.hpp"
 
+#include "tcpest/common/splitmix64.hpp"
+
 namespace tcpest {
 namespace loop {
 
@@ -8,11 +10,7 @@ constexpr std::uint8_t kNoTruth = 1U;
 
 // A small deterministic hash to [-1, 1] (splitmix64).
 double unit_noise(std::uint64_t key) noexcept {
-  std::uint64_t z = key + 0x9E3779B97F4A7C15ULL;
-  z = (z ^ (z >> 30U)) * 0xBF58476D1CE4E5B9ULL;
-  z = (z ^ (z >> 27U)) * 0x94D049BB133111EBULL;
-  z ^= z >> 31U;
-  return static_cast<double>(z >> 11U) * (2.0 / 9007199254740992.0) - 1.0;
+  return static_cast<double>(splitmix64(key) >> 11U) * (2.0 / 9007199254740992.0) - 1.0;
 }
 }  // namespace
 

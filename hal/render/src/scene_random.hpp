@@ -6,26 +6,19 @@
 #include <cmath>
 #include <cstdint>
 
+#include "tcpest/common/splitmix64.hpp"
+
 namespace tcpest {
 namespace render {
-
-inline std::uint64_t splitmix64(std::uint64_t x) noexcept {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30U)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27U)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31U);
-}
 
 class Random {
  public:
   explicit Random(std::uint64_t seed, std::uint64_t stream = 0U) noexcept
       : state_(splitmix64(seed ^ splitmix64(stream + 0x632BE59BD9B4E019ULL))) {}
   std::uint64_t next() noexcept {
-    state_ += 0x9E3779B97F4A7C15ULL;
-    std::uint64_t z = state_;
-    z = (z ^ (z >> 30U)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27U)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31U);
+    const std::uint64_t z = splitmix64(state_);
+    state_ += kSplitMix64Step;
+    return z;
   }
   // Uniform in [0, 1).
   double uniform() noexcept { return static_cast<double>(next() >> 11U) * (1.0 / 9007199254740992.0); }

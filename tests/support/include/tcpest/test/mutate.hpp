@@ -1,18 +1,20 @@
 // Seeded damage to a valid input, for the tests that a malformed file or
 // message gives an error value and never a crash, an overrun (the sanitizer
 // build runs them) or a half-read result. Deterministic on every machine:
-// our own generator (splitmix64) and our own arithmetic, no std::
-// distribution. Each damaged text differs from the valid one by 1 to 4
-// edits: a bit flipped, a byte replaced, a run deleted, the text cut short,
-// a run copied elsewhere, or a token that parsers find hard (non-finite or
-// huge numbers, brackets, quotes, deep nesting, control bytes) inserted or
-// put in place of a number.
+// splitmix64 (common) and our own arithmetic, no std:: distribution. Each
+// damaged text differs from the valid one by 1 to 4 edits: a bit flipped,
+// a byte replaced, a run deleted, the text cut short, a run copied
+// elsewhere, or a token that parsers find hard (non-finite or huge
+// numbers, brackets, quotes, deep nesting, control bytes) inserted or put
+// in place of a number.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <string>
+
+#include "tcpest/common/splitmix64.hpp"
 
 namespace tcpest {
 namespace test {
@@ -38,11 +40,9 @@ class Mutator {
   explicit Mutator(std::uint64_t seed) noexcept : state_(seed) {}
 
   std::uint64_t next() noexcept {
-    state_ += 0x9E3779B97F4A7C15ULL;
-    std::uint64_t z = state_;
-    z = (z ^ (z >> 30U)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27U)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31U);
+    const std::uint64_t z = splitmix64(state_);
+    state_ += kSplitMix64Step;
+    return z;
   }
   // 0..n-1 (n > 0); the slight modulo bias does not matter here.
   std::size_t below(std::size_t n) noexcept { return static_cast<std::size_t>(next() % n); }
