@@ -20,6 +20,7 @@
 #include "cli/args.hpp"
 #include "cli/cycles_csv.hpp"
 #include "cli/commands.hpp"
+#include "cli/joint_errors.hpp"
 #include "cli/loop_rig.hpp"
 #include "cli/setup.hpp"
 #include "tcpest/can_iface/messages.hpp"
@@ -49,6 +50,8 @@ struct Sample {
   double est[3] = {0.0, 0.0, 0.0};
   double truth[3] = {0.0, 0.0, 0.0};
   bool truth_valid = false;
+  solver::PoseVector est_r = solver::PoseVector::Zero();    // what MECHANICAL and JOINTS carried
+  solver::PoseVector truth_r = solver::PoseVector::Zero();
   double latency_ms = -1.0;
   double total_ms = 0.0;
 };
@@ -144,6 +147,10 @@ class DemoObserver final : public loop::CycleObserver {
         s.truth[i] = r.truth.tcp_mm[i];
       }
       s.truth_valid = r.truth.valid;
+      s.est_r = p.r;
+      for (std::size_t i = 0; i < r.truth.r.size(); ++i) {
+        s.truth_r[static_cast<Eigen::Index>(i)] = r.truth.r[i];
+      }
       s.latency_ms = r.latency_ns >= 0 ? ms(r.latency_ns) : -1.0;
       s.total_ms = ms(r.total_ns);
       samples_.push_back(s);
@@ -448,9 +455,11 @@ void print_accuracy(const std::vector<Sample>& samples) {
   std::vector<double> err3;
   std::vector<double> err_axis[3];
   std::size_t estimated = 0U;
+  JointErrors joints;
   for (const Sample& s : samples) {
     if (s.status <= 1 && s.truth_valid) {
       ++estimated;
+      joints.add(s.est_r, s.truth_r);
       double e2 = 0.0;
       for (int a = 0; a < 3; ++a) {
         const double d = s.est[a] - s.truth[a];
@@ -468,6 +477,9 @@ void print_accuracy(const std::vector<Sample>& samples) {
                 percentile(err3, 1.0));
     std::printf("per axis, median |error| (mm): x %.2f, y %.2f, z %.2f\n", percentile(err_axis[0], 0.5),
                 percentile(err_axis[1], 0.5), percentile(err_axis[2], 0.5));
+    char line[320];
+    joints.format("joints sent (JOINTS): ", line, sizeof line);
+    std::printf("%s\n", line);
   }
 }
 

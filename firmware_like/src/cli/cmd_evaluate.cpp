@@ -19,6 +19,7 @@
 
 #include "cli/args.hpp"
 #include "cli/commands.hpp"
+#include "cli/joint_errors.hpp"
 #include "cli/setup.hpp"
 #include "cli/vision_run.hpp"
 #include "tcpest/render/sidecar.hpp"
@@ -198,30 +199,6 @@ struct TcpTally {
   long degraded_far() const noexcept { return count_over(degraded_mm, kDegradedFarMm); }
 };
 
-// The joints of the valid estimates against the sidecars' (what JOINTS
-// tells the robot): insertion and bend errors, and phi's where the tube is
-// bent enough for phi to mean something. `other_turn` counts the estimates
-// whose (phi, theta) is the truth's shape in its other representation
-// (phi + pi, -theta): right for the TCP, wrong for the robot's joints.
-struct JointTally {
-  static constexpr double kBentRad = 0.2;
-  std::vector<double> lambda_mm, theta_rad, phi_rad;
-  long other_turn = 0;
-
-  void add(const solver::PoseVector& estimate, const solver::PoseVector& truth) {
-    lambda_mm.push_back(std::fabs(estimate[solver::kLambda] - truth[solver::kLambda]));
-    theta_rad.push_back(std::fabs(estimate[solver::kTheta] - truth[solver::kTheta]));
-    if (std::fabs(truth[solver::kTheta]) < kBentRad) {
-      return;
-    }
-    const double phi_error = std::remainder(estimate[solver::kPhi] - truth[solver::kPhi], 2.0 * solver::kPi);
-    phi_rad.push_back(std::fabs(phi_error));
-    if (std::fabs(phi_error) > solver::kPi / 2.0 && estimate[solver::kTheta] * truth[solver::kTheta] < 0.0) {
-      ++other_turn;
-    }
-  }
-};
-
 // Scores one frame's reported corners (CornerScore above).
 CornerScore score_corners(const render::Sidecar& truth, const EstimateResult& result, const vision::Extraction& e,
                           double tolerance_px, std::vector<double>& errors_px) {
@@ -310,7 +287,7 @@ struct EvaluateTotals {
   // a model-guided round was kept, the TCP of the pose the corners were read
   // at (docs/solver.md, "The image fit's pose and the TCP").
   TcpTally solve_tcp, fit_tcp;
-  JointTally valid_joints;
+  JointErrors valid_joints;  // of the valid estimates
   // The solve's TCP errors of the estimates demoted from valid because that
   // TCP lay too far from the image fit's (EstimateResult::fit_disagrees).
   std::vector<double> fit_disagrees_mm;
@@ -407,10 +384,9 @@ struct EvaluateTotals {
     std::printf("valid estimates: %zu; TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm, over %.0f mm: %ld\n",
                 solve_tcp.valid_mm.size(), median_of(solve_tcp.valid_mm), solve_tcp.valid_rms_mm(0),
                 solve_tcp.valid_rms_mm(1), solve_tcp.valid_rms_mm(2), kValidFarMm, solve_tcp.valid_far());
-    std::printf("valid estimates' joints: error median lambda %.2f mm, theta %.3f rad, phi %.3f rad (true theta of "
-                "%.1f rad or more: %zu); (phi + pi, -theta) instead of the truth's joints: %ld\n",
-                median_of(valid_joints.lambda_mm), median_of(valid_joints.theta_rad), median_of(valid_joints.phi_rad),
-                JointTally::kBentRad, valid_joints.phi_rad.size(), valid_joints.other_turn);
+    char joints_line[320];
+    valid_joints.format("valid estimates' joints: ", joints_line, sizeof joints_line);
+    std::printf("%s\n", joints_line);
     std::printf("valid solves degraded, their TCP too far from the image fit's: %zu; TCP error median %.2f mm, "
                 "over %.0f mm: %ld\n",
                 fit_disagrees_mm.size(), median_of(fit_disagrees_mm), kValidFarMm,
