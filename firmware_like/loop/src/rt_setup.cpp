@@ -117,7 +117,5 @@ void CpuLatencyRequest::release() noexcept {
   }
 }
 
-void release_cpu_latency(RtReport& report) noexcept { report.cpu_latency.release(); }
-
 }  // namespace loop
 }  // namespace tcpest

@@ -37,17 +37,20 @@ TEST(LoopConfig, DefaultsWithoutSections) {
   EXPECT_EQ(config.rt.cpu_latency_us, -1);  // no request unless asked
 }
 
+// A configuration that sets every section (and the damage tests' valid input).
+const char* const kEverySection =
+    "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
+    "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
+    "  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n  shaft_recheck: true\n  alias_check: true\n  base_rim_seed: false\n"
+    "  valid_start_check: true\n  max_valid_tcp_disagreement_mm: 3.5\n"
+    "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
+    "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
+    "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n"
+    "  cpu_latency_us: 0\n";
+
 TEST(LoopConfig, ReadsEverySection) {
   LoopConfig config;
-  const char* text =
-      "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
-      "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
-      "  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n  shaft_recheck: true\n  alias_check: true\n  base_rim_seed: false\n"
-      "  valid_start_check: true\n  max_valid_tcp_disagreement_mm: 3.5\n"
-      "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
-      "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
-      "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n"
-      "  cpu_latency_us: 0\n";
+  const char* text = kEverySection;
   const auto s = parse(text, config);
   ASSERT_TRUE(s.ok());
   EXPECT_EQ(config.loop.trigger, Trigger::kPeriod);
@@ -127,13 +130,7 @@ namespace {
 // Seeded damage to a configuration with every section: refused with the
 // line or field named, or read. Never a crash or an overrun.
 TEST(LoopConfig, DamagedFilesAreRefusedWithAPlace) {
-  const std::string valid =
-      "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
-      "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n"
-      "  max_rms_valid_px: 1.5\n  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n"
-      "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
-      "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
-      "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n  cpu_latency_us: 0\n";
+  const std::string valid = kEverySection;
   test::Mutator mutator(13U);
   static yaml::Document doc;
   int refused = 0;
@@ -194,10 +191,10 @@ TEST(RtSetup, CpuLatencyIsHeldUntilReleasedOrReported) {
   }
   EXPECT_EQ(report.message_count, 0U);
   EXPECT_EQ(current_cpu_latency_us(), 0);  // the request is in force while held
-  release_cpu_latency(report);
+  report.cpu_latency.release();
   EXPECT_FALSE(report.cpu_latency.held());
   EXPECT_EQ(current_cpu_latency_us(), before_us);  // withdrawn: back to what it was
-  release_cpu_latency(report);                     // a second release is harmless
+  report.cpu_latency.release();                    // a second release is harmless
   // One owner: a moved report carries the request, and its end withdraws it.
   {
     RtReport first = apply_rt_settings(settings);

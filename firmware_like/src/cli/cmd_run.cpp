@@ -105,7 +105,7 @@ int cmd_run(int argc, char** argv) {
   if (code != kExitOk) {
     return code;
   }
-  loop::RtReport rt = loop::apply_rt_settings(rig.config.rt);
+  const loop::RtReport rt = loop::apply_rt_settings(rig.config.rt);  // its latency request lasts until the return
   for (std::size_t i = 0; i < rt.message_count; ++i) {
     std::fprintf(stderr, "tcpest run: %s\n", rt.messages[i]);
   }
@@ -120,7 +120,6 @@ int cmd_run(int argc, char** argv) {
   const loop::CycleOutcome outcome = rig.executive->run(stop);
   std::printf("tcpest run: %s\n", outcome == loop::CycleOutcome::kInterrupted ? "stopped by signal" : "finished");
   print_summary(stdout, *rig.executive);
-  loop::release_cpu_latency(rt);
   return outcome == loop::CycleOutcome::kInterrupted ? kExitInterrupted : kExitOk;
 }
 

@@ -75,7 +75,7 @@ struct RtSettings {
   int cpu = -1;                      // pin to this CPU; -1 = no affinity
   int prefault_stack_kb = 256;       // touch this much stack at start-up; 0 = off
   // CPU wake-up latency request (PM QoS, /dev/cpu_dma_latency), in us, held
-  // while the process runs: 0 keeps the CPUs out of idle states that take
+  // while the command runs (rt_setup.hpp): 0 keeps the CPUs out of idle states that take
   // long to leave (they poll instead); -1 = no request.
   int cpu_latency_us = -1;
 };

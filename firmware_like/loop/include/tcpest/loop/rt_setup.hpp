@@ -51,9 +51,5 @@ struct RtReport {
 // the CPU latency request).
 RtReport apply_rt_settings(const RtSettings& settings) noexcept;
 
-// Withdraws the CPU latency request, if one is held (the other items stay).
-// Optional: the report's end withdraws it too.
-void release_cpu_latency(RtReport& report) noexcept;
-
 }  // namespace loop
 }  // namespace tcpest
