@@ -142,6 +142,8 @@ JBLOCKARRAY arena_alloc_barray(j_common_ptr cinfo, int pool_id, JDIMENSION block
 
 // ---- the guarded steps: plain C state only (see run_guarded) ----
 
+void step_create(Context& ctx) { jpeg_create_decompress(&ctx.cinfo); }
+
 void step_header(Context& ctx) {
   jpeg_mem_src(&ctx.cinfo, ctx.data, static_cast<unsigned long>(ctx.size));
   static_cast<void>(jpeg_read_header(&ctx.cinfo, TRUE));  // with require_image TRUE it returns JPEG_HEADER_OK or exits
@@ -260,14 +262,18 @@ Status<CameraError> JpegDecoder::init(int max_width, int max_height) noexcept {
   ctx->jerr.error_exit = on_fatal;
   ctx->jerr.emit_message = on_message;
   ctx->cinfo.client_data = ctx;
-  // jpeg_create_decompress reports failure through error_exit: guard it too.
-  // NOLINTNEXTLINE(cert-err52-cpp): same recovery as run_guarded, at start-up
-  if (setjmp(ctx->jump) != 0) {
+  // jpeg_create_decompress reports failure through error_exit (no memory
+  // for its memory manager, or a libjpeg of another version than the
+  // headers'): guarded like every other libjpeg call. jpeg_destroy is safe
+  // on a half-created context (it frees the memory manager if there is one).
+  if (!run_guarded(*ctx, step_create)) {
+    const CameraError error = ctx->error == CameraError::kOutOfMemory ? CameraError::kOutOfMemory
+                                                                       : CameraError::kUnsupported;
+    jpeg_destroy_decompress(&ctx->cinfo);
     std::free(ctx->arena);  // NOLINT(cppcoreguidelines-no-malloc): see above
     delete ctx;
-    return Status<CameraError>::failure(CameraError::kOutOfMemory);
+    return Status<CameraError>::failure(error);
   }
-  jpeg_create_decompress(&ctx->cinfo);
   // From here on, libjpeg's pools come from the arena. Virtual arrays
   // (progressive decoding) keep libjpeg's own allocator: the deviation.
   ctx->cinfo.mem->alloc_small = arena_alloc;

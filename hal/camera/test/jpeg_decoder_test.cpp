@@ -181,6 +181,44 @@ TEST(JpegDecoder, BaselineDecodeMakesNoHeapAllocation) {
               stats.capacity_bytes, stats.permanent_bytes, stats.image_high_water_bytes);
 }
 
+// Memory running out at each allocation init() makes in turn (the context,
+// the arena, libjpeg's memory manager, its first pools): init() reports
+// kOutOfMemory, having freed what it took before, and can be called again.
+TEST(JpegDecoder, InitRecoversWhenMemoryRunsOutAtAnyOfItsAllocations) {
+  if (!test::malloc_hook_active()) {
+    GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
+  }
+  std::size_t needed = 0U;
+  {
+    JpegDecoder decoder;
+    test::AllocationScope scope;
+    ASSERT_TRUE(decoder.init(kW, kH).ok());
+    needed = scope.count();
+  }
+  ASSERT_GE(needed, 3U);
+  for (std::size_t nth = 1U; nth <= needed; ++nth) {
+    JpegDecoder decoder;
+    Status<CameraError> status = ok_status<CameraError>();
+    std::size_t taken = 0U;
+    std::size_t freed = 0U;
+    {
+      test::AllocationScope scope;
+      scope.fail_allocations_from(nth);
+      status = decoder.init(kW, kH);
+      taken = nth - 1U;  // the failed ones took nothing
+      freed = scope.frees();
+    }
+    ASSERT_FALSE(status.ok()) << "allocation " << nth;
+    EXPECT_EQ(status.error(), CameraError::kOutOfMemory) << "allocation " << nth;
+    EXPECT_FALSE(decoder.initialised());
+    EXPECT_EQ(freed, taken) << "out of memory at allocation " << nth << ": what was taken before it leaks";
+    ASSERT_TRUE(decoder.init(kW, kH).ok());
+    const auto jpeg = encode_jpeg(make_pattern(kW, kH, 3), kW, kH);
+    Buffer out(kW, kH);
+    EXPECT_TRUE(decoder.decode(jpeg.data(), jpeg.size(), out.view).ok());
+  }
+}
+
 TEST(JpegDecoder, UninitialisedOrBadViewIsAnError) {
   JpegDecoder decoder;
   std::uint8_t byte = 0U;
