@@ -1,5 +1,6 @@
 #include "tcpest/test/alloc_counter.hpp"
 
+#include <cerrno>
 #include <cstdlib>
 #include <new>
 
@@ -68,17 +69,24 @@ void* __libc_memalign(std::size_t alignment, std::size_t size);  // NOLINT(bugpr
 void __libc_free(void* p);                                       // NOLINT(bugprone-reserved-identifier)
 
 // glibc lets a program replace malloc; these forward to glibc's own and count.
+// A failed allocation sets errno as glibc's does: callers such as opendir
+// report it through errno.
+void* failed_allocation() noexcept {
+  errno = ENOMEM;
+  return nullptr;
+}
+
 void* malloc(std::size_t size) {
-  return note_allocation() ? nullptr : __libc_malloc(size);
+  return note_allocation() ? failed_allocation() : __libc_malloc(size);
 }
 void* calloc(std::size_t n, std::size_t size) {
-  return note_allocation() ? nullptr : __libc_calloc(n, size);
+  return note_allocation() ? failed_allocation() : __libc_calloc(n, size);
 }
 void* realloc(void* p, std::size_t size) {
-  return note_allocation() ? nullptr : __libc_realloc(p, size);
+  return note_allocation() ? failed_allocation() : __libc_realloc(p, size);
 }
 void* aligned_alloc(std::size_t alignment, std::size_t size) {
-  return note_allocation() ? nullptr : __libc_memalign(alignment, size);
+  return note_allocation() ? failed_allocation() : __libc_memalign(alignment, size);
 }
 void free(void* p) {
   note_free(p);
@@ -87,7 +95,7 @@ void free(void* p) {
 int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
   void* p = note_allocation() ? nullptr : __libc_memalign(alignment, size);
   if (p == nullptr) {
-    return 12;  // ENOMEM
+    return ENOMEM;
   }
   *out = p;
   return 0;

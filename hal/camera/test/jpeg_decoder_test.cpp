@@ -183,40 +183,27 @@ TEST(JpegDecoder, BaselineDecodeMakesNoHeapAllocation) {
 
 // Memory running out at each allocation init() makes in turn (the context,
 // the arena, libjpeg's memory manager, its first pools): init() reports
-// kOutOfMemory, having freed what it took before, and can be called again.
+// kOutOfMemory, having freed what it took before, and the decoder stays
+// uninitialised.
 TEST(JpegDecoder, InitRecoversWhenMemoryRunsOutAtAnyOfItsAllocations) {
   if (!test::malloc_hook_active()) {
     GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
   }
-  std::size_t needed = 0U;
-  {
+  Status<CameraError> status = ok_status<CameraError>();
+  bool initialised = false;
+  const auto init = [&]() {
     JpegDecoder decoder;
-    test::AllocationScope scope;
-    ASSERT_TRUE(decoder.init(kW, kH).ok());
-    needed = scope.count();
-  }
-  ASSERT_GE(needed, 3U);
-  for (std::size_t nth = 1U; nth <= needed; ++nth) {
-    JpegDecoder decoder;
-    Status<CameraError> status = ok_status<CameraError>();
-    std::size_t taken = 0U;
-    std::size_t freed = 0U;
-    {
-      test::AllocationScope scope;
-      scope.fail_allocations_from(nth);
-      status = decoder.init(kW, kH);
-      taken = nth - 1U;  // the failed ones took nothing
-      freed = scope.frees();
-    }
-    ASSERT_FALSE(status.ok()) << "allocation " << nth;
-    EXPECT_EQ(status.error(), CameraError::kOutOfMemory) << "allocation " << nth;
-    EXPECT_FALSE(decoder.initialised());
-    EXPECT_EQ(freed, taken) << "out of memory at allocation " << nth << ": what was taken before it leaks";
-    ASSERT_TRUE(decoder.init(kW, kH).ok());
-    const auto jpeg = encode_jpeg(make_pattern(kW, kH, 3), kW, kH);
-    Buffer out(kW, kH);
-    EXPECT_TRUE(decoder.decode(jpeg.data(), jpeg.size(), out.view).ok());
-  }
+    status = decoder.init(kW, kH);
+    initialised = decoder.initialised();
+    return status.ok();  // the decoder is released here: only the count matters
+  };
+  const std::size_t allocations = test::run_out_of_memory_at_each_allocation(init, [&](const test::OutOfMemoryOutcome& o) {
+    ASSERT_FALSE(o.succeeded) << "allocation " << o.nth;
+    EXPECT_EQ(status.error(), CameraError::kOutOfMemory) << "allocation " << o.nth;
+    EXPECT_EQ(o.leaked, 0U) << "out of memory at allocation " << o.nth;
+    EXPECT_FALSE(initialised);
+  });
+  EXPECT_GE(allocations, 3U);
 }
 
 TEST(JpegDecoder, UninitialisedOrBadViewIsAnError) {

@@ -229,6 +229,58 @@ TEST(JpegFileSource, ListFileWithRelativePaths) {
   EXPECT_EQ(JpegFileSource::open((dir + "/missing").c_str(), options).error(), CameraError::kNotFound);
 }
 
+// The replay sources' opening (a directory, a list file, a Y4M clip), with
+// memory running out at each of its allocations in turn (the C library's
+// directory and file handles included): an error, everything taken before
+// freed.
+TEST(FileSources, OpeningReportsOutOfMemoryAtAnyOfItsAllocations) {
+  if (!test::malloc_hook_active()) {
+    GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
+  }
+  const std::string dir = temp_dir("oom");
+  const int w = 24;
+  const int h = 16;
+  write_bytes(dir + "/a.jpg", testing::encode_jpeg(testing::make_pattern(w, h, 0), w, h));
+  write_bytes(dir + "/b.jpg", testing::encode_jpeg(testing::make_pattern(w, h, 1), w, h));
+  {
+    std::ofstream list(dir + "/list.txt");
+    list << "b.jpg\na.jpg\n";
+  }
+  {
+    Y4mWriter writer;
+    ASSERT_TRUE(writer.open((dir + "/clip.y4m").c_str(), w, h, 25, 1).ok());
+    const auto rgb = testing::make_pattern(w, h, 2);
+    ASSERT_TRUE(writer.write(ImageView{rgb.data(), w, h, static_cast<std::size_t>(w) * 3U}).ok());
+    ASSERT_TRUE(writer.close().ok());
+  }
+  const std::string jpeg_dir = dir;
+  const std::string jpeg_list = dir + "/list.txt";
+  const std::string clip = dir + "/clip.y4m";
+  CameraError error = CameraError::kNone;
+  const auto check = [&](const char* what) {
+    return [&error, what](const test::OutOfMemoryOutcome& o) {
+      ASSERT_FALSE(o.succeeded) << what << ", allocation " << o.nth;
+      EXPECT_EQ(error, CameraError::kOutOfMemory) << what << ", allocation " << o.nth << ": " << to_string(error);
+      EXPECT_EQ(o.leaked, 0U) << what << ", out of memory at allocation " << o.nth;
+    };
+  };
+  const auto open_jpeg = [&](const std::string& path) {
+    return [&error, path]() {
+      const auto source = JpegFileSource::open(path.c_str(), ReplayOptions{});
+      error = source.ok() ? CameraError::kNone : source.error();
+      return source.ok();  // the source is released here: only the count matters
+    };
+  };
+  EXPECT_GE(test::run_out_of_memory_at_each_allocation(open_jpeg(jpeg_dir), check("directory")), 3U);
+  EXPECT_GE(test::run_out_of_memory_at_each_allocation(open_jpeg(jpeg_list), check("list")), 3U);
+  const auto open_clip = [&]() {
+    const auto source = Y4mSource::open(clip.c_str(), ReplayOptions{});
+    error = source.ok() ? CameraError::kNone : source.error();
+    return source.ok();
+  };
+  EXPECT_GE(test::run_out_of_memory_at_each_allocation(open_clip, check("clip")), 2U);
+}
+
 class StripesRenderer final : public SceneRenderer {
  public:
   int width() const noexcept override { return 8; }

@@ -283,6 +283,27 @@ TEST_F(RendererTest, BadInputIsRefused) {
             RenderError::BadImage);
 }
 
+// Memory running out at each of create()'s allocations in turn (the
+// renderer, its ray tables, scratch and textures): OutOfMemory, everything
+// taken before freed.
+TEST_F(RendererTest, CreateReportsOutOfMemoryAtAnyOfItsAllocations) {
+  if (!tcpest::test::malloc_hook_active()) {
+    GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
+  }
+  RenderError error = RenderError::BadImage;
+  const auto create = [&]() {
+    const auto renderer = Renderer::create(*camera_, test::default_instrument(), RenderSettings{});
+    error = renderer.ok() ? RenderError::BadImage : renderer.error();
+    return renderer.ok();  // released here: only the count matters
+  };
+  const std::size_t allocations = tcpest::test::run_out_of_memory_at_each_allocation(create, [&](const tcpest::test::OutOfMemoryOutcome& o) {
+    ASSERT_FALSE(o.succeeded) << "allocation " << o.nth;
+    EXPECT_EQ(error, RenderError::OutOfMemory) << "allocation " << o.nth;
+    EXPECT_EQ(o.leaked, 0U) << "out of memory at allocation " << o.nth;
+  });
+  EXPECT_GE(allocations, 10U);
+}
+
 TEST_F(RendererTest, AbsurdButFiniteConfigurationsRenderWithoutHarm) {
   test::Frame f(720, 576);
   const double values[] = {0.0, -1e6, 1e-300, 1e12, 250.0};

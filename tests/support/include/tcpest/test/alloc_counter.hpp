@@ -35,5 +35,45 @@ class AllocationScope {
   std::size_t frees_start_;
 };
 
+// What an attempt did with memory running out from its nth allocation on.
+struct OutOfMemoryOutcome {
+  std::size_t nth = 0U;     // the first allocation that failed (1: the attempt's first)
+  bool succeeded = false;   // the attempt's own answer
+  std::size_t leaked = 0U;  // of the nth - 1 allocations before it, those not freed when the attempt returned
+};
+
+// Runs `attempt` (bool(): true when it succeeded; it releases everything
+// it made before it returns, whatever the outcome) once with enough memory
+// to count its allocations, then once with memory running out from each of
+// them in turn, handing each outcome to `check`. Returns the count (0: the attempt failed with enough memory,
+// or malloc is not hooked in this build and nothing was run out).
+template <typename Attempt, typename Check>
+std::size_t run_out_of_memory_at_each_allocation(Attempt&& attempt, Check&& check) {
+  if (!malloc_hook_active()) {
+    return 0U;
+  }
+  std::size_t needed = 0U;
+  {
+    AllocationScope scope;
+    if (!attempt()) {
+      return 0U;
+    }
+    needed = scope.count();
+  }
+  for (std::size_t nth = 1U; nth <= needed; ++nth) {
+    OutOfMemoryOutcome outcome;
+    outcome.nth = nth;
+    {
+      AllocationScope scope;
+      scope.fail_allocations_from(nth);
+      outcome.succeeded = attempt();
+      const std::size_t freed = scope.frees();
+      outcome.leaked = freed < nth - 1U ? nth - 1U - freed : 0U;
+    }
+    check(outcome);
+  }
+  return needed;
+}
+
 }  // namespace test
 }  // namespace tcpest
