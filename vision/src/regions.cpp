@@ -103,6 +103,7 @@ const char* to_string(VisionError e) noexcept {
     case VisionError::NoInstrument: return "no chain of marker regions found";
     case VisionError::BorderFitFailed: return "too few edge points to fit the borders";
     case VisionError::BadParameter: return "invalid extractor configuration";
+    case VisionError::OutOfMemory: return "not enough memory for the extractor's buffers";
   }
   return "unknown vision error";
 }
@@ -178,12 +179,12 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   }
   std::unique_ptr<FeatureExtractor> e(new (std::nothrow) FeatureExtractor());
   if (e == nullptr) {
-    return R::failure(VisionError::BadParameter);
+    return R::failure(VisionError::OutOfMemory);
   }
   e->config_ = config;
   e->colors_ = colors;
   if (!e->lut_.build(colors)) {
-    return R::failure(VisionError::BadParameter);
+    return R::failure(VisionError::OutOfMemory);  // the table's allocations are its only failure
   }
   const std::size_t pixels = static_cast<std::size_t>(config.max_width) * static_cast<std::size_t>(config.max_height);
   // A run needs at least one classified pixel and one separating pixel.
@@ -201,7 +202,7 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   if (e->classes_ == nullptr || e->runs_ == nullptr || e->region_of_root_ == nullptr || e->candidates_ == nullptr ||
       e->grid_row_ == nullptr || e->class_distance_[0] == nullptr || e->class_distance_[1] == nullptr ||
       e->edge_scratch_ == nullptr) {
-    return R::failure(VisionError::BadParameter);
+    return R::failure(VisionError::OutOfMemory);
   }
   return R::success(std::move(e));
 }

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <vector>
 
+#include "tcpest/test/alloc_counter.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -217,6 +218,33 @@ TEST(Regions, AutoStepIsTwoFromFourPalFramesOfPixelsOn) {
   Canvas hd(1920, 1080);
   ASSERT_TRUE(fx->find_regions(hd.view()).ok());
   EXPECT_EQ(fx->classify_step(), 2);
+}
+
+// Memory running out at each of create()'s allocations in turn (the
+// extractor, the colour table's, every buffer): OutOfMemory, not a
+// configuration error, with everything taken before freed.
+TEST(Regions, CreateReportsOutOfMemoryAtAnyOfItsAllocations) {
+  if (!test::malloc_hook_active()) {
+    GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
+  }
+  ExtractorConfig c;
+  c.max_width = 320;
+  c.max_height = 240;
+  VisionError error = VisionError::BadImage;
+  const auto create = [&]() {
+    const auto result = FeatureExtractor::create(c, default_color_model());
+    if (!result.ok()) {
+      error = result.error();
+    }
+    return result.ok();  // the extractor is released here: only the count matters
+  };
+  const std::size_t allocations = test::run_out_of_memory_at_each_allocation(create, [&](const test::OutOfMemoryOutcome& o) {
+    ASSERT_FALSE(o.succeeded) << "allocation " << o.nth;
+    EXPECT_EQ(error, VisionError::OutOfMemory) << "allocation " << o.nth;
+    EXPECT_EQ(o.leaked, 0U) << "out of memory at allocation " << o.nth;
+  });
+  EXPECT_GE(allocations, 10U);
+  EXPECT_TRUE(FeatureExtractor::create(c, default_color_model()).ok());
 }
 
 TEST(Regions, CreateRejectsBadConfiguration) {

@@ -20,7 +20,7 @@ Result<std::unique_ptr<VisionPipeline>, vision::VisionError> VisionPipeline::cre
   using R = Result<std::unique_ptr<VisionPipeline>, vision::VisionError>;
   std::unique_ptr<VisionPipeline> p(new (std::nothrow) VisionPipeline(camera, model));
   if (!p) {
-    return R::failure(vision::VisionError::BadParameter);
+    return R::failure(vision::VisionError::OutOfMemory);
   }
   vision::ExtractorConfig config;
   config.max_width = camera.width();

@@ -80,6 +80,45 @@ std::unique_ptr<Run> run_rendered(const Models& m, std::uint32_t frames) {
   return out;
 }
 
+// The loop's start-up, its vision pipeline and its executive, with memory
+// running out at each of their allocations in turn: an out-of-memory error
+// from the part that ran out, everything taken before freed.
+TEST(LoopWithUnits, StartUpReportsOutOfMemoryAtAnyOfItsAllocations) {
+  if (!test::malloc_hook_active()) {
+    GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
+  }
+  const Models m;
+  auto scene = RenderedScene::create(m.camera, m.model, 7U, 25.0, 2U);
+  ASSERT_TRUE(scene.ok());
+  hal::SimCamera source(*scene.value(), 25.0, false);
+  hal::SimulatedClock clock(5 * hal::kNsPerS);
+  hal::SimBus bus;
+  const LoopConfig config;
+  CanNodePort node(clock, bus.endpoint(0), &bus, nullptr, "sim0");
+  ASSERT_TRUE(node.configure(node_config(config)).ok());
+  bool pipeline_out_of_memory = false;
+  bool loop_out_of_memory = false;
+  const auto start_up = [&]() {
+    pipeline_out_of_memory = false;
+    loop_out_of_memory = false;
+    const auto pipeline = VisionPipeline::create(m.camera, m.model, vision::default_color_model());
+    if (!pipeline.ok()) {
+      pipeline_out_of_memory = pipeline.error() == vision::VisionError::OutOfMemory;
+      return false;
+    }
+    const LoopParts parts{&source, &clock, pipeline.value().get(), &node, &m.camera, &m.model};
+    const auto loop = Executive::create(config, parts);
+    loop_out_of_memory = !loop.ok() && loop.error() == LoopError::kOutOfMemory;
+    return loop.ok();  // both released here: only the count matters
+  };
+  const std::size_t allocations = test::run_out_of_memory_at_each_allocation(start_up, [&](const test::OutOfMemoryOutcome& o) {
+    ASSERT_FALSE(o.succeeded) << "allocation " << o.nth;
+    EXPECT_TRUE(pipeline_out_of_memory || loop_out_of_memory) << "allocation " << o.nth;
+    EXPECT_EQ(o.leaked, 0U) << "out of memory at allocation " << o.nth;
+  });
+  EXPECT_GE(allocations, 14U);
+}
+
 TEST(LoopWithUnits, RenderedSequenceThroughVisionSolverAndCan) {
   Models m;
   const auto run = run_rendered(m, 40U);

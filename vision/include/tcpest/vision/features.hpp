@@ -34,6 +34,7 @@ enum class VisionError : std::uint8_t {
   NoInstrument,    // no chain of marker regions found
   BorderFitFailed, // too few edge points on a side
   BadParameter,    // invalid configuration at creation
+  OutOfMemory,     // the buffers could not be allocated at creation
 };
 const char* to_string(VisionError e) noexcept;
 
