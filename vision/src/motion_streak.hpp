@@ -1,6 +1,7 @@
 // The motion-blur streak read from the model's boundary arcs and the
-// blue stripes' silhouette at a pose (docs/vision.md "The smear from the
-// arcs"), for the image fit and FeatureExtractor::read_motion_streak.
+// blue stripes' silhouette at a pose (docs/vision-measurements.md "The
+// smear from the arcs"), for the image fit and
+// FeatureExtractor::read_motion_streak.
 #pragma once
 
 #include "tcpest/vision/features.hpp"
