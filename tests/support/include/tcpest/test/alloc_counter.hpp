@@ -45,8 +45,9 @@ struct OutOfMemoryOutcome {
 // Runs `attempt` (bool(): true when it succeeded; it releases everything
 // it made before it returns, whatever the outcome) once with enough memory
 // to count its allocations, then once with memory running out from each of
-// them in turn, handing each outcome to `check`. Returns the count (0: the attempt failed with enough memory,
-// or malloc is not hooked in this build and nothing was run out).
+// them in turn, handing each outcome to `check`. Returns the count (0: the
+// attempt failed with enough memory, or malloc is not hooked in this build
+// and nothing was run out).
 template <typename Attempt, typename Check>
 std::size_t run_out_of_memory_at_each_allocation(Attempt&& attempt, Check&& check) {
   if (!malloc_hook_active()) {
