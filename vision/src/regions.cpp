@@ -164,7 +164,8 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
   using R = Result<std::unique_ptr<FeatureExtractor>, VisionError>;
   if (config.max_width <= 0 || config.max_height <= 0 || config.max_width > 8192 || config.max_height > 8192 ||
       config.skeleton_samples < 8 || config.skeleton_samples > static_cast<int>(kMaxSkeletonSamples) ||
-      config.irls_iterations < 1 || config.irls_iterations > 50 || config.profile_samples < 16 ||
+      config.irls_iterations < 1 || config.irls_iterations > 50 || config.irls_scale_iterations < 1 ||
+      config.irls_scale_iterations > config.irls_iterations || config.profile_samples < 16 ||
       config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0) ||
       config.classify_step < 0 || config.classify_step > 2 ||
       !(config.refine_smear_tip_bias >= 0.0 && config.refine_smear_tip_bias <= 0.5) ||

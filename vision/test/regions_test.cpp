@@ -259,6 +259,15 @@ TEST(Regions, CreateRejectsBadConfiguration) {
   EXPECT_FALSE(FeatureExtractor::create(step, default_color_model()).ok());
   step.classify_step = -1;
   EXPECT_FALSE(FeatureExtractor::create(step, default_color_model()).ok());
+  // The IRLS scale: estimated at least once (else every weight divides by
+  // zero), and not in more iterations than the fit runs.
+  ExtractorConfig irls;
+  for (const int bad_scale_iterations : {0, -1, irls.irls_iterations + 1}) {
+    irls.irls_scale_iterations = bad_scale_iterations;
+    EXPECT_FALSE(FeatureExtractor::create(irls, default_color_model()).ok()) << bad_scale_iterations;
+  }
+  irls.irls_scale_iterations = irls.irls_iterations;
+  EXPECT_TRUE(FeatureExtractor::create(irls, default_color_model()).ok());
   // The tip arc's share of a smear: 0 (off) to one half, never NaN.
   ExtractorConfig tip;
   for (const double bad_share : {-0.01, 0.51, std::nan("")}) {

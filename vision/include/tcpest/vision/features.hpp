@@ -183,7 +183,7 @@ struct ExtractorConfig {
   double edge_offset_px = 0.3;
   double tukey_c = 1.5;
   int irls_iterations = 10;
-  int irls_scale_iterations = 4;            // the MAD scale is re-estimated during the first ones only
+  int irls_scale_iterations = 4;            // the MAD scale is re-estimated during the first ones only (1..irls_iterations)
   int profile_samples = 160;                // chroma profile samples along each border
   // The profiles are read along curves parallel to the border, from this far
   // inside to profile_max_inset times the tube's half width (see find_corners).
