@@ -1,0 +1,192 @@
+// Stage 2, the interpretation tree (the paper's section 2.3), on drawn
+// stripes: each of the rules on its own. Levels are the markers 1..5
+// from the base (blue, yellow, blue, yellow, blue); a link only between
+// adjacent regions of the next level's colour turning the skeleton by less
+// than 60 deg; virtual nodes merging two regions of a level; empty leading
+// levels.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace vision {
+namespace {
+
+constexpr std::uint8_t kBlue[3] = {80, 156, 233};
+constexpr std::uint8_t kYellow[3] = {218, 205, 80};
+constexpr std::uint8_t kTissue[3] = {185, 95, 85};
+
+struct Canvas {
+  int w, h;
+  std::vector<std::uint8_t> px;
+  Canvas(int width, int height) : w(width), h(height), px(static_cast<std::size_t>(width * height * 3)) {
+    fill_rect(0, 0, w, h, kTissue);
+  }
+  void fill_rect(int x0, int y0, int x1, int y1, const std::uint8_t* c) {
+    for (int y = y0; y < y1; ++y) {
+      for (int x = x0; x < x1; ++x) {
+        for (int k = 0; k < 3; ++k) {
+          px[static_cast<std::size_t>((y * w + x) * 3 + k)] = c[k];
+        }
+      }
+    }
+  }
+  ImageView view() const { return ImageView{px.data(), w, h, static_cast<std::size_t>(w) * 3U}; }
+};
+
+// Stripes 30 px along the tube and 40 px across it. Level m's stripe, drawn
+// in line from the base at x = 40, has its centroid at x = 54.5 + 30 m.
+constexpr int kStripeLength = 30;
+constexpr int kStripeWidth = 40;
+constexpr int kTop = 40;
+
+const std::uint8_t* colour_of(int level) { return level % 2 == 0 ? kBlue : kYellow; }
+
+void draw_stripe(Canvas& c, int level, int x0, int y0) {
+  c.fill_rect(x0, y0, x0 + kStripeLength, y0 + kStripeWidth, colour_of(level));
+}
+
+// Priors that know each stripe's size loosely and where the chain in line
+// from x = 40 puts each level, within 60 px: enough to tell the base from
+// the tip, which the colours alone do not (both ends are blue).
+MarkerPriors in_line_priors() {
+  MarkerPriors p;
+  for (int m = 0; m < kNumMarkers; ++m) {
+    MarkerPrior& mp = p.marker[static_cast<std::size_t>(m)];
+    mp.half_major = kStripeWidth / std::sqrt(3.0);
+    mp.half_major_sd = 0.6 * mp.half_major + 3.0;
+    mp.half_minor = kStripeLength / std::sqrt(3.0);
+    mp.half_minor_sd = 0.6 * mp.half_minor + 3.0;
+    mp.parent_distance = kStripeLength;
+    mp.parent_distance_sd = 0.6 * kStripeLength + 3.0;
+    mp.centroid = Point{54.5 + 30.0 * m, kTop + 19.5};
+    mp.centroid_sd = 60.0;
+  }
+  return p;
+}
+
+std::unique_ptr<FeatureExtractor> make(int w, int h) {
+  ExtractorConfig c;
+  c.max_width = w;
+  c.max_height = h;
+  auto e = FeatureExtractor::create(c, default_color_model());
+  EXPECT_TRUE(e.ok());
+  return std::move(e.value());
+}
+
+const Interpretation& interpret(FeatureExtractor& fx, const Canvas& canvas) {
+  EXPECT_TRUE(fx.find_regions(canvas.view()).ok());
+  EXPECT_TRUE(fx.interpret(in_line_priors()).ok());
+  return fx.result().interpretation;
+}
+
+TEST(Interpretation, FiveAlternatingStripesAreLabelledFromTheBase) {
+  Canvas canvas(320, 140);
+  for (int m = 0; m < kNumMarkers; ++m) {
+    draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
+  }
+  auto fx = make(canvas.w, canvas.h);
+  const Interpretation& in = interpret(*fx, canvas);
+  ASSERT_EQ(in.found_count, kNumMarkers);
+  EXPECT_EQ(in.first_marker, 0);
+  EXPECT_EQ(in.last_marker, kNumMarkers - 1);
+  for (int m = 0; m < kNumMarkers; ++m) {
+    const MarkerObservation& o = in.markers[static_cast<std::size_t>(m)];
+    ASSERT_TRUE(o.found) << m;
+    EXPECT_NEAR(o.region.centroid.x, 54.5 + 30.0 * m, 1e-9) << m;
+    EXPECT_EQ(o.region.cls, m % 2 == 0 ? PixelClass::Blue : PixelClass::Yellow) << m;
+    EXPECT_LT(o.region_index[1], 0) << m;  // a single region, not a merge
+  }
+}
+
+// A highlight across a stripe splits it in two regions: the level is a
+// virtual node merging both, with their joint statistics.
+TEST(Interpretation, AStripeSplitInTwoIsOneVirtualNode) {
+  Canvas canvas(320, 140);
+  for (int m = 0; m < kNumMarkers; ++m) {
+    draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
+  }
+  canvas.fill_rect(70, kTop + 18, 100, kTop + 21, kTissue);  // marker 2 (yellow) cut along the tube
+  auto fx = make(canvas.w, canvas.h);
+  const Interpretation& in = interpret(*fx, canvas);
+  ASSERT_EQ(in.found_count, kNumMarkers);
+  const MarkerObservation& split = in.markers[1];
+  ASSERT_TRUE(split.found);
+  EXPECT_GE(split.region_index[0], 0);
+  EXPECT_GE(split.region_index[1], 0);
+  EXPECT_EQ(split.region.area, kStripeLength * (kStripeWidth - 3));
+  EXPECT_NEAR(split.region.centroid.x, 84.5, 1e-9);
+  EXPECT_NEAR(split.region.centroid.y, kTop + 19.5, 0.1);
+  EXPECT_TRUE(in.markers[2].found);  // the chain goes on from the merged node
+}
+
+// The skeleton may turn by less than 60 deg per link: a stripe 30 deg off
+// the chain's line is linked, one at 87 deg is not, and the chain ends
+// there (the remaining levels are empty).
+TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
+  {
+    Canvas canvas(320, 200);
+    for (int m = 0; m < 3; ++m) {
+      draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
+    }
+    draw_stripe(canvas, 3, 130, kTop + 17);  // centroid link (30, 17): 29.5 deg
+    draw_stripe(canvas, 4, 160, kTop + 34);
+    auto fx = make(canvas.w, canvas.h);
+    const Interpretation& in = interpret(*fx, canvas);
+    EXPECT_EQ(in.found_count, kNumMarkers);
+  }
+  {
+    Canvas canvas(320, 200);
+    for (int m = 0; m < 3; ++m) {
+      draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
+    }
+    // Below marker 3, turning by 87 deg (2 px short of marker 2's corner,
+    // which it would otherwise touch and join).
+    canvas.fill_rect(102, kTop + kStripeWidth, 130, kTop + kStripeWidth + 30, kYellow);
+    canvas.fill_rect(102, kTop + kStripeWidth + 30, 130, kTop + kStripeWidth + 60, kBlue);
+    auto fx = make(canvas.w, canvas.h);
+    const Interpretation& in = interpret(*fx, canvas);
+    EXPECT_EQ(in.first_marker, 0);
+    EXPECT_EQ(in.last_marker, 2);
+    EXPECT_EQ(in.found_count, 3);
+    EXPECT_FALSE(in.markers[3].found);
+  }
+}
+
+// The base marker out of the image (or hidden): its level stays empty and
+// the chain starts at the second marker.
+TEST(Interpretation, AHiddenBaseLeavesTheFirstLevelEmpty) {
+  Canvas canvas(320, 140);
+  for (int m = 1; m < kNumMarkers; ++m) {
+    draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
+  }
+  auto fx = make(canvas.w, canvas.h);
+  const Interpretation& in = interpret(*fx, canvas);
+  EXPECT_EQ(in.first_marker, 1);
+  EXPECT_EQ(in.last_marker, kNumMarkers - 1);
+  EXPECT_EQ(in.found_count, kNumMarkers - 1);
+  EXPECT_FALSE(in.markers[0].found);
+}
+
+// Links only between adjacent regions: with 21 px of tissue between
+// markers 2 and 3 (their centroids 51 px apart, beyond the 49.7 px that
+// adjacency allows stripes 30 px long), the chain does not cross the gap,
+// though the posterior alone would take the link.
+TEST(Interpretation, AStripeBeyondTheAdjacencyReachIsNotLinked) {
+  Canvas canvas(360, 140);
+  for (int m = 0; m < kNumMarkers; ++m) {
+    draw_stripe(canvas, m, 40 + kStripeLength * m + (m >= 2 ? 21 : 0), kTop);
+  }
+  auto fx = make(canvas.w, canvas.h);
+  const Interpretation& in = interpret(*fx, canvas);
+  EXPECT_EQ(in.found_count, 3);  // markers 3-5, the larger side of the gap
+  EXPECT_EQ(in.first_marker, 2);
+  EXPECT_FALSE(in.markers[1].found);
+}
+
+}  // namespace
+}  // namespace vision
+}  // namespace tcpest
