@@ -3,7 +3,7 @@
 // from the base (blue, yellow, blue, yellow, blue); a link only between
 // adjacent regions of the next level's colour turning the skeleton by less
 // than 60 deg; virtual nodes merging two regions of a level; empty leading
-// levels.
+// levels; and the temporal priors (the last 5 successful frames).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -185,6 +185,64 @@ TEST(Interpretation, AStripeBeyondTheAdjacencyReachIsNotLinked) {
   EXPECT_EQ(in.found_count, 3);  // markers 3-5, the larger side of the gap
   EXPECT_EQ(in.first_marker, 2);
   EXPECT_FALSE(in.markers[1].found);
+}
+
+// The temporal priors: a Gaussian per marker from the last 5 frames whose
+// interpretation succeeded, from 2 frames on.
+Interpretation chain_with_base_size(double base_half_major) {
+  Interpretation in;
+  for (int m = 0; m < kNumMarkers; ++m) {
+    MarkerObservation& o = in.markers[static_cast<std::size_t>(m)];
+    o.found = m < 4;  // the tip's marker never seen
+    o.region.half_major = m == 0 ? base_half_major : 20.0;
+    o.region.half_minor = 12.0;
+    o.region.centroid = Point{100.0 + 30.0 * m, 80.0};
+  }
+  in.first_marker = 0;
+  in.last_marker = 3;
+  in.found_count = 4;
+  return in;
+}
+
+TEST(TemporalPriors, NeedTwoFramesAndKeepTheLastFive) {
+  TemporalPriors temporal;
+  MarkerPriors p;
+  EXPECT_FALSE(temporal.priors(p));
+  temporal.add(chain_with_base_size(10.0));
+  EXPECT_FALSE(temporal.priors(p));
+  temporal.add(chain_with_base_size(20.0));
+  ASSERT_TRUE(temporal.priors(p));
+  EXPECT_EQ(p.source, PriorSource::Temporal);
+  EXPECT_NEAR(p.marker[0].half_major, 15.0, 1e-12);
+  for (const double size : {30.0, 40.0, 50.0, 60.0, 70.0}) {
+    temporal.add(chain_with_base_size(size));
+  }
+  EXPECT_EQ(temporal.frames(), TemporalPriors::kHistory);
+  ASSERT_TRUE(temporal.priors(p));
+  // The last five: 30..70 px; their spread (variance 200 px^2) and the
+  // floor (15 % of the mean + 2 px) add in quadrature.
+  EXPECT_NEAR(p.marker[0].half_major, 50.0, 1e-12);
+  EXPECT_NEAR(p.marker[0].half_major_sd, std::sqrt(200.0 + 9.5 * 9.5), 1e-9);
+  temporal.reset();
+  EXPECT_FALSE(temporal.priors(p));
+}
+
+TEST(TemporalPriors, IdenticalFramesGiveTheFloorsAndAnUnseenMarkerNoPrior) {
+  TemporalPriors temporal;
+  temporal.add(chain_with_base_size(20.0));
+  temporal.add(chain_with_base_size(20.0));
+  MarkerPriors p;
+  ASSERT_TRUE(temporal.priors(p));
+  const MarkerPrior& second = p.marker[1];
+  EXPECT_TRUE(second.in_image);
+  EXPECT_NEAR(second.half_major_sd, 0.15 * 20.0 + 2.0, 1e-12);
+  EXPECT_NEAR(second.parent_distance, 30.0, 1e-12);
+  EXPECT_NEAR(second.parent_distance_sd, 0.15 * 30.0 + 2.0, 1e-12);
+  EXPECT_NEAR(second.centroid.x, 130.0, 1e-12);
+  EXPECT_NEAR(second.centroid_sd, 25.0, 1e-12);  // no spread: the floor
+  const MarkerPrior& tip = p.marker[4];
+  EXPECT_FALSE(tip.in_image);
+  EXPECT_GE(tip.half_major_sd, 1e3);  // no information
 }
 
 }  // namespace
