@@ -100,7 +100,7 @@ TEST(Interpretation, AStripeSplitInTwoIsOneVirtualNode) {
 }
 
 // The skeleton may turn by less than 60 deg per link: a stripe 30 deg off
-// the chain's line is linked, one at 87 deg is not, and the chain ends
+// the chain's line is linked, one at 88 deg is not, and the chain ends
 // there (the remaining levels are empty).
 TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
   {
@@ -119,7 +119,7 @@ TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
     for (int m = 0; m < 3; ++m) {
       draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
     }
-    // Below marker 3, turning by 87 deg (2 px short of marker 2's corner,
+    // Below marker 3, turning by 88 deg (2 px short of marker 2's corner,
     // which it would otherwise touch and join).
     canvas.fill_rect(102, kTop + kStripeWidth, 130, kTop + kStripeWidth + 30, kYellow);
     canvas.fill_rect(102, kTop + kStripeWidth + 30, 130, kTop + kStripeWidth + 60, kBlue);
