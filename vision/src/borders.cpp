@@ -13,7 +13,6 @@ namespace {
 using detail::fit_bezier;
 using detail::Rgb;
 using detail::sample;
-using detail::to_byte;
 
 double dist2(const Rgb& a, const Rgb& b) noexcept {
   return (a.r - b.r) * (a.r - b.r) + (a.g - b.g) * (a.g - b.g) + (a.b - b.b) * (a.b - b.b);

@@ -17,7 +17,6 @@ using detail::fit_boundary_arc;
 using detail::nearest_t;
 using detail::Rgb;
 using detail::sample;
-using detail::solve3;
 using detail::to_byte;
 
 // Stage 4's profiles run along each border over t in [kProfileT0,

@@ -34,6 +34,13 @@ void draw_stripe(Canvas& c, int level, int x0, int y0) {
   c.fill_rect(x0, y0, x0 + kStripeLength, y0 + kStripeWidth, colour_of(level));
 }
 
+// Levels first..last drawn in line, each in its place from x = 40.
+void draw_in_line(Canvas& c, int first, int last) {
+  for (int m = first; m <= last; ++m) {
+    draw_stripe(c, m, 40 + kStripeLength * m, kTop);
+  }
+}
+
 // Priors that know each stripe's size loosely and where the chain in line
 // from x = 40 puts each level, within 60 px: enough to tell the base from
 // the tip, which the colours alone do not (both ends are blue).
@@ -61,9 +68,7 @@ const Interpretation& interpret(FeatureExtractor& fx, const Canvas& canvas) {
 
 TEST(Interpretation, FiveAlternatingStripesAreLabelledFromTheBase) {
   Canvas canvas(320, 140);
-  for (int m = 0; m < kNumMarkers; ++m) {
-    draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
-  }
+  draw_in_line(canvas, 0, kNumMarkers - 1);
   auto fx = make(canvas.w, canvas.h);
   const Interpretation& in = interpret(*fx, canvas);
   ASSERT_EQ(in.found_count, kNumMarkers);
@@ -82,9 +87,7 @@ TEST(Interpretation, FiveAlternatingStripesAreLabelledFromTheBase) {
 // virtual node merging both, with their joint statistics.
 TEST(Interpretation, AStripeSplitInTwoIsOneVirtualNode) {
   Canvas canvas(320, 140);
-  for (int m = 0; m < kNumMarkers; ++m) {
-    draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
-  }
+  draw_in_line(canvas, 0, kNumMarkers - 1);
   canvas.fill_rect(70, kTop + 18, 100, kTop + 21, kTissue);  // marker 2 (yellow) cut along the tube
   auto fx = make(canvas.w, canvas.h);
   const Interpretation& in = interpret(*fx, canvas);
@@ -105,9 +108,7 @@ TEST(Interpretation, AStripeSplitInTwoIsOneVirtualNode) {
 TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
   {
     Canvas canvas(320, 200);
-    for (int m = 0; m < 3; ++m) {
-      draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
-    }
+    draw_in_line(canvas, 0, 2);
     draw_stripe(canvas, 3, 130, kTop + 17);  // centroid link (30, 17): 29.5 deg
     draw_stripe(canvas, 4, 160, kTop + 34);
     auto fx = make(canvas.w, canvas.h);
@@ -116,9 +117,7 @@ TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
   }
   {
     Canvas canvas(320, 200);
-    for (int m = 0; m < 3; ++m) {
-      draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
-    }
+    draw_in_line(canvas, 0, 2);
     // Below marker 3, turning by 88 deg (2 px short of marker 2's corner,
     // which it would otherwise touch and join).
     canvas.fill_rect(102, kTop + kStripeWidth, 130, kTop + kStripeWidth + 30, kYellow);
@@ -136,9 +135,7 @@ TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
 // the chain starts at the second marker.
 TEST(Interpretation, AHiddenBaseLeavesTheFirstLevelEmpty) {
   Canvas canvas(320, 140);
-  for (int m = 1; m < kNumMarkers; ++m) {
-    draw_stripe(canvas, m, 40 + kStripeLength * m, kTop);
-  }
+  draw_in_line(canvas, 1, kNumMarkers - 1);
   auto fx = make(canvas.w, canvas.h);
   const Interpretation& in = interpret(*fx, canvas);
   EXPECT_EQ(in.first_marker, 1);
