@@ -5,6 +5,7 @@
 
 #include "bezier_fit.hpp"
 #include "boundary_arc.hpp"
+#include "profile_crossing.hpp"
 #include "sampling.hpp"
 #include "tcpest/vision/features.hpp"
 
@@ -12,6 +13,7 @@ namespace tcpest {
 namespace vision {
 namespace {
 
+using detail::best_crossing;
 using detail::fit_bezier;
 using detail::fit_boundary_arc;
 using detail::nearest_t;
@@ -72,6 +74,8 @@ void sample_border_profiles(const ImageView& image, const ColorModel& colors, co
     for (std::size_t q = 0U; q < kProfileInsets; ++q) {
       const auto at = static_cast<std::size_t>(i);
       valid[q][at] = false;
+      score[q][at] = 0.0;  // not a previous frame's value (no reader takes it: valid is false)
+      margin[q][at] = 0.0;
       Rgb px;
       if (!(dl > 0.0) || !sample(image, p.x - insets[q] * nx, p.y - insets[q] * ny, px)) {
         continue;
@@ -147,39 +151,6 @@ void crossing_window(const Interpretation& in, const std::array<double, kNumMark
   }
 }
 
-// The zero crossing of one profile within [t_lo, t_hi] whose change has
-// want_sign, the steepest over +/- 2 samples: its sub-sample parameter and
-// that slope. False when there is none.
-bool best_crossing(const double* profile, const bool* ok, int samples, double dt, double t_lo, double t_hi,
-                   double want_sign, double& t_cross, double& best_slope) noexcept {
-  bool found = false;
-  best_slope = 0.0;
-  for (int i = 0; i + 1 < samples; ++i) {
-    const double t = kProfileT0 + dt * static_cast<double>(i);
-    if (t < t_lo || t + dt > t_hi) {
-      continue;
-    }
-    const auto a = static_cast<std::size_t>(i);
-    if (!ok[a] || !ok[a + 1U]) {
-      continue;
-    }
-    const double fa = profile[a];
-    const double fb = profile[a + 1U];
-    if (!((fa < 0.0 && fb >= 0.0) || (fa >= 0.0 && fb < 0.0)) || (fb - fa) * want_sign <= 0.0) {
-      continue;
-    }
-    const std::size_t lo = a >= 2U ? a - 2U : 0U;
-    const std::size_t hi = a + 3U < static_cast<std::size_t>(samples) ? a + 3U : static_cast<std::size_t>(samples - 1);
-    const double slope = (profile[hi] - profile[lo]) * want_sign;
-    if (!found || slope > best_slope) {
-      t_cross = t + dt * fa / (fa - fb);
-      found = true;
-      best_slope = slope;
-    }
-  }
-  return found;
-}
-
 // Boundary j's crossings on both borders, per inset, and the points they
 // put on its visible arc (each crossing moved its inset inside the border).
 struct BoundaryCrossings {
@@ -204,7 +175,7 @@ BoundaryCrossings read_crossings(const std::array<Border, 2>& borders, const Cor
     for (std::size_t q = 0U; q < kProfileInsets; ++q) {
       const double* profile = use_margin ? profiles.margin[side][q].data() : profiles.score[side][q].data();
       double best_slope = 0.0;
-      out.ok[side][q] = best_crossing(profile, profiles.valid[side][q].data(), profiles.samples, profiles.dt, t_lo,
+      out.ok[side][q] = best_crossing(profile, profiles.valid[side][q].data(), profiles.samples, kProfileT0, profiles.dt, t_lo,
                                       t_hi, want_sign, out.t[side][q], best_slope);
       if (out.ok[side][q]) {
         out.strength[side] += best_slope;
