@@ -137,6 +137,12 @@ class DemoObserver final : public loop::CycleObserver {
     const loop::Publication& p = r.publication;
     // A refused row is reported once, with the outputs, at the end.
     csv_failed_ = !write_cycles_csv_row(csv_, r, t0_ns_) || csv_failed_;
+    // The cycle that finds the sequence ended has its row, but it is not a
+    // frame: the accuracy counts frames (a dropped frame is one, without an
+    // estimate).
+    if (!r.have_frame && r.frame_error == hal::CameraError::kEndOfStream) {
+      return;
+    }
     if (samples_.size() < samples_.capacity()) {
       Sample s;
       s.t_s = ms(r.trigger_ns - t0_ns_) / 1000.0;
