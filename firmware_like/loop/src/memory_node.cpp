@@ -29,6 +29,7 @@ void MemoryNode::inject_reset() noexcept {
   reset_pending_ = true;
   mode_ = NodeMode::kBootUp;
   have_prior_ = false;
+  faults_ = 0U;  // as the CAN node's reset node: its faults are forgotten (can_iface Node::reset_application)
 }
 
 Status<PortError> MemoryNode::wait_sync(std::int64_t deadline_ns) noexcept {

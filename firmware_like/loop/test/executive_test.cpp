@@ -7,6 +7,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tcpest/hal/camera/file_sources.hpp"
@@ -225,6 +226,65 @@ TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
   EXPECT_EQ(rig.loop->last().prior, PriorSource::kGeneric);
 }
 
+// A replay whose files are sometimes unreadable: `bad` gives, per acquire
+// call (from 0), the error to return instead of the next frame.
+class GlitchyReplay final : public hal::FrameSource {
+ public:
+  GlitchyReplay(hal::SimCamera& inner, const std::vector<std::pair<int, hal::CameraError>>& bad)
+      : inner_(inner), bad_(bad) {}
+  const char* kind() const noexcept override { return "glitchy"; }
+  int width() const noexcept override { return inner_.width(); }
+  int height() const noexcept override { return inner_.height(); }
+  double rate_hz() const noexcept override { return 25.0; }
+  bool live() const noexcept override { return false; }
+  Status<hal::CameraError> acquire(const MutableImageView& out, hal::FrameInfo& info) noexcept override {
+    const int call = calls_++;
+    for (const auto& b : bad_) {
+      if (b.first == call) {
+        return Status<hal::CameraError>::failure(b.second);
+      }
+    }
+    return inner_.acquire(out, info);
+  }
+  Status<hal::CameraError> reopen() noexcept override { return ok_status<hal::CameraError>(); }
+
+ private:
+  hal::SimCamera& inner_;
+  std::vector<std::pair<int, hal::CameraError>> bad_;
+  int calls_ = 0;
+};
+
+// A corrupt, truncated or wrongly sized frame is one dropped frame: counted,
+// said once on the bus (the frame-errors EMCY, cleared by the next good
+// frame), and the loop goes on with the next frame; the camera is not
+// declared lost.
+TEST(Executive, AnUnreadableFrameIsDroppedCountedAndTheLoopGoesOn) {
+  Rig rig(100U);
+  GlitchyReplay glitchy(*rig.source, {{5, hal::CameraError::kCorrupt},
+                                      {6, hal::CameraError::kTruncated},
+                                      {12, hal::CameraError::kWrongSize},
+                                      {15, hal::CameraError::kUnsupported}});
+  rig.build(&glitchy);
+  std::uint64_t emcy = rig.node.emcy_count();
+  for (int i = 0; i < 30; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue) << "cycle " << i;
+    const bool dropped = i == 5 || i == 6 || i == 12 || i == 15;
+    EXPECT_EQ(rig.loop->last().have_frame, !dropped) << "cycle " << i;
+    // Raised by the first frame of a run of errors, cleared by the next good one.
+    EXPECT_EQ(rig.node.fault_active(Fault::kFrameErrors), dropped) << "cycle " << i;
+    const bool changed = i == 5 || i == 7 || i == 12 || i == 13 || i == 15 || i == 16;
+    EXPECT_EQ(rig.node.emcy_count() - emcy, changed ? 1U : 0U) << "cycle " << i;
+    emcy = rig.node.emcy_count();
+    EXPECT_FALSE(rig.loop->last().camera_lost) << "cycle " << i;
+  }
+  EXPECT_EQ(rig.loop->last().frame_error, hal::CameraError::kNone);
+  EXPECT_EQ(rig.loop->stats().frames, 26U);
+  EXPECT_EQ(rig.loop->stats().frame_errors, 4U);
+  EXPECT_EQ(rig.loop->stats().camera_lost_events, 0U);
+  EXPECT_EQ(rig.node.published(), 30U);  // the robot hears from the node every cycle
+  EXPECT_EQ(rig.node.publication(0).status, EstimateStatus::kValid);
+}
+
 // A live camera that disappears and comes back.
 class FlakyCamera final : public hal::FrameSource {
  public:
@@ -276,6 +336,30 @@ TEST(Executive, LostCameraDegradesAndRecoversByItself) {
   EXPECT_EQ(rig.loop->stats().camera_lost_events, 1U);
   EXPECT_EQ(rig.loop->stats().camera_recoveries, 1U);
   EXPECT_EQ(rig.node.publication(0).status, EstimateStatus::kValid);
+}
+
+// A node reset forgets its faults (CiA 301 reset node): those that still
+// hold are said again at once.
+TEST(Executive, AResetNodeIsToldAgainOfTheFaultsThatStillHold) {
+  Rig rig(100U);
+  FlakyCamera flaky(*rig.source);
+  rig.build(&flaky);
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  flaky.present = false;
+  rig.node.set_bus_up(false);
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
+  ASSERT_TRUE(rig.node.fault_active(Fault::kCameraLost));
+  ASSERT_TRUE(rig.node.fault_active(Fault::kBusLost));
+  rig.node.inject_reset();
+  ASSERT_FALSE(rig.node.fault_active(Fault::kCameraLost));  // the node forgot them
+  ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  EXPECT_EQ(rig.loop->stats().resets, 1U);
+  EXPECT_TRUE(rig.node.fault_active(Fault::kCameraLost));
+  EXPECT_TRUE(rig.node.fault_active(Fault::kBusLost));
 }
 
 TEST(Executive, LostBusDegradesAndRecoversByItself) {
