@@ -257,8 +257,12 @@ Status<PortError> CanNodePort::recover() noexcept {
   if (!received.ok() && received.error() == PortError::kBusDown) {
     return received;
   }
-  return bus_.state() == hal::BusState::kDown ? Status<PortError>::failure(PortError::kBusDown)
-                                              : ok_status<PortError>();
+  // A controller still in bus-off cannot send either: calling the bus back
+  // then would only lose it again at the next send.
+  const hal::BusState state = bus_.state();
+  return state == hal::BusState::kDown || state == hal::BusState::kBusOff
+             ? Status<PortError>::failure(PortError::kBusDown)
+             : ok_status<PortError>();
 }
 
 }  // namespace loop

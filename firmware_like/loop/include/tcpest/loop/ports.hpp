@@ -144,7 +144,8 @@ class NodePort {
   // Heartbeat when due, EMCY for fault changes.
   virtual Status<PortError> housekeeping(std::int64_t now_ns) noexcept = 0;
   virtual void set_fault(Fault fault, bool active, std::uint32_t detail) noexcept = 0;
-  // After kBusDown: reopen the interface.
+  // After kBusDown: reopen the interface. kBusDown while it is down, gone or
+  // still in bus-off.
   virtual Status<PortError> recover() noexcept = 0;
 };
 
