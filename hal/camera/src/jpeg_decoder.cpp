@@ -18,6 +18,7 @@ namespace hal {
 namespace {
 constexpr std::size_t kAlign = 64U;          // libjpeg-turbo's SIMD wants 32; one cache line
 constexpr std::size_t kFixedArenaBytes = std::size_t{256U} * 1024U;
+constexpr std::size_t kMaxArenaBytes = std::size_t{256U} * 1024U * 1024U;  // an absurd request is refused
 constexpr std::size_t kArenaRowsPerWidth = 64U;  // measured need is below ~40 RGB rows (README)
 constexpr int kRowBatch = 16;                 // scanlines per jpeg_read_scanlines call
 
@@ -239,8 +240,9 @@ JpegDecoder::~JpegDecoder() {
   }
 }
 
-Status<CameraError> JpegDecoder::init(int max_width, int max_height) noexcept {
-  if (context_ != nullptr || max_width <= 0 || max_height <= 0 || max_width > 16384 || max_height > 16384) {
+Status<CameraError> JpegDecoder::init(int max_width, int max_height, std::size_t arena_bytes) noexcept {
+  if (context_ != nullptr || max_width <= 0 || max_height <= 0 || max_width > 16384 || max_height > 16384 ||
+      arena_bytes > kMaxArenaBytes) {
     return Status<CameraError>::failure(CameraError::kBadArgument);
   }
   auto* ctx = new (std::nothrow) Context();
@@ -248,7 +250,7 @@ Status<CameraError> JpegDecoder::init(int max_width, int max_height) noexcept {
     return Status<CameraError>::failure(CameraError::kOutOfMemory);
   }
   const std::size_t row_bytes = round_up(static_cast<std::size_t>(max_width), kAlign) * 3U;
-  ctx->capacity = round_up(kFixedArenaBytes + kArenaRowsPerWidth * row_bytes, kAlign);
+  ctx->capacity = round_up(arena_bytes != 0U ? arena_bytes : kFixedArenaBytes + kArenaRowsPerWidth * row_bytes, kAlign);
   ctx->arena = static_cast<std::uint8_t*>(std::aligned_alloc(kAlign, ctx->capacity));  // NOLINT(cppcoreguidelines-no-malloc): one aligned block at start-up, freed in the destructor
   if (ctx->arena == nullptr) {
     delete ctx;

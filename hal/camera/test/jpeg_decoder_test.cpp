@@ -162,6 +162,66 @@ TEST(JpegDecoder, ProgressiveDecodesWithTheCountedFallback) {
   std::printf("progressive decode: %zu heap allocations per frame (libjpeg's coefficient buffer)\n", first);
 }
 
+// Every sampling a baseline colour JPEG may have (luma 1x1 to 4x2, chroma
+// 1x1; at most 10 blocks per MCU) decodes at 720x576 within the default
+// arena, using less than 40 of its 64 RGB rows (hal/camera/README.md).
+TEST(JpegDecoder, EverySamplingFitsTheDefaultArena) {
+  constexpr int kPalW = 720;
+  constexpr int kPalH = 576;
+  const auto rgb = make_pattern(kPalW, kPalH, 7);
+  Buffer out(kPalW, kPalH);
+  const int samplings[][2] = {{1, 1}, {1, 2}, {1, 3}, {1, 4}, {2, 1}, {2, 2}, {2, 3}, {2, 4}, {3, 1}, {3, 2},
+                              {4, 1}, {4, 2}};
+  for (const auto& hv : samplings) {
+    JpegDecoder decoder;
+    ASSERT_TRUE(decoder.init(kPalW, kPalH).ok());
+    EncodeOptions options;
+    options.luma_h_samp = hv[0];
+    options.luma_v_samp = hv[1];
+    const auto jpeg = encode_jpeg(rgb, kPalW, kPalH, options);
+    ASSERT_TRUE(decoder.decode(jpeg.data(), jpeg.size(), out.view).ok()) << hv[0] << "x" << hv[1];
+    EXPECT_LT(mean_abs_difference(rgb, out.view), 3.0) << hv[0] << "x" << hv[1];
+    const JpegArenaStats stats = decoder.arena_stats();
+    EXPECT_EQ(stats.fallback_allocations, 0U);
+    EXPECT_LT(stats.permanent_bytes + stats.image_high_water_bytes, std::size_t{40U} * kPalW * 3U)
+        << hv[0] << "x" << hv[1];
+  }
+}
+
+// An arena too small for the image: kOutOfMemory, no crash, no heap
+// allocation instead, and the decoder takes the next image.
+TEST(JpegDecoder, AnExhaustedArenaIsOutOfMemoryAndTheDecoderCarriesOn) {
+  const auto rgb = make_pattern(kW, kH, 3);
+  const auto jpeg = encode_jpeg(rgb, kW, kH);
+  JpegDecoder roomy;
+  ASSERT_TRUE(roomy.init(kW, kH).ok());
+  Buffer out(kW, kH);
+  ASSERT_TRUE(roomy.decode(jpeg.data(), jpeg.size(), out.view).ok());
+  const JpegArenaStats need = roomy.arena_stats();
+  const std::size_t enough = need.permanent_bytes + need.image_high_water_bytes;
+
+  JpegDecoder tight;
+  ASSERT_TRUE(tight.init(kW, kH, enough / 2U).ok());
+  EXPECT_EQ(tight.arena_stats().capacity_bytes, (enough / 2U + 63U) / 64U * 64U);
+  for (int i = 0; i < 3; ++i) {
+    test::AllocationScope scope;
+    const auto got = tight.decode(jpeg.data(), jpeg.size(), out.view);
+    ASSERT_FALSE(got.ok());
+    EXPECT_EQ(got.error(), CameraError::kOutOfMemory);
+    EXPECT_EQ(scope.count(), 0U);
+  }
+  EXPECT_TRUE(tight.inspect(jpeg.data(), jpeg.size()).ok());  // the header needs no per-image memory
+
+  JpegDecoder exact;
+  ASSERT_TRUE(exact.init(kW, kH, enough).ok());
+  EXPECT_TRUE(exact.decode(jpeg.data(), jpeg.size(), out.view).ok());
+
+  JpegDecoder absurd;
+  const auto refused = absurd.init(kW, kH, std::size_t{1U} << 40U);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error(), CameraError::kBadArgument);
+}
+
 TEST(JpegDecoder, BaselineDecodeMakesNoHeapAllocation) {
   constexpr int kPalW = 720;
   constexpr int kPalH = 576;

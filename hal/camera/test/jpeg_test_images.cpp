@@ -45,6 +45,10 @@ std::vector<std::uint8_t> encode_jpeg(const std::vector<std::uint8_t>& rgb, int 
   if (options.progressive) {
     jpeg_simple_progression(&cinfo);
   }
+  if (!options.grayscale) {
+    cinfo.comp_info[0].h_samp_factor = options.luma_h_samp;
+    cinfo.comp_info[0].v_samp_factor = options.luma_v_samp;
+  }
   jpeg_start_compress(&cinfo, TRUE);
   while (cinfo.next_scanline < cinfo.image_height) {
     JSAMPROW row = const_cast<JSAMPROW>(rgb.data() + static_cast<std::size_t>(cinfo.next_scanline) *

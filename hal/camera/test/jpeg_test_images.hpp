@@ -15,6 +15,10 @@ struct EncodeOptions {
   int quality = 95;
   bool progressive = false;
   bool grayscale = false;
+  // The luma's sampling factors (chroma at 1x1): 2x2 is 4:2:0, libjpeg's
+  // default; up to 4x4, the format's limit.
+  int luma_h_samp = 2;
+  int luma_v_samp = 2;
 };
 
 std::vector<std::uint8_t> encode_jpeg(const std::vector<std::uint8_t>& rgb, int width, int height,

@@ -50,8 +50,12 @@ class JpegDecoder {
   JpegDecoder& operator=(JpegDecoder&&) = delete;
 
   // Allocates the libjpeg context and the arena for images up to
-  // max_width x max_height. Called once, before the loop.
-  Status<CameraError> init(int max_width, int max_height) noexcept;
+  // max_width x max_height. Called once, before the loop. `arena_bytes`: 0
+  // for the default size (256 KiB + 64 RGB rows of max_width, several times
+  // what any sampling needs: hal/camera/README.md), else that size (rounded
+  // up to 64 B; more than 256 MiB is kBadArgument); a decode that needs more
+  // returns kOutOfMemory.
+  Status<CameraError> init(int max_width, int max_height, std::size_t arena_bytes = 0U) noexcept;
   bool initialised() const noexcept { return context_ != nullptr; }
 
   // Reads only the header.
