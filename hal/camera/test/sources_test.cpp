@@ -82,6 +82,57 @@ TEST(PixelFormats, Yuv420RoundTripIsClose) {
   EXPECT_LT(sum / static_cast<double>(rgb.size()), 6.0);  // 4:2:0 loses chroma detail only
 }
 
+// Planar YUV of each layout, odd-sized: every pixel takes its luma and the
+// chroma sample of its block (2x2 for 4:2:0, 2x1 for 4:2:2, its own for
+// 4:4:4, none for mono), compared with the conversion of that one pixel.
+TEST(PixelFormats, EveryPlanarLayoutTakesTheChromaOfItsBlock) {
+  const int w = 33;
+  const int h = 17;
+  struct Layout {
+    ChromaLayout layout;
+    int shift_x;
+    int shift_y;
+    bool chroma;
+  };
+  const Layout layouts[] = {{ChromaLayout::k420, 1, 1, true},
+                            {ChromaLayout::k422, 1, 0, true},
+                            {ChromaLayout::k444, 0, 0, true},
+                            {ChromaLayout::kMono, 0, 0, false}};
+  for (const Layout& l : layouts) {
+    const auto luma = static_cast<std::size_t>(w * h);
+    const int cw = (w + (1 << l.shift_x) - 1) >> l.shift_x;
+    const int ch = (h + (1 << l.shift_y) - 1) >> l.shift_y;
+    const auto chroma_plane = static_cast<std::size_t>(cw * ch);
+    std::vector<std::uint8_t> frame(planar_frame_bytes(w, h, l.layout));
+    ASSERT_EQ(frame.size(), luma + (l.chroma ? 2U * chroma_plane : 0U));
+    for (std::size_t i = 0; i < luma; ++i) {
+      frame[i] = static_cast<std::uint8_t>(16U + (i * 7U) % 220U);
+    }
+    if (l.chroma) {
+      for (std::size_t i = 0; i < chroma_plane; ++i) {
+        frame[luma + i] = static_cast<std::uint8_t>(20U + (i * 13U) % 216U);                 // Cb
+        frame[luma + chroma_plane + i] = static_cast<std::uint8_t>(236U - (i * 11U) % 216U);  // Cr
+      }
+    }
+    Image out(w, h);
+    planar_yuv_to_rgb(frame.data(), w, h, l.layout, YuvRange::kLimited, out.view);
+    int wrong = 0;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const auto c = static_cast<std::size_t>((y >> l.shift_y) * cw + (x >> l.shift_x));
+        const std::uint8_t one[3] = {frame[static_cast<std::size_t>(y * w + x)],
+                                     l.chroma ? frame[luma + c] : std::uint8_t{128U},
+                                     l.chroma ? frame[luma + chroma_plane + c] : std::uint8_t{128U}};
+        Image pixel(1, 1);
+        planar_yuv_to_rgb(one, 1, 1, ChromaLayout::k444, YuvRange::kLimited, pixel.view);
+        const std::uint8_t* got = out.view.row(y) + 3 * x;
+        wrong += std::memcmp(got, pixel.bytes.data(), 3U) != 0 ? 1 : 0;
+      }
+    }
+    EXPECT_EQ(wrong, 0) << "layout " << static_cast<int>(l.layout);
+  }
+}
+
 TEST(PixelFormats, YuyvGreyAndWhite) {
   // Limited range: Y 16 = black, 235 = white, C 128 = no colour.
   const std::uint8_t yuyv[8] = {16, 128, 235, 128, 126, 128, 126, 128};
@@ -158,6 +209,42 @@ TEST(Y4mSource, EndOfStreamTruncationAndWrongSize) {
   EXPECT_EQ(Y4mSource::open((dir + "/none.y4m").c_str(), ReplayOptions{}).error(), CameraError::kNotFound);
   write_bytes(dir + "/bad.y4m", std::vector<std::uint8_t>{'J', 'U', 'N', 'K', '\n'});
   EXPECT_EQ(Y4mSource::open((dir + "/bad.y4m").c_str(), ReplayOptions{}).error(), CameraError::kCorrupt);
+}
+
+// A 4:2:2 clip written by hand, as `ffmpeg -pix_fmt yuv422p` does, with
+// per-frame parameters after FRAME (the format allows them): read and
+// converted like the planar frame itself; a file that ends inside a FRAME
+// line is truncated.
+TEST(Y4mSource, A422ClipWithFrameParameters) {
+  const std::string dir = temp_dir("y4m422");
+  const int w = 6;
+  const int h = 4;
+  const std::size_t bytes = planar_frame_bytes(w, h, ChromaLayout::k422);
+  std::vector<std::uint8_t> planes(bytes);
+  for (std::size_t i = 0; i < bytes; ++i) {
+    planes[i] = static_cast<std::uint8_t>(30U + i * 5U);
+  }
+  const std::string header = "YUV4MPEG2 W6 H4 F25:1 Ip C422\n";
+  std::vector<std::uint8_t> file(header.begin(), header.end());
+  const std::string frame_line = "FRAME Ixyz\n";
+  for (int f = 0; f < 2; ++f) {
+    file.insert(file.end(), frame_line.begin(), frame_line.end());
+    file.insert(file.end(), planes.begin(), planes.end());
+  }
+  const std::string cut = "FRAME Ix";  // ends inside the line
+  file.insert(file.end(), cut.begin(), cut.end());
+  write_bytes(dir + "/clip.y4m", file);
+  auto source = Y4mSource::open((dir + "/clip.y4m").c_str(), ReplayOptions{});
+  ASSERT_TRUE(source.ok());
+  Image expected(w, h);
+  planar_yuv_to_rgb(planes.data(), w, h, ChromaLayout::k422, YuvRange::kLimited, expected.view);
+  Image out(w, h);
+  FrameInfo info;
+  for (int f = 0; f < 2; ++f) {
+    ASSERT_TRUE(source.value()->acquire(out.view, info).ok()) << f;
+    EXPECT_EQ(out.bytes, expected.bytes) << f;
+  }
+  EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kTruncated);
 }
 
 TEST(JpegFileSource, DirectorySortedWithACorruptFileDropped) {
