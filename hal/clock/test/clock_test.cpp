@@ -61,6 +61,53 @@ TEST(PeriodicTimer, ZeroPeriodIsAnError) {
   EXPECT_FALSE(timer.wait_next().ok());
 }
 
+// A clock whose sleeps a signal interrupts while `interrupt` is set.
+class InterruptedClock final : public Clock {
+ public:
+  std::int64_t now_ns() const noexcept override { return now_; }
+  Status<ClockError> sleep_until_ns(std::int64_t deadline_ns) noexcept override {
+    if (interrupt) {
+      return Status<ClockError>::failure(ClockError::kInterrupted);
+    }
+    now_ = deadline_ns > now_ ? deadline_ns : now_;
+    return ok_status<ClockError>();
+  }
+  bool interrupt = true;
+
+ private:
+  std::int64_t now_ = 0;
+};
+
+// Bad input is an error value with a name; simulated time never goes back.
+TEST(Clocks, BadInputIsAnErrorValue) {
+  SimulatedClock clock(100);
+  const auto refused = clock.sleep_until_ns(-1);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error(), ClockError::kBadArgument);
+  clock.advance_ns(-50);
+  EXPECT_EQ(clock.now_ns(), 100);
+  // A timer whose sleep a signal cuts short passes that on (the loop stops
+  // cleanly on it), and waits for the same deadline next time.
+  InterruptedClock interrupted;
+  PeriodicTimer timer(interrupted, 10);
+  timer.start(0);
+  const auto tick = timer.wait_next();
+  ASSERT_FALSE(tick.ok());
+  EXPECT_EQ(tick.error(), ClockError::kInterrupted);
+  interrupted.interrupt = false;
+  const auto next = timer.wait_next();
+  ASSERT_TRUE(next.ok());
+  EXPECT_EQ(next.value().deadline_ns, 10);
+  const ClockError errors[] = {ClockError::kNone, ClockError::kInterrupted, ClockError::kBadArgument,
+                               ClockError::kSystem};
+  for (std::size_t i = 0; i < 4U; ++i) {
+    for (std::size_t j = i + 1U; j < 4U; ++j) {
+      EXPECT_STRNE(to_string(errors[i]), to_string(errors[j]));
+    }
+  }
+  EXPECT_STREQ(to_string(static_cast<ClockError>(200)), "unknown clock error");
+}
+
 }  // namespace
 }  // namespace hal
 }  // namespace tcpest
