@@ -56,6 +56,31 @@ TEST(RunCommand, ReplaysAClipOntoTheSimulatedBusAndLogsInCandumpFormat) {
   EXPECT_EQ(tcp, 5U);  // one TCP message per frame
 }
 
+// Without a config the loop runs as documented: the simulated camera, the
+// frame trigger at 25 Hz (paced), the simulated bus; a status line once a
+// second, then the summary.
+TEST(RunCommand, TheDefaultsRunTheSimulatedCameraPacedWithAStatusLine) {
+  const std::string dir = temp_dir();
+  const std::string log = dir + "/can.log";
+  testing::internal::CaptureStdout();
+  const int code = run({"run", "--frames", "30", "--bus", "log:" + log});
+  const std::string printed = testing::internal::GetCapturedStdout();
+  ASSERT_EQ(code, kExitOk) << printed;
+  EXPECT_NE(printed.find("tcpest run: source sim (720x576, sim)"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("trigger frame\n"), std::string::npos) << printed;  // paced: no "(no pacing)"
+  EXPECT_NE(printed.find("[operational] frames "), std::string::npos) << printed;  // 30 frames at 25 Hz: 1.2 s
+  EXPECT_NE(printed.find("cycles 30, frames 30, dropped frames 0"), std::string::npos) << printed;
+  std::ifstream in(log);
+  std::stringstream text;
+  text << in.rdbuf();
+  std::size_t tcp = 0U;
+  for (std::size_t at = text.str().find(" sim0 190#"); at != std::string::npos;
+       at = text.str().find(" sim0 190#", at + 1U)) {
+    ++tcp;
+  }
+  EXPECT_EQ(tcp, 30U);
+}
+
 TEST(RunCommand, ExitCodes) {
   const std::string dir = temp_dir();
   EXPECT_EQ(run({"run", "--bogus"}), kExitUsage);
