@@ -218,6 +218,43 @@ TEST(TemporalPriors, IdenticalFramesGiveTheFloorsAndAnUnseenMarkerNoPrior) {
   EXPECT_GE(tip.half_major_sd, 1e3);  // no information
 }
 
+// Priors predicted from a configuration r (the encoders) through the
+// models: each marker's centroid where the model puts the middle of its
+// stripe, its extent and its distance to the marker before; a marker the
+// model puts behind the camera is not expected in the image and carries no
+// information.
+TEST(ModelPriors, FollowTheModelAndSayNothingOfAMarkerBehindTheCamera) {
+  const auto camera = solver::CameraModel::create(solver::default_pal_camera());
+  const auto model = solver::InstrumentModel::create(solver::InstrumentGeometry{});
+  ASSERT_TRUE(camera.ok() && model.ok());
+  const solver::PoseVector ahead = model.value().geometry().nominal_pose(25.0, 0.3, 0.6);
+  const MarkerPriors p = model_priors(camera.value(), model.value(), ahead);
+  EXPECT_EQ(p.source, PriorSource::Model);
+  for (std::size_t m = 0U; m < static_cast<std::size_t>(kNumMarkers); ++m) {
+    const MarkerPrior& mp = p.marker[m];
+    EXPECT_TRUE(mp.in_image) << "marker " << m;
+    EXPECT_GT(mp.centroid_sd, 0.0) << "marker " << m;  // the position is known
+    EXPECT_GT(mp.half_major, mp.half_minor * 0.2) << "marker " << m;
+    EXPECT_LT(mp.half_major_sd, 1e3) << "marker " << m;
+    EXPECT_GT(mp.centroid.x, 0.0) << "marker " << m;
+    EXPECT_LT(mp.centroid.x, camera.value().width()) << "marker " << m;
+  }
+  // Consecutive markers' centroids lie about their parent distance apart.
+  for (std::size_t m = 1U; m < static_cast<std::size_t>(kNumMarkers); ++m) {
+    const double d = std::hypot(p.marker[m].centroid.x - p.marker[m - 1U].centroid.x,
+                                p.marker[m].centroid.y - p.marker[m - 1U].centroid.y);
+    EXPECT_NEAR(d, p.marker[m].parent_distance, 0.25 * p.marker[m].parent_distance) << "marker " << m;
+  }
+  // Bent back on itself just out of the channel: the last stripes pass
+  // behind the camera.
+  const solver::PoseVector behind = model.value().geometry().nominal_pose(0.0, 0.0, 3.1);
+  const MarkerPriors q = model_priors(camera.value(), model.value(), behind);
+  const MarkerPrior& tip = q.marker[static_cast<std::size_t>(kNumMarkers) - 1U];
+  EXPECT_FALSE(tip.in_image);
+  EXPECT_GE(tip.half_major_sd, 1e3);
+  EXPECT_GE(tip.parent_distance_sd, 1e3);
+}
+
 }  // namespace
 }  // namespace vision
 }  // namespace tcpest
