@@ -81,6 +81,29 @@ TEST(Regions, TooManyRegionsIsReportedNotACrash) {
   EXPECT_EQ(fx->result().regions.regions.size(), kMaxRegions);
 }
 
+// A frame fragmented beyond the run buffer (blue and yellow alternating
+// pixel by pixel: one run per pixel, the buffer holds half of them) is an
+// error value, not a crash, and the next frame is read as usual.
+TEST(Regions, AFrameTooFragmentedForTheRunBufferIsAnError) {
+  auto fx = make(64, 64);
+  Canvas shredded(64, 64);
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 64; ++x) {
+      shredded.fill_rect(x, y, x + 1, y + 1, (x + y) % 2 == 0 ? kBlue : kYellow);
+    }
+  }
+  const auto refused = fx->find_regions(shredded.view());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error(), VisionError::TooManyRuns);
+  EXPECT_TRUE(fx->result().regions.too_many_regions);
+  EXPECT_FALSE(fx->interpret(MarkerPriors{}).ok());  // the stages after it fail cleanly
+  Canvas calm(64, 64);
+  calm.fill_rect(10, 10, 30, 30, kBlue);
+  ASSERT_TRUE(fx->find_regions(calm.view()).ok());
+  EXPECT_FALSE(fx->result().regions.too_many_regions);
+  EXPECT_EQ(fx->result().regions.regions.size(), 1U);
+}
+
 TEST(Regions, BadAndOversizedImagesAreErrors) {
   auto fx = make(64, 64);
   EXPECT_EQ(fx->find_regions(ImageView{}).error(), VisionError::BadImage);
