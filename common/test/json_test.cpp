@@ -63,6 +63,48 @@ TEST(Json, ReportsTooManyTokensWithoutOverrun) {
   EXPECT_EQ(status.error().code, JsonError::TooManyTokens);
 }
 
+// The token array running out at each token of a document in turn (an
+// object, a key, a string, a number, a literal, an array): always
+// TooManyTokens, never a write past the array; one more token and it
+// parses. Lookups on a token of the wrong type are refused.
+TEST(Json, RunsOutOfTokensAtAnyTokenCleanlyAndRefusesWrongTypes) {
+  const char* text = R"({"a": "s", "b": [1, true, null], "c": {"d": []}})";
+  std::size_t needed = 0U;
+  {
+    Parsed p;
+    ASSERT_TRUE(p.parse(text));
+    needed = p.doc.token_count();
+  }
+  for (std::size_t capacity = 1U; capacity < needed; ++capacity) {
+    Token tokens[32];
+    Token& guard = tokens[capacity];
+    guard.start = 0xABCDU;
+    Document doc(tokens, capacity);
+    const auto status = doc.parse(text, std::strlen(text));
+    ASSERT_FALSE(status.ok()) << capacity;
+    EXPECT_EQ(status.error().code, JsonError::TooManyTokens) << capacity;
+    EXPECT_EQ(guard.start, 0xABCDU) << capacity;  // nothing written past the capacity
+  }
+  Token tokens[32];
+  Document doc(tokens, needed);
+  ASSERT_TRUE(doc.parse(text, std::strlen(text)).ok());
+
+  const std::size_t root = doc.root();
+  const std::size_t a = doc.member(root, "a").value();
+  const std::size_t b = doc.member(root, "b").value();
+  EXPECT_EQ(doc.member(a, "x").error(), LookupError::WrongType);      // a string is no object
+  EXPECT_EQ(doc.element(root, 0U).error(), LookupError::WrongType);  // an object is no array
+  EXPECT_EQ(doc.array_size(a), 0U);
+  EXPECT_FALSE(doc.string_equals(b, "s"));
+  double out[3];
+  EXPECT_EQ(doc.numbers(a, out, 3U).error(), LookupError::WrongType);
+  EXPECT_FALSE(doc.numbers(b, out, 3U).ok());  // true and null are not numbers
+  char small[4];
+  EXPECT_EQ(doc.string(b, small, sizeof small).error(), LookupError::WrongType);
+  EXPECT_EQ(doc.string(a, small, 0U).error(), LookupError::TooLong);
+  EXPECT_EQ(doc.member(needed + 5U, "a").error(), LookupError::WrongType);  // beyond the tokens
+}
+
 TEST(Json, RefusesNonFiniteNumbers) {
   Parsed p;
   ASSERT_TRUE(p.parse("[1e999]"));
