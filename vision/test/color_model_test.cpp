@@ -85,6 +85,45 @@ TEST(ColorModel, ClassifiesItsOwnMeans) {
   EXPECT_LT(m.yellow_minus_blue(80, 156, 233), 0.0);
 }
 
+// Degenerate models give bounded answers, never NaN: a singular covariance
+// accepts nothing, coincident class means give no score, a blue mean at the
+// origin no margin; the score is clamped for colours far past the means;
+// the model's text refuses a buffer too small for it.
+TEST(ColorModel, DegenerateModelsGiveBoundedAnswers) {
+  ColorGaussian singular;
+  singular.cov_aa = 1.0;
+  singular.cov_bb = 1.0;
+  singular.cov_ab = 1.0;  // determinant 0
+  EXPECT_FALSE(singular.valid());
+  EXPECT_GE(singular.distance(0.0, 0.0), 1e9);
+
+  ColorModel same = default_color_model();
+  same.yellow.mean_a = same.blue.mean_a;
+  same.yellow.mean_b = same.blue.mean_b;
+  EXPECT_EQ(same.yellow_minus_blue(218, 205, 80), 0.0);
+
+  ColorModel origin = default_color_model();
+  origin.blue.mean_a = 0.0;
+  origin.blue.mean_b = 0.0;
+  EXPECT_EQ(origin.blue_margin(80, 156, 233), 0.0);
+
+  // Means close together: a saturated colour lies many half-spans away.
+  ColorModel close = default_color_model();
+  close.yellow.mean_a = close.blue.mean_a + 0.5;
+  close.yellow.mean_b = close.blue.mean_b + 0.5;
+  const double far_yellow = close.yellow_minus_blue(255, 255, 0);
+  const double far_blue = close.yellow_minus_blue(0, 0, 255);
+  EXPECT_TRUE(std::isfinite(far_yellow) && std::isfinite(far_blue));
+  EXPECT_LE(std::fabs(far_yellow), 10.0);
+  EXPECT_LE(std::fabs(far_blue), 10.0);
+  EXPECT_TRUE(std::fabs(far_yellow) == 10.0 || std::fabs(far_blue) == 10.0);  // one of them clamped
+
+  char small[16];
+  EXPECT_EQ(format_color_model(default_color_model(), small, sizeof small), 0U);
+  char enough[2048];
+  EXPECT_GT(format_color_model(default_color_model(), enough, sizeof enough), 0U);
+}
+
 TEST(ColorTrainer, RecoversGaussiansAndChoosesThresholds) {
   ColorTrainer t;
   for (int pass = 0; pass < 2; ++pass) {
