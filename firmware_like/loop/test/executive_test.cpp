@@ -70,6 +70,19 @@ struct Rig {
   }
 };
 
+// Runs `cycles` cycles of `loop`; false (with the failure reported) at the
+// first that does not go on.
+bool run_cycles(Executive& loop, int cycles) {
+  for (int i = 0; i < cycles; ++i) {
+    const CycleOutcome outcome = loop.run_cycle();
+    if (outcome != CycleOutcome::kContinue) {
+      ADD_FAILURE() << "cycle " << i << " of " << cycles << " did not go on";
+      return false;
+    }
+  }
+  return true;
+}
+
 TEST(Executive, TracksTheSimulatedMotionAndPublishesEveryFrame) {
   Rig rig(50U);
   ASSERT_EQ(rig.loop->run(nullptr), CycleOutcome::kFinished);
@@ -92,13 +105,9 @@ TEST(Executive, TracksTheSimulatedMotionAndPublishesEveryFrame) {
 
 TEST(Executive, NoHeapAllocationPerCycleWithTheSimulatedCamera) {
   Rig rig(3000U);
-  for (int i = 0; i < 10; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 10));
   test::AllocationScope scope;
-  for (int i = 0; i < 2990; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 2990));
   EXPECT_EQ(scope.count(), 0U);
   EXPECT_EQ(rig.loop->stats().status[0], 3000U);
 }
@@ -125,13 +134,9 @@ TEST(Executive, NoHeapAllocationPerCycleWithRawY4mFrames) {
   auto source = hal::Y4mSource::open(path.c_str(), options);
   ASSERT_TRUE(source.ok());
   Rig rig(1U, source.value().get());
-  for (int i = 0; i < 10; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 10));
   test::AllocationScope scope;
-  for (int i = 0; i < 2000; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 2000));
   EXPECT_EQ(scope.count(), 0U);
   EXPECT_EQ(rig.loop->stats().frames, 2010U);
   // No truth on raw frames: the oracle finds nothing, so never a valid estimate.
@@ -159,9 +164,7 @@ TEST(Executive, FreshEncoderPriorIsUsedAndAStaleOneIsNot) {
   ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
   EXPECT_EQ(rig.loop->last().prior, PriorSource::kEncoder);
   // The replay is paced at 25 Hz on the simulated clock: after 3 frames the prior is 120 ms old.
-  for (int i = 0; i < 3; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 3));
   EXPECT_EQ(rig.loop->last().prior, PriorSource::kTemporal);
 }
 
@@ -200,20 +203,14 @@ TEST(Executive, ANonFiniteEncoderToleranceIsRefusedAtStartUp) {
 
 TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
   Rig rig(40U);
-  for (int i = 0; i < 5; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
   EXPECT_EQ(rig.node.published(), 5U);
   rig.node.inject_stop();
-  for (int i = 0; i < 5; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
   EXPECT_EQ(rig.node.published(), 5U);
   EXPECT_EQ(rig.loop->stats().frames, 5U);  // stopped: no processing either
   rig.node.inject_pre_operational();
-  for (int i = 0; i < 5; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
   EXPECT_EQ(rig.node.published(), 5U);
   EXPECT_EQ(rig.loop->stats().frames, 10U);  // pre-operational: processing goes on
   rig.node.inject_start();
@@ -315,22 +312,16 @@ TEST(Executive, LostCameraDegradesAndRecoversByItself) {
   Rig rig(100U);
   FlakyCamera flaky(*rig.source);
   rig.build(&flaky);
-  for (int i = 0; i < 5; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
   flaky.present = false;
-  for (int i = 0; i < 60; ++i) {  // 60 cycles at the 40 ms fallback period: 2.4 s
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 60));  // 60 cycles at the 40 ms fallback period: 2.4 s
   EXPECT_TRUE(rig.loop->last().camera_lost);
   EXPECT_TRUE(rig.node.fault_active(Fault::kCameraLost));
   EXPECT_EQ(rig.node.publication(0).status, EstimateStatus::kInvalid);
   EXPECT_GE(flaky.reopen_attempts, 2);
   EXPECT_LE(flaky.reopen_attempts, 3);  // once per retry_ms (1 s)
   flaky.present = true;
-  for (int i = 0; i < 40; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 40));
   EXPECT_FALSE(rig.loop->last().camera_lost);
   EXPECT_FALSE(rig.node.fault_active(Fault::kCameraLost));
   EXPECT_EQ(rig.loop->stats().camera_lost_events, 1U);
@@ -344,14 +335,10 @@ TEST(Executive, AResetNodeIsToldAgainOfTheFaultsThatStillHold) {
   Rig rig(100U);
   FlakyCamera flaky(*rig.source);
   rig.build(&flaky);
-  for (int i = 0; i < 5; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
   flaky.present = false;
   rig.node.set_bus_up(false);
-  for (int i = 0; i < 5; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
   ASSERT_TRUE(rig.node.fault_active(Fault::kCameraLost));
   ASSERT_TRUE(rig.node.fault_active(Fault::kBusLost));
   rig.node.inject_reset();
@@ -364,19 +351,13 @@ TEST(Executive, AResetNodeIsToldAgainOfTheFaultsThatStillHold) {
 
 TEST(Executive, LostBusDegradesAndRecoversByItself) {
   Rig rig(200U);
-  for (int i = 0; i < 5; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
   rig.node.set_bus_up(false);
-  for (int i = 0; i < 10; ++i) {
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 10));
   EXPECT_TRUE(rig.loop->last().bus_lost);
   EXPECT_EQ(rig.loop->stats().frames, 15U);  // processing goes on
   rig.node.set_bus_up(true);
-  for (int i = 0; i < 40; ++i) {  // retry_ms = 1 s = 25 frames
-    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
-  }
+  ASSERT_TRUE(run_cycles(*rig.loop, 40));  // retry_ms = 1 s = 25 frames
   EXPECT_FALSE(rig.loop->last().bus_lost);
   EXPECT_EQ(rig.loop->stats().bus_recoveries, 1U);
   EXPECT_FALSE(rig.node.fault_active(Fault::kBusLost));
