@@ -223,16 +223,26 @@ TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
   EXPECT_EQ(rig.loop->last().prior, PriorSource::kGeneric);
 }
 
-// A replay whose files are sometimes unreadable: `bad` gives, per acquire
-// call (from 0), the error to return instead of the next frame.
-class GlitchyReplay final : public hal::FrameSource {
+// A source serving the simulated camera's frames at 25 Hz, for the tests
+// that make it fail in their own ways.
+class WrappedSource : public hal::FrameSource {
  public:
-  GlitchyReplay(hal::SimCamera& inner, const std::vector<std::pair<int, hal::CameraError>>& bad)
-      : inner_(inner), bad_(bad) {}
-  const char* kind() const noexcept override { return "glitchy"; }
+  explicit WrappedSource(hal::SimCamera& inner) : inner_(inner) {}
   int width() const noexcept override { return inner_.width(); }
   int height() const noexcept override { return inner_.height(); }
   double rate_hz() const noexcept override { return 25.0; }
+
+ protected:
+  hal::SimCamera& inner_;
+};
+
+// A replay whose files are sometimes unreadable: `bad` gives, per acquire
+// call (from 0), the error to return instead of the next frame.
+class GlitchyReplay final : public WrappedSource {
+ public:
+  GlitchyReplay(hal::SimCamera& inner, const std::vector<std::pair<int, hal::CameraError>>& bad)
+      : WrappedSource(inner), bad_(bad) {}
+  const char* kind() const noexcept override { return "glitchy"; }
   bool live() const noexcept override { return false; }
   Status<hal::CameraError> acquire(const MutableImageView& out, hal::FrameInfo& info) noexcept override {
     const int call = calls_++;
@@ -246,7 +256,6 @@ class GlitchyReplay final : public hal::FrameSource {
   Status<hal::CameraError> reopen() noexcept override { return ok_status<hal::CameraError>(); }
 
  private:
-  hal::SimCamera& inner_;
   std::vector<std::pair<int, hal::CameraError>> bad_;
   int calls_ = 0;
 };
@@ -283,13 +292,10 @@ TEST(Executive, AnUnreadableFrameIsDroppedCountedAndTheLoopGoesOn) {
 }
 
 // A live camera that disappears and comes back.
-class FlakyCamera final : public hal::FrameSource {
+class FlakyCamera final : public WrappedSource {
  public:
-  explicit FlakyCamera(hal::SimCamera& inner) : inner_(inner) {}
+  explicit FlakyCamera(hal::SimCamera& inner) : WrappedSource(inner) {}
   const char* kind() const noexcept override { return "flaky"; }
-  int width() const noexcept override { return inner_.width(); }
-  int height() const noexcept override { return inner_.height(); }
-  double rate_hz() const noexcept override { return 25.0; }
   bool live() const noexcept override { return true; }
   Status<hal::CameraError> acquire(const MutableImageView& out, hal::FrameInfo& info) noexcept override {
     if (!present) {
@@ -303,9 +309,6 @@ class FlakyCamera final : public hal::FrameSource {
   }
   bool present = true;
   int reopen_attempts = 0;
-
- private:
-  hal::SimCamera& inner_;
 };
 
 TEST(Executive, LostCameraDegradesAndRecoversByItself) {
