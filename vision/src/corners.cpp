@@ -175,8 +175,8 @@ BoundaryCrossings read_crossings(const std::array<Border, 2>& borders, const Cor
     for (std::size_t q = 0U; q < kProfileInsets; ++q) {
       const double* profile = use_margin ? profiles.margin[side][q].data() : profiles.score[side][q].data();
       double best_slope = 0.0;
-      out.ok[side][q] = best_crossing(profile, profiles.valid[side][q].data(), profiles.samples, kProfileT0, profiles.dt, t_lo,
-                                      t_hi, want_sign, out.t[side][q], best_slope);
+      out.ok[side][q] = best_crossing(profile, profiles.valid[side][q].data(), profiles.samples, kProfileT0,
+                                      profiles.dt, t_lo, t_hi, want_sign, out.t[side][q], best_slope);
       if (out.ok[side][q]) {
         out.strength[side] += best_slope;
         const double tc = out.t[side][q];
