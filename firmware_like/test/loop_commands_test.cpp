@@ -56,20 +56,22 @@ TEST(RunCommand, ReplaysAClipOntoTheSimulatedBusAndLogsInCandumpFormat) {
   EXPECT_EQ(tcp, 5U);  // one TCP message per frame
 }
 
-// Without a config the loop runs as documented: the simulated camera, the
-// frame trigger at 25 Hz (paced), the simulated bus; a status line once a
-// second, then the summary.
-TEST(RunCommand, TheDefaultsRunTheSimulatedCameraPacedWithAStatusLine) {
+// The loop as deployed, paced at the source's 25 Hz (no --no-pacing) and
+// not quiet: a status line once a second, then the summary, one TCP
+// message per frame. (The simulated camera, the default source, renders
+// its sequence first; the demo's test runs it.)
+TEST(RunCommand, PacedRunPrintsAStatusLineEverySecond) {
   const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 30);
   const std::string log = dir + "/can.log";
   testing::internal::CaptureStdout();
-  const int code = run({"run", "--frames", "30", "--bus", "log:" + log});
+  const int code = run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log});
   const std::string printed = testing::internal::GetCapturedStdout();
   ASSERT_EQ(code, kExitOk) << printed;
-  EXPECT_NE(printed.find("tcpest run: source sim (720x576, sim)"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("(720x576, y4m)"), std::string::npos) << printed;
   EXPECT_NE(printed.find("trigger frame\n"), std::string::npos) << printed;  // paced: no "(no pacing)"
   EXPECT_NE(printed.find("[operational] frames "), std::string::npos) << printed;  // 30 frames at 25 Hz: 1.2 s
-  EXPECT_NE(printed.find("cycles 30, frames 30, dropped frames 0"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("cycles 31, frames 30, dropped frames 0"), std::string::npos) << printed;  // the last finds the end
   std::ifstream in(log);
   std::stringstream text;
   text << in.rdbuf();
