@@ -4,49 +4,27 @@
 #include <gtest/gtest.h>
 
 #include <dirent.h>
-#include <stdlib.h>
 
 #include <algorithm>
-#include <cstdio>
-#include <fstream>
-#include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli/commands.hpp"
+#include "command_test_support.hpp"
 
 namespace tcpest {
 namespace cli {
 namespace {
 
+using command_test::count_of;
+using command_test::slurp;
+
 int run(int (*command)(int, char**), std::vector<std::string> words) {
-  std::vector<char*> argv;
-  for (std::string& w : words) {
-    argv.push_back(&w[0]);
-  }
-  return command(static_cast<int>(argv.size()), argv.data());
+  return command_test::run_command(command, std::move(words));
 }
 
-std::string temp_dir() {
-  std::string dir = std::string(::testing::TempDir()) + "tcpest_demo_XXXXXX";
-  EXPECT_NE(::mkdtemp(&dir[0]), nullptr);
-  return dir;
-}
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-std::size_t count_of(const std::string& text, const std::string& what) {
-  std::size_t n = 0U;
-  for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1U)) {
-    ++n;
-  }
-  return n;
-}
+std::string temp_dir() { return command_test::fresh_dir("demo"); }
 
 std::vector<std::string> files_in(const std::string& dir) {
   std::vector<std::string> names;

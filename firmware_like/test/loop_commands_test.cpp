@@ -1,33 +1,25 @@
 // tcpest run end to end on a small raw clip: exit codes and the candump log.
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <fstream>
-#include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli/commands.hpp"
+#include "command_test_support.hpp"
 #include "tcpest/hal/camera/file_sources.hpp"
 
 namespace tcpest {
 namespace cli {
 namespace {
 
-int run(std::vector<std::string> words) {
-  std::vector<char*> argv;
-  for (std::string& w : words) {
-    argv.push_back(&w[0]);
-  }
-  return cmd_run(static_cast<int>(argv.size()), argv.data());
-}
+using command_test::count_of;
+using command_test::slurp;
 
-std::string temp_dir() {
-  std::string dir = std::string(::testing::TempDir()) + "tcpest_run_XXXXXX";
-  EXPECT_NE(::mkdtemp(&dir[0]), nullptr);
-  return dir;
-}
+int run(std::vector<std::string> words) { return command_test::run_command(cmd_run, std::move(words)); }
+
+std::string temp_dir() { return command_test::fresh_dir("run"); }
 
 void write_clip(const std::string& path, int w, int h, int frames) {
   hal::Y4mWriter writer;
@@ -44,16 +36,9 @@ TEST(RunCommand, ReplaysAClipOntoTheSimulatedBusAndLogsInCandumpFormat) {
   write_clip(dir + "/clip.y4m", 720, 576, 5);
   const std::string log = dir + "/can.log";
   EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet"}), kExitOk);
-  std::ifstream in(log);
-  std::stringstream text;
-  text << in.rdbuf();
-  const std::string s = text.str();
+  const std::string s = slurp(log);
   EXPECT_NE(s.find(" sim0 710#00\n"), std::string::npos) << s;  // boot-up
-  std::size_t tcp = 0U;
-  for (std::size_t at = s.find(" sim0 190#"); at != std::string::npos; at = s.find(" sim0 190#", at + 1U)) {
-    ++tcp;
-  }
-  EXPECT_EQ(tcp, 5U);  // one TCP message per frame
+  EXPECT_EQ(count_of(s, " sim0 190#"), 5U);                      // one TCP message per frame
 }
 
 // The loop as deployed, paced at the source's 25 Hz (no --no-pacing) and
@@ -71,16 +56,9 @@ TEST(RunCommand, PacedRunPrintsAStatusLineEverySecond) {
   EXPECT_NE(printed.find("(720x576, y4m)"), std::string::npos) << printed;
   EXPECT_NE(printed.find("trigger frame\n"), std::string::npos) << printed;  // paced: no "(no pacing)"
   EXPECT_NE(printed.find("[operational] frames "), std::string::npos) << printed;  // 30 frames at 25 Hz: 1.2 s
-  EXPECT_NE(printed.find("cycles 31, frames 30, dropped frames 0"), std::string::npos) << printed;  // the last finds the end
-  std::ifstream in(log);
-  std::stringstream text;
-  text << in.rdbuf();
-  std::size_t tcp = 0U;
-  for (std::size_t at = text.str().find(" sim0 190#"); at != std::string::npos;
-       at = text.str().find(" sim0 190#", at + 1U)) {
-    ++tcp;
-  }
-  EXPECT_EQ(tcp, 30U);
+  // The 31st cycle only finds the clip ended.
+  EXPECT_NE(printed.find("cycles 31, frames 30, dropped frames 0"), std::string::npos) << printed;
+  EXPECT_EQ(count_of(slurp(log), " sim0 190#"), 30U);
 }
 
 TEST(RunCommand, ExitCodes) {
