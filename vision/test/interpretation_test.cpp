@@ -219,10 +219,10 @@ TEST(TemporalPriors, IdenticalFramesGiveTheFloorsAndAnUnseenMarkerNoPrior) {
 }
 
 // Priors predicted from a configuration r (the encoders) through the
-// models: each marker's centroid where the model puts the middle of its
-// stripe, its extent and its distance to the marker before; a marker the
-// model puts behind the camera is not expected in the image and carries no
-// information.
+// models: every marker of a tube in view is expected in the image, at a
+// known position, with a size and a distance to the marker before that
+// agree with the centroids; a marker the model puts behind the camera is
+// not expected in the image and carries no information.
 TEST(ModelPriors, FollowTheModelAndSayNothingOfAMarkerBehindTheCamera) {
   const auto camera = solver::CameraModel::create(solver::default_pal_camera());
   const auto model = solver::InstrumentModel::create(solver::InstrumentGeometry{});

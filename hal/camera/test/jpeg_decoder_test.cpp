@@ -188,8 +188,9 @@ TEST(JpegDecoder, EverySamplingFitsTheDefaultArena) {
   }
 }
 
-// An arena too small for the image: kOutOfMemory, no crash, no heap
-// allocation instead, and the decoder takes the next image.
+// An arena too small for the image: kOutOfMemory at every decode, no
+// crash, no heap allocation instead, and the decoder stays usable (the
+// header reads); an arena of exactly the measured need decodes.
 TEST(JpegDecoder, AnExhaustedArenaIsOutOfMemoryAndTheDecoderCarriesOn) {
   const auto rgb = make_pattern(kW, kH, 3);
   const auto jpeg = encode_jpeg(rgb, kW, kH);

@@ -16,7 +16,8 @@ struct EncodeOptions {
   bool progressive = false;
   bool grayscale = false;
   // The luma's sampling factors (chroma at 1x1): 2x2 is 4:2:0, libjpeg's
-  // default; up to 4x4, the format's limit.
+  // default. With the two chroma blocks, at most 10 blocks per MCU (e.g.
+  // 4x2, not 3x3): libjpeg's encoder exits the process beyond that.
   int luma_h_samp = 2;
   int luma_v_samp = 2;
 };
