@@ -391,7 +391,8 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
 // 24, 28, 29 and 35 of seed 1 (each with part of the tube out of the
 // image, where stage 4's profiles have points without a sample) are run
 // in a row through one extractor and one estimator, then each through new
-// ones; every figure must be the same to the bit.
+// ones; the estimate (quality, r) and the corners (found, position,
+// confidence) must be the same to the bit.
 TEST(Pipeline, AFramesEstimateDoesNotDependOnTheFramesBeforeIt) {
   Fixture f;
   const HardScene scenes[] = {
