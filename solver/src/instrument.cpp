@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "tcpest/common/dmath.hpp"
+
 namespace tcpest {
 namespace solver {
 
@@ -29,7 +31,7 @@ Vec3 arc_position(double k, double s, double bend_length, double sin_ks, double 
   return Vec3(one_minus_cos(sin_ks, cos_ks) / k, 0.0, sin_ks / k);
 }
 Vec3 arc_position(double k, double s, double bend_length) noexcept {
-  return arc_position(k, s, bend_length, std::sin(k * s), std::cos(k * s));
+  return arc_position(k, s, bend_length, dmath::sin(k * s), dmath::cos(k * s));
 }
 
 // d p(s) / d k.
@@ -74,8 +76,8 @@ Mat3 rotation_z_derivative_cs(double c, double s) noexcept {
   return m;
 }
 
-Vec3 arc_tangent(double k, double s) noexcept { return Vec3(std::sin(k * s), 0.0, std::cos(k * s)); }
-Vec3 arc_normal(double k, double s) noexcept { return Vec3(std::cos(k * s), 0.0, -std::sin(k * s)); }
+Vec3 arc_tangent(double k, double s) noexcept { return Vec3(dmath::sin(k * s), 0.0, dmath::cos(k * s)); }
+Vec3 arc_normal(double k, double s) noexcept { return Vec3(dmath::cos(k * s), 0.0, -dmath::sin(k * s)); }
 
 bool finite_geometry(const InstrumentGeometry& g) noexcept {
   const double values[] = {g.bend_length_mm,    g.radius_mm,         g.tcp_offset_mm,         g.shaft_radius_mm,
@@ -98,9 +100,9 @@ bool finite_geometry(const InstrumentGeometry& g) noexcept {
 
 }  // namespace
 
-Mat3 rotation_x(double a) noexcept { return rotation_x_cs(std::cos(a), std::sin(a)); }
-Mat3 rotation_y(double a) noexcept { return rotation_y_cs(std::cos(a), std::sin(a)); }
-Mat3 rotation_z(double a) noexcept { return rotation_z_cs(std::cos(a), std::sin(a)); }
+Mat3 rotation_x(double a) noexcept { return rotation_x_cs(dmath::cos(a), dmath::sin(a)); }
+Mat3 rotation_y(double a) noexcept { return rotation_y_cs(dmath::cos(a), dmath::sin(a)); }
+Mat3 rotation_z(double a) noexcept { return rotation_z_cs(dmath::cos(a), dmath::sin(a)); }
 
 PoseVector nearest_equivalent_joints(const PoseVector& r, const PoseVector& reference) noexcept {
   if (!r.allFinite() || !reference.allFinite()) {
@@ -213,12 +215,12 @@ struct PoseTrig {
 };
 
 PoseFrames build_frames(const PoseVector& r, double bend_length_mm, PoseTrig& trig) noexcept {
-  trig.cos_psi = std::cos(r[kPsi]);
-  trig.sin_psi = std::sin(r[kPsi]);
-  trig.cos_mu = std::cos(r[kMu]);
-  trig.sin_mu = std::sin(r[kMu]);
-  trig.cos_phi = std::cos(r[kPhi]);
-  trig.sin_phi = std::sin(r[kPhi]);
+  trig.cos_psi = dmath::cos(r[kPsi]);
+  trig.sin_psi = dmath::sin(r[kPsi]);
+  trig.cos_mu = dmath::cos(r[kMu]);
+  trig.sin_mu = dmath::sin(r[kMu]);
+  trig.cos_phi = dmath::cos(r[kPhi]);
+  trig.sin_phi = dmath::sin(r[kPhi]);
   trig.ry = rotation_y_cs(trig.cos_psi, trig.sin_psi);
   trig.rx = rotation_x_cs(trig.cos_mu, trig.sin_mu);
   trig.rz = rotation_z_cs(trig.cos_phi, trig.sin_phi);
@@ -252,12 +254,12 @@ bool circle_limb_angles(const CentrelineFrame& cf, double radius_mm, double& lim
   // model.md: A = n . c, B = b . c, rho = hypot(A, B), a = atan2(B, A) +/- acos(-R / rho).
   const double a_coef = cf.normal.dot(cf.position);
   const double b_coef = cf.binormal.dot(cf.position);
-  const double rho = std::hypot(a_coef, b_coef);
+  const double rho = dmath::hypot(a_coef, b_coef);
   if (!(rho > radius_mm)) {
     return false;
   }
-  limb_centre_rad = std::atan2(b_coef, a_coef);
-  limb_half_rad = std::acos(-radius_mm / rho);
+  limb_centre_rad = dmath::atan2(b_coef, a_coef);
+  limb_half_rad = dmath::acos(-radius_mm / rho);
   return true;
 }
 
@@ -284,7 +286,7 @@ CircleLimbs circle_limbs(const CameraModel& camera, const CentrelineFrame& cf, d
   std::array<Vec3, 2> points{};
   for (std::size_t i = 0U; i < 2U; ++i) {
     const double a = base + (i == 0U ? -delta : delta);
-    points[i] = cf.position + radius * (std::cos(a) * cf.normal + std::sin(a) * cf.binormal);
+    points[i] = cf.position + radius * (dmath::cos(a) * cf.normal + dmath::sin(a) * cf.binormal);
     valid[i] = camera.project(points[i], pixels[i]);
     if (valid[i]) {
       const Vec2 v = pixels[i] - c_px;
@@ -500,8 +502,8 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     BoundaryCircle bc;
     bc.s = g_.boundaries_mm[static_cast<std::size_t>(j)];
     // One sine/cosine pair per boundary (the solver calls this every iteration).
-    bc.sin_ks = std::sin(f.curvature * bc.s);
-    bc.cos_ks = std::cos(f.curvature * bc.s);
+    bc.sin_ks = dmath::sin(f.curvature * bc.s);
+    bc.cos_ks = dmath::cos(f.curvature * bc.s);
     bc.p_local = arc_position(f.curvature, bc.s, g_.bend_length_mm, bc.sin_ks, bc.cos_ks);
     bc.n_local = Vec3(bc.cos_ks, 0.0, -bc.sin_ks);
     bc.t_local = Vec3(bc.sin_ks, 0.0, bc.cos_ks);
@@ -511,7 +513,7 @@ void InstrumentModel::corners(const CameraModel& camera, const PoseVector& r, Co
     bc.t = f.base_rotation * bc.t_local;
     bc.a_coef = bc.n.dot(bc.c);
     bc.b_coef = bc.b.dot(bc.c);
-    bc.rho = std::hypot(bc.a_coef, bc.b_coef);
+    bc.rho = dmath::hypot(bc.a_coef, bc.b_coef);
     LimbPair lp;
     if (!limb_pair(camera, bc, radius, lp)) {
       continue;

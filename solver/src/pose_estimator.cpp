@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstddef>
 
+#include "tcpest/common/dmath.hpp"
+
 namespace tcpest {
 namespace solver {
 
@@ -48,9 +50,9 @@ bool check_against_encoders(Estimate& estimate, const PoseVector& encoders, cons
   const PoseVector& r = estimate.r;
   const bool insertion_off = check.lambda_tolerance_mm > 0.0 &&
                              std::fabs(r[kLambda] - encoders[kLambda]) > check.lambda_tolerance_mm;
-  const double bend_dx = r[kTheta] * std::cos(r[kPhi]) - encoders[kTheta] * std::cos(encoders[kPhi]);
-  const double bend_dy = r[kTheta] * std::sin(r[kPhi]) - encoders[kTheta] * std::sin(encoders[kPhi]);
-  const bool bend_off = check.bend_tolerance_rad > 0.0 && std::hypot(bend_dx, bend_dy) > check.bend_tolerance_rad;
+  const double bend_dx = r[kTheta] * dmath::cos(r[kPhi]) - encoders[kTheta] * dmath::cos(encoders[kPhi]);
+  const double bend_dy = r[kTheta] * dmath::sin(r[kPhi]) - encoders[kTheta] * dmath::sin(encoders[kPhi]);
+  const bool bend_off = check.bend_tolerance_rad > 0.0 && dmath::hypot(bend_dx, bend_dy) > check.bend_tolerance_rad;
   if (!insertion_off && !bend_off) {
     return false;
   }

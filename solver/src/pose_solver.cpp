@@ -10,7 +10,8 @@ namespace {
 // Penalty residual e(u) = sqrt(2k/3) |u/a|^1.5 sign(u): 0.5 e^2 = (k/3)|u/a|^3.
 double penalty_residual(double u, double k, double a) noexcept {
   const double scaled = u / a;
-  const double magnitude = std::sqrt(2.0 * k / 3.0) * std::pow(std::fabs(scaled), 1.5);
+  const double abs_scaled = std::fabs(scaled);
+  const double magnitude = std::sqrt(2.0 * k / 3.0) * abs_scaled * std::sqrt(abs_scaled);  // |u/a|^1.5
   return std::copysign(magnitude, scaled);
 }
 

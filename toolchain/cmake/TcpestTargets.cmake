@@ -5,6 +5,14 @@ set(TCPEST_WARNINGS -Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Wsh
     -Wdouble-promotion -Wnon-virtual-dtor -Wold-style-cast -Wcast-align -Wnull-dereference
     -Werror)
 
+# The same bits on x86-64 and ARM64 (docs/architecture.md, "Reproducible
+# arithmetic"): no fused multiply-add, which GCC and Clang otherwise emit on
+# ARM64 and which rounds once where x86-64 rounds twice; and Eigen's scalar
+# paths, since its NEON kernels fuse and its packets sum in another order
+# than SSE's. libm's transcendental functions are replaced by common/dmath.
+add_compile_options(-ffp-contract=off)
+add_compile_definitions(EIGEN_DONT_VECTORIZE)
+
 if(TCPEST_SANITIZE)
   add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
   add_link_options(-fsanitize=address,undefined)

@@ -1,6 +1,7 @@
 // The IRLS fit of a quadratic Bezier curve (bezier_fit.hpp), and the
 // curve's evaluation (features.hpp's Bezier).
 #include "bezier_fit.hpp"
+#include "tcpest/common/dmath.hpp"
 
 #include <algorithm>
 #include <array>
@@ -83,7 +84,7 @@ bool fit_bezier(Border& border, double c, int iterations, int scale_iterations) 
   double total = 0.0;
   border.points[0].t = 0.0;
   for (std::size_t i = 1U; i < n; ++i) {
-    total += std::hypot(border.points[i].pixel.x - border.points[i - 1U].pixel.x,
+    total += dmath::hypot(border.points[i].pixel.x - border.points[i - 1U].pixel.x,
                         border.points[i].pixel.y - border.points[i - 1U].pixel.y);
     border.points[i].t = total;
   }
@@ -120,14 +121,14 @@ bool fit_bezier(Border& border, double c, int iterations, int scale_iterations) 
     const Bezier next{Point{x[0][0], x[0][1]}, Point{x[1][0], x[1][1]}, Point{x[2][0], x[2][1]}};
     double change = 0.0;
     if (it > 0) {
-      change = std::max({std::hypot(next.p0.x - curve.p0.x, next.p0.y - curve.p0.y),
-                         std::hypot(next.p1.x - curve.p1.x, next.p1.y - curve.p1.y),
-                         std::hypot(next.p2.x - curve.p2.x, next.p2.y - curve.p2.y)});
+      change = std::max({dmath::hypot(next.p0.x - curve.p0.x, next.p0.y - curve.p0.y),
+                         dmath::hypot(next.p1.x - curve.p1.x, next.p1.y - curve.p1.y),
+                         dmath::hypot(next.p2.x - curve.p2.x, next.p2.y - curve.p2.y)});
     }
     curve = next;
     for (std::size_t i = 0U; i < n; ++i) {
       const Point p = curve.at(border.points[i].t);
-      residual[i] = std::hypot(border.points[i].pixel.x - p.x, border.points[i].pixel.y - p.y);
+      residual[i] = dmath::hypot(border.points[i].pixel.x - p.x, border.points[i].pixel.y - p.y);
     }
     if (it < scale_iterations) {
       // MAD scale (residuals are distances, already >= 0), floored so that a

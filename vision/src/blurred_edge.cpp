@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstddef>
 
+#include "tcpest/common/dmath.hpp"
+
 namespace tcpest {
 namespace vision {
 namespace detail {
@@ -29,7 +31,7 @@ double shading_integral_exact(double u) noexcept {
     return 0.25 * kPi + (u - 1.0);
   }
   const double v = u - 1.0;  // in [-1, 0)
-  return 0.5 * (v * std::sqrt(std::max(0.0, 1.0 - v * v)) + std::asin(v)) + 0.25 * kPi;
+  return 0.5 * (v * std::sqrt(std::max(0.0, 1.0 - v * v)) + dmath::asin(v)) + 0.25 * kPi;
 }
 
 // The same from a table over [0, 1] (linear between entries: within

@@ -4,6 +4,7 @@
 
 #include "bezier_fit.hpp"
 #include "sampling.hpp"
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -64,12 +65,12 @@ bool build_skeleton(const Interpretation& in, double extension, Skeleton& sk) no
   const Region& last = in.markers[static_cast<std::size_t>(in.last_marker)].region;
   double dx = poly[2].x - poly[1].x;
   double dy = poly[2].y - poly[1].y;
-  double d = std::hypot(dx, dy);
+  double d = dmath::hypot(dx, dy);
   double reach = extension * first.extent_along(dx / d, dy / d);
   poly[0] = Point{poly[1].x - dx / d * reach, poly[1].y - dy / d * reach};
   dx = poly[count].x - poly[count - 1U].x;
   dy = poly[count].y - poly[count - 1U].y;
-  d = std::hypot(dx, dy);
+  d = dmath::hypot(dx, dy);
   reach = extension * last.extent_along(dx / d, dy / d);
   poly[count + 1U] = Point{poly[count].x + dx / d * reach, poly[count].y + dy / d * reach};
   sk.markers = count;
@@ -86,7 +87,7 @@ bool build_skeleton(const Interpretation& in, double extension, Skeleton& sk) no
     const Point b = poly[v + 1U];
     double tx = b.x - a.x;
     double ty = b.y - a.y;
-    const double tl = std::hypot(tx, ty);
+    const double tl = dmath::hypot(tx, ty);
     tx /= tl;
     ty /= tl;
     // The equivalent ellipse's extent understates a rectangle's half width
@@ -97,7 +98,7 @@ bool build_skeleton(const Interpretation& in, double extension, Skeleton& sk) no
   sk.half_width[0] = sk.half_width[1];
   sk.half_width[sk.vertices - 1U] = sk.half_width[sk.vertices - 2U];
   for (std::size_t i = 1U; i < sk.vertices; ++i) {
-    sk.arc[i] = sk.arc[i - 1U] + std::hypot(poly[i].x - poly[i - 1U].x, poly[i].y - poly[i - 1U].y);
+    sk.arc[i] = sk.arc[i - 1U] + dmath::hypot(poly[i].x - poly[i - 1U].x, poly[i].y - poly[i - 1U].y);
   }
   sk.length = sk.arc[sk.vertices - 1U];
   return true;
@@ -206,7 +207,7 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
     sk.point_at(s + smoothing, pb, wb);
     double tx = pb.x - pa.x;
     double ty = pb.y - pa.y;
-    const double tl = std::hypot(tx, ty);
+    const double tl = dmath::hypot(tx, ty);
     if (!(tl > 0.0) || !(w > 0.5)) {
       continue;
     }

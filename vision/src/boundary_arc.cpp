@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 
 #include "bezier_fit.hpp"
+#include "tcpest/common/dmath.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -73,8 +74,8 @@ bool fit_boundary_arc(const std::array<Border, 2>& borders, const Point* arc, st
     const Mat3 h_inv_t = h.inverse().transpose();
     const Vec3 l0 = h_inv_t * line[0];
     const Vec3 l1 = h_inv_t * line[1];
-    const double n0 = std::hypot(l0.x(), l0.y());
-    const double n1 = std::hypot(l1.x(), l1.y());
+    const double n0 = dmath::hypot(l0.x(), l0.y());
+    const double n1 = dmath::hypot(l1.x(), l1.y());
     if (!(n0 > 1e-12) || !(n1 > 1e-12)) {
       return false;
     }

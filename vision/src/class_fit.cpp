@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -92,7 +93,7 @@ int stripe_sample(const solver::InstrumentModel& model, const solver::PoseFrames
   const double s = s0 + (s1 - s0) * (0.2 + 0.3 * along);
   const double a = 6.283185307179586 * around / kStepsAround;
   const solver::CentrelineFrame c = model.centreline(f, s);
-  normal = std::cos(a) * c.normal + std::sin(a) * c.binormal;
+  normal = dmath::cos(a) * c.normal + dmath::sin(a) * c.binormal;
   point = c.position + g.radius_mm * normal;
   return m;
 }

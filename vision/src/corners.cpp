@@ -7,6 +7,7 @@
 #include "boundary_arc.hpp"
 #include "profile_crossing.hpp"
 #include "sampling.hpp"
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -66,7 +67,7 @@ void sample_border_profiles(const ImageView& image, const ColorModel& colors, co
     const double t = kProfileT0 + dt * static_cast<double>(i);
     const Point p = border.curve.at(t);
     const Point d = border.curve.derivative(t);
-    const double dl = std::hypot(d.x, d.y);
+    const double dl = dmath::hypot(d.x, d.y);
     // Outward normal: side 1's is (-dy, dx), side 0's the opposite.
     const double sign = side == 1U ? 1.0 : -1.0;
     const double nx = dl > 0.0 ? sign * (-d.y / dl) : 0.0;
@@ -98,7 +99,7 @@ void marker_params(const Interpretation& in, const Border& border, int samples, 
     for (int i = 0; i < samples; ++i) {
       const double t = kProfileT0 + dt * static_cast<double>(i);
       const Point p = border.curve.at(t);
-      const double dd = std::hypot(p.x - obs.region.centroid.x, p.y - obs.region.centroid.y);
+      const double dd = dmath::hypot(p.x - obs.region.centroid.x, p.y - obs.region.centroid.y);
       if (dd < best) {
         best = dd;
         marker_t[static_cast<std::size_t>(m)] = t;
@@ -182,7 +183,7 @@ BoundaryCrossings read_crossings(const std::array<Border, 2>& borders, const Cor
         const double tc = out.t[side][q];
         const Point p = border.curve.at(tc);
         const Point d = border.curve.derivative(tc);
-        const double dl = std::hypot(d.x, d.y);
+        const double dl = dmath::hypot(d.x, d.y);
         const double sign = side == 1U ? 1.0 : -1.0;
         const double inset = profiles.insets[q];
         if (dl > 0.0) {
@@ -214,13 +215,13 @@ void refit_local_border(const Border& global, const ExtractorConfig& config, dou
   const Point approx = global.curve.at(t);
   const double window = config.local_border_window * 2.0 * half_width;
   const Point dir = global.curve.derivative(t);
-  const double dir_len = std::hypot(dir.x, dir.y);
+  const double dir_len = dmath::hypot(dir.x, dir.y);
   for (const EdgePoint& ep : global.points) {
     const double along = dir_len > 0.0 ? ((ep.pixel.x - approx.x) * dir.x + (ep.pixel.y - approx.y) * dir.y) / dir_len : 0.0;
     if (end_sign * along < -config.end_margin_px) {
       continue;
     }
-    if (std::hypot(ep.pixel.x - approx.x, ep.pixel.y - approx.y) <= window) {
+    if (dmath::hypot(ep.pixel.x - approx.x, ep.pixel.y - approx.y) <= window) {
       static_cast<void>(local.points.push_back(ep));  // same capacity as the global border
     }
   }
@@ -233,7 +234,7 @@ void refit_local_border(const Border& global, const ExtractorConfig& config, dou
   double start = 0.5;
   for (int i = -4; i <= 24; ++i) {
     const Point q = local.curve.at(i / 20.0);
-    const double d = std::hypot(q.x - approx.x, q.y - approx.y);
+    const double d = dmath::hypot(q.x - approx.x, q.y - approx.y);
     if (d < best) {
       best = d;
       start = i / 20.0;
@@ -262,7 +263,7 @@ void fit_arc_corners(const std::array<Border, 2>& borders, std::array<Border, 2>
   for (std::size_t side = 0U; side < 2U; ++side) {
     const Point p = local[side].curve.at(t_corner[side]);
     const Point near = borders[side].curve.at(cr.t[side][static_cast<std::size_t>(cr.first_q[side])]);
-    if (std::hypot(p.x - near.x, p.y - near.y) < 3.0 * half_width + 3.0) {
+    if (dmath::hypot(p.x - near.x, p.y - near.y) < 3.0 * half_width + 3.0) {
       corner_px[side] = p;
       fitted[side] = true;
     }

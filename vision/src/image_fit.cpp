@@ -13,6 +13,7 @@
 #include "refiner.hpp"
 #include "robust_step.hpp"
 #include "sampling.hpp"
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -90,8 +91,8 @@ bool predict(const solver::CameraModel& camera, const solver::InstrumentModel& m
              solver::Vec2& pixel) noexcept {
   if (reading.arc) {
     const solver::CentrelineFrame& cf = boundary_frames[static_cast<std::size_t>(reading.boundary)];
-    const solver::Vec3 x = cf.position + model.geometry().radius_mm * (std::cos(reading.angle_rad) * cf.normal +
-                                                                        std::sin(reading.angle_rad) * cf.binormal);
+    const solver::Vec3 x = cf.position + model.geometry().radius_mm * (dmath::cos(reading.angle_rad) * cf.normal +
+                                                                        dmath::sin(reading.angle_rad) * cf.binormal);
     return camera.project(x, pixel);
   }
   solver::CircleLimbs limbs;
@@ -138,7 +139,7 @@ bool arc_point(const solver::CameraModel& camera, const solver::CentrelineFrame&
                const solver::CentrelineFrame& cf2, double radius_mm, double angle_rad, solver::Vec2& p,
                solver::Vec2& normal, double& px_per_mm) noexcept {
   const auto point_at = [&](const solver::CentrelineFrame& c, double angle) noexcept {
-    return solver::Vec3(c.position + radius_mm * (std::cos(angle) * c.normal + std::sin(angle) * c.binormal));
+    return solver::Vec3(c.position + radius_mm * (dmath::cos(angle) * c.normal + dmath::sin(angle) * c.binormal));
   };
   solver::Vec2 p_s, p_a;
   if (!camera.project(point_at(cf, angle_rad), p) || !camera.project(point_at(cf2, angle_rad), p_s) ||

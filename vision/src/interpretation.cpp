@@ -9,6 +9,7 @@
 // the next level. The hypothesis of highest total score wins.
 #include <cmath>
 
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -33,7 +34,7 @@ double shape_log(const Region& r, const MarkerPrior& prior) noexcept {
   double s = gaussian_log(r.half_major, prior.half_major, prior.half_major_sd) +
              gaussian_log(r.half_minor, prior.half_minor, prior.half_minor_sd);
   if (prior.centroid_sd > 0.0) {
-    const double d = std::hypot(r.centroid.x - prior.centroid.x, r.centroid.y - prior.centroid.y);
+    const double d = dmath::hypot(r.centroid.x - prior.centroid.x, r.centroid.y - prior.centroid.y);
     s += gaussian_log(d, 0.0, prior.centroid_sd);
   }
   return s;
@@ -44,7 +45,7 @@ double shape_log(const Region& r, const MarkerPrior& prior) noexcept {
 double distance_log(const Region& child, const Region& parent, const MarkerPrior& prior) noexcept {
   const double dx = child.centroid.x - parent.centroid.x;
   const double dy = child.centroid.y - parent.centroid.y;
-  const double d = std::hypot(dx, dy);
+  const double d = dmath::hypot(dx, dy);
   if (!(d > 0.0)) {
     return kNegligible;
   }
@@ -54,7 +55,7 @@ double distance_log(const Region& child, const Region& parent, const MarkerPrior
     s += gaussian_log(d / touching, 1.0, 0.25);
   }
   // Neighbouring stripes have similar sizes (same tube, similar depth).
-  const double area_ratio = std::log(static_cast<double>(child.area) / static_cast<double>(parent.area));
+  const double area_ratio = dmath::log(static_cast<double>(child.area) / static_cast<double>(parent.area));
   s += gaussian_log(area_ratio, 0.0, 0.7);
   return s;
 }
@@ -62,7 +63,7 @@ double distance_log(const Region& child, const Region& parent, const MarkerPrior
 bool adjacent(const Region& a, const Region& b, const ExtractorConfig& config) noexcept {
   const double dx = b.centroid.x - a.centroid.x;
   const double dy = b.centroid.y - a.centroid.y;
-  const double d = std::hypot(dx, dy);
+  const double d = dmath::hypot(dx, dy);
   if (!(d > 0.0)) {
     return false;
   }
@@ -107,8 +108,8 @@ void collect_children(const RegionList& regions, const ExtractorConfig& config, 
     if (heading.known) {
       const double dx = cand.centroid.x - parent.centroid.x;
       const double dy = cand.centroid.y - parent.centroid.y;
-      const double d = std::hypot(dx, dy);
-      if (!(d > 0.0) || (dx * heading.x + dy * heading.y) / d < std::cos(config.max_link_angle_rad)) {
+      const double d = dmath::hypot(dx, dy);
+      if (!(d > 0.0) || (dx * heading.x + dy * heading.y) / d < dmath::cos(config.max_link_angle_rad)) {
         continue;
       }
     }
@@ -178,7 +179,7 @@ double grow_hypothesis(const RegionList& regions, const ExtractorConfig& config,
     }
     const double dx = chosen.region.centroid.x - current.region.centroid.x;
     const double dy = chosen.region.centroid.y - current.region.centroid.y;
-    const double d = std::hypot(dx, dy);
+    const double d = dmath::hypot(dx, dy);
     if (d > 0.0) {
       heading = Heading{true, dx / d, dy / d};
     }
@@ -277,7 +278,7 @@ double FeatureExtractor::orientation_log(const Interpretation& hyp) const noexce
   const auto beyond = [this](const Region& end, const Region& inner) noexcept {
     const double dx = end.centroid.x - inner.centroid.x;
     const double dy = end.centroid.y - inner.centroid.y;
-    const double d = std::hypot(dx, dy);
+    const double d = dmath::hypot(dx, dy);
     if (!(d > 0.0)) {
       return -1.0;
     }
@@ -376,7 +377,7 @@ MarkerPriors generic_priors(const solver::CameraModel& camera, const solver::Ins
   // and the position only very weakly (sd 40 % of the image diagonal), which
   // tells the base from the tip when nothing else does.
   const solver::PoseVector r = model.geometry().nominal_pose(25.0, 0.0, 0.0);
-  const double diagonal = std::hypot(static_cast<double>(camera.width()), static_cast<double>(camera.height()));
+  const double diagonal = dmath::hypot(static_cast<double>(camera.width()), static_cast<double>(camera.height()));
   MarkerPriors p = predict(camera, model, r, 0.6, 3.0, 0.4 * diagonal);
   for (auto& m : p.marker) {
     m.parent_distance_sd = 1e3;  // the relative distance term does the work
@@ -391,7 +392,7 @@ MarkerPriors model_priors(const solver::CameraModel& camera, const solver::Instr
                           const solver::PoseVector& r) noexcept {
   // The encoders' r is off by a few millimetres and degrees (the play): sizes
   // within 30 %, positions within ~ 12 % of the image diagonal.
-  const double diagonal = std::hypot(static_cast<double>(camera.width()), static_cast<double>(camera.height()));
+  const double diagonal = dmath::hypot(static_cast<double>(camera.width()), static_cast<double>(camera.height()));
   MarkerPriors p = predict(camera, model, r, 0.3, 2.0, 0.12 * diagonal);
   p.source = PriorSource::Model;
   p.relative_only = false;
@@ -435,7 +436,7 @@ bool TemporalPriors::priors(MarkerPriors& out) const noexcept {
       q_major += r.half_major * r.half_major;
       q_minor += r.half_minor * r.half_minor;
       if (m > 0U && e.found[m - 1U]) {
-        const double d = std::hypot(r.centroid.x - e.region[m - 1U].centroid.x,
+        const double d = dmath::hypot(r.centroid.x - e.region[m - 1U].centroid.x,
                                     r.centroid.y - e.region[m - 1U].centroid.y);
         n_d += 1.0;
         s_d += d;

@@ -10,6 +10,7 @@
 #include "refiner.hpp"
 #include "robust_step.hpp"
 #include "sampling.hpp"
+#include "tcpest/common/dmath.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -145,7 +146,7 @@ void arc_widths(const ImageView& image, const ExtractorConfig& config, const sol
       const double u = -kStreakArcSpan + 2.0 * kStreakArcSpan * i / (kStreakArcPoints - 1.0);
       const double a = base + solver::kPi + u * half;
       const auto point_at = [&](double angle) noexcept {
-        return solver::Vec3(cf.position + g.radius_mm * (std::cos(angle) * cf.normal + std::sin(angle) * cf.binormal));
+        return solver::Vec3(cf.position + g.radius_mm * (dmath::cos(angle) * cf.normal + dmath::sin(angle) * cf.binormal));
       };
       solver::Vec2 p;
       solver::Vec2 p_a;

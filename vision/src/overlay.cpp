@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "tcpest/common/dmath.hpp"
+
 namespace tcpest {
 namespace vision {
 
@@ -18,7 +20,7 @@ void draw_pixel(const MutableImageView& image, int x, int y, std::uint8_t r, std
 
 void draw_line(const MutableImageView& image, Point a, Point b, std::uint8_t r, std::uint8_t g,
                std::uint8_t bl) noexcept {
-  const double len = std::hypot(b.x - a.x, b.y - a.y);
+  const double len = dmath::hypot(b.x - a.x, b.y - a.y);
   if (!std::isfinite(len)) {
     return;
   }

@@ -8,6 +8,7 @@
 
 #include "robust_step.hpp"
 #include "sampling.hpp"
+#include "tcpest/common/dmath.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -155,8 +156,8 @@ bool Refiner::median_arc_shift(double s_mm, double radius, double max_spread_mm,
   for (int i = 0; i < n; ++i) {
     const double u = -config_.refine_arc_span + 2.0 * config_.refine_arc_span * i / static_cast<double>(n - 1);
     const double a = base + solver::kPi + u * half;
-    const double ca = std::cos(a);
-    const double sa = std::sin(a);
+    const double ca = dmath::cos(a);
+    const double sa = dmath::sin(a);
     const solver::Vec3 x = cf.position + radius * (ca * cf.normal + sa * cf.binormal);
     const solver::Vec3 x2 = cf2.position + radius * (ca * cf2.normal + sa * cf2.binormal);
     solver::Vec2 p;

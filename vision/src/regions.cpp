@@ -6,6 +6,7 @@
 #include <new>
 
 #include "blurred_edge.hpp"
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -148,7 +149,7 @@ void Region::update_shape() noexcept {
   // Uniform ellipse: variance along a half axis h is h^2 / 4.
   half_major = 2.0 * std::sqrt(l1 > 0.0 ? l1 : 0.0);
   half_minor = 2.0 * std::sqrt(l2 > 0.0 ? l2 : 0.0);
-  orientation_rad = 0.5 * std::atan2(2.0 * cov_xy, cov_xx - cov_yy);
+  orientation_rad = 0.5 * dmath::atan2(2.0 * cov_xy, cov_xx - cov_yy);
 }
 
 double Region::extent_along(double dx, double dy) const noexcept {

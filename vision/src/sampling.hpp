@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/common/image.hpp"
 
 namespace tcpest {
@@ -56,7 +57,7 @@ class LinearLight {
   LinearLight() noexcept {
     for (std::size_t i = 0U; i < table_.size(); ++i) {
       const double c = static_cast<double>(i) / 255.0;
-      table_[i] = c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);  // IEC 61966-2-1
+      table_[i] = c <= 0.04045 ? c / 12.92 : dmath::pow_positive((c + 0.055) / 1.055, 2.4);  // IEC 61966-2-1
     }
   }
   double operator()(double code) const noexcept {

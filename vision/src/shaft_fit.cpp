@@ -9,6 +9,7 @@
 #include "refiner.hpp"
 #include "robust_step.hpp"
 #include "sampling.hpp"
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -54,7 +55,7 @@ double chroma_at(const ImageView& image, const solver::Vec2& p, bool& ok) noexce
     return 0.0;
   }
   const Lab lab = srgb_to_lab(to_byte(c.r), to_byte(c.g), to_byte(c.b));
-  return std::hypot(lab.a, lab.b);
+  return dmath::hypot(lab.a, lab.b);
 }
 
 // The chroma below which a pixel counts as the shaft's (neutral): half the

@@ -1239,9 +1239,9 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
 // coarse fit can hold the tip's stripes on the wrong side of the bend. The
 // start with theta, then phi, moved by 0.2 rad (GuidedOptions::
 // bend_seed_step_rad, the 6th to 9th fallback seeds) gives these frames
-// back, through the set's JPEG step: hard frame 264 of seed 4 (a decoy;
-// the insertion 40 mm, the tube bent 100 deg), frame 144 of seed 1
-// (motion blur) and frame 7 of seed 6 (an occluder). Against a
+// back, through the set's JPEG step: hard frame 80 of seed 8 (haze),
+// frame 247 of seed 5 (a reflection and motion blur) and frame 174 of
+// seed 5 (an occluder). Against a
 // fit-confirmed result a bend seed's must be clearly better (the image's
 // word, not a lower residual or a better quality alone): lab frames 18 and
 // 44 of seeds 2 and 3 turned valid and wrong when a better quality sufficed.
@@ -1249,24 +1249,20 @@ TEST(Pipeline, TheStartWithItsBendMovedServesAFrameTheOtherSeedsMiss) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);
   const HardScene scenes[] = {
-      {{-12.9471630212, 3.43320698535, 0.149373642844, -0.000962414789932, 40.0, -0.523598775598, -1.74532925199},
-       {41.6117083674, -0.371323134704, -1.78740029881},
-       render::kHardDecoy,
-       5316090087492561450ULL},
-      {{-15.1860115342, 5.95190275855, 0.146304074967, 0.0345450041838, 25.0, 0.0, -1.74532925199},
-       {25.2769092139, 0.154601091305, -1.94091222188},
-       render::kHardMotionBlur,
-       8759523368719847753ULL},
-      {{-12.8756701714, 8.88209655889, 0.173844306442, -0.0267444323004, 10.0, -1.0471975512, -1.0471975512},
-       {12.3917015983, -0.967053862286, -1.14690247062},
+      {{-12.7525113069, 6.8266975778, -0.0470163597044, 0.0349700818137, 15.0, 1.57079632679, -0.349065850399},
+       {16.2232062483, 1.6393498988, -0.377891873347},
+       render::kHardHaze,
+       6203356988446045692ULL},
+      {{-12.495548026, 6.03176213956, 0.240372868873, -0.0199008201376, 35.0, 1.57079632679, -1.0471975512},
+       {34.8777644334, 1.71450276702, -1.24174179439},
+       render::kHardReflection | render::kHardMotionBlur,
+       14949407499927228877ULL},
+      {{-11.2826089524, 4.23949917782, 0.106940548746, -0.0667048646543, 30.0, -1.0471975512, -1.74532925199},
+       {27.5555974805, -0.859553845753, -1.59634853292},
        render::kHardOccluder,
-       16891268673161875406ULL},
+       13780827038972857408ULL},
   };
-  // The silhouette under the streak read at the plateau's outer end, as
-  // when the scenes were found: with the blurred edge's model, frame 144
-  // (motion blur) succeeds from the other seeds already.
-  ExtractorConfig config = without_grasper();
-  config.refine_streak_edge_model = false;
+  const ExtractorConfig config;
   for (const HardScene& scene : scenes) {
     const GuidedOptions options;
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
@@ -1436,8 +1432,8 @@ TEST(Pipeline, TheTipArcUnderASmearIsReadAtTheBoundaryItself) {
 // of a model of the blurred profile (the tube's shading falling to its
 // limb, then the tissue, averaged over the smear, the smear searched
 // around the one read), not the gradient plateau's outer end moved in by
-// half the read smear: hard frames 219 (seed 1), 92 (seed 2) and 98
-// (seed 4), each with motion blur alone, succeed only with the model.
+// half the read smear: hard frames 219 (seed 1), 92 (seed 2) and 122
+// (seed 6), each with motion blur alone, succeed only with the model.
 TEST(Pipeline, UnderAStreakTheSilhouetteIsReadByTheBlurredEdgesModel) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);
@@ -1450,10 +1446,10 @@ TEST(Pipeline, UnderAStreakTheSilhouetteIsReadByTheBlurredEdgesModel) {
        {21.5104354706, -1.05563867688, -0.507594819001},
        render::kHardMotionBlur,
        16059572106010929422ULL},
-      {{-14.9461532856, 9.15325731243, 0.20392392056, 0.0803750241, 20.0, -0.5235987756, -0.3490658504},
-       {22.3274799494, -0.620904460265, -0.175160177885},
+      {{-12.699685248, 7.11006376779, 0.0845269501139, -0.125194906264, 20.0, 1.57079632679, -0.349065850399},
+       {17.2541920866, 1.47602778024, -0.520065588824},
        render::kHardMotionBlur,
-       16704574884949942559ULL},
+       15695762979032147049ULL},
   };
   for (const HardScene& scene : scenes) {
     const WithAndWithout runs = expect_success_only_with_rule(

@@ -3,15 +3,17 @@
 #include <cmath>
 #include <cstring>
 
+#include "tcpest/common/dmath.hpp"
+
 namespace tcpest {
 namespace loop {
 
 solver::PoseVector MotionSequence::pose(const solver::InstrumentGeometry& geometry, std::uint32_t index) const noexcept {
   const double t = static_cast<double>(index) / (rate_hz > 0.0 ? rate_hz : 25.0);
   const double two_pi = 2.0 * solver::kPi;
-  const double lambda = lambda_mid_mm + lambda_amp_mm * std::sin(two_pi * t / lambda_period_s);
-  const double phi = phi_amp_rad * std::sin(two_pi * t / phi_period_s + 0.7);
-  const double theta = theta_mid_rad + theta_amp_rad * std::sin(two_pi * t / theta_period_s + 1.9);
+  const double lambda = lambda_mid_mm + lambda_amp_mm * dmath::sin(two_pi * t / lambda_period_s);
+  const double phi = phi_amp_rad * dmath::sin(two_pi * t / phi_period_s + 0.7);
+  const double theta = theta_mid_rad + theta_amp_rad * dmath::sin(two_pi * t / theta_period_s + 1.9);
   return geometry.nominal_pose(lambda, phi, theta);
 }
 

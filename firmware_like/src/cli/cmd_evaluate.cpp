@@ -22,6 +22,7 @@
 #include "cli/joint_errors.hpp"
 #include "cli/setup.hpp"
 #include "cli/vision_run.hpp"
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/render/sidecar.hpp"
 
 namespace tcpest {
@@ -142,7 +143,7 @@ struct StreakTally {
         length_errors_px.push_back(std::fabs(read_px.norm() - true_px.norm()));
         // The sign is arbitrary: the angle between the two lines, 0..90 deg.
         const double cosine = std::fabs(read_px.dot(true_px)) / (read_px.norm() * true_px.norm());
-        direction_errors_deg.push_back(std::acos(std::min(1.0, cosine)) * 180.0 / solver::kPi);
+        direction_errors_deg.push_back(dmath::acos(std::min(1.0, cosine)) * 180.0 / solver::kPi);
       }
     } else if (truth.has_render) {
       ++sharp_frames;
@@ -213,7 +214,7 @@ CornerScore score_corners(const render::Sidecar& truth, const EstimateResult& re
     }
     ++score.found;
     const bool has_truth = truth.instrument.corner_present[k];
-    const double err = has_truth ? std::hypot(e.corners[k].pixel.x - truth.instrument.corners[k].x(),
+    const double err = has_truth ? dmath::hypot(e.corners[k].pixel.x - truth.instrument.corners[k].x(),
                                               e.corners[k].pixel.y - truth.instrument.corners[k].y())
                                  : 1e9;
     if (err <= tolerance_px) {
@@ -228,7 +229,7 @@ CornerScore score_corners(const render::Sidecar& truth, const EstimateResult& re
       if (other == k || !truth.instrument.corner_present[other]) {
         continue;
       }
-      const double to_other = std::hypot(e.corners[k].pixel.x - truth.instrument.corners[other].x(),
+      const double to_other = dmath::hypot(e.corners[k].pixel.x - truth.instrument.corners[other].x(),
                                          e.corners[k].pixel.y - truth.instrument.corners[other].y());
       if (to_other <= tolerance_px && to_other < err) {
         ++score.mislabelled;
@@ -257,7 +258,7 @@ void write_corner_rows(FILE* csv, const char* dir, bool pooled, const render::Si
     const double v = found ? e.corners[k].pixel.y : std::nan("");
     std::fprintf(csv, "%s%s%s,%zu,%d,%.3f,%.3f,%d,%.3f,%.3f,%.3f,%.3f,%s,%.3f,%.3f\n", pooled ? dir : "",
                  pooled ? "/" : "", truth.image, k, truth.instrument.corner_visible[k] ? 1 : 0, tu, tv, found ? 1 : 0,
-                 u, v, found ? e.corners[k].confidence : 0.0, std::hypot(u - tu, v - tv), to_string(result.status),
+                 u, v, found ? e.corners[k].confidence : 0.0, dmath::hypot(u - tu, v - tv), to_string(result.status),
                  model.present[k] ? model.pixel[k].x() : std::nan(""),
                  model.present[k] ? model.pixel[k].y() : std::nan(""));
   }

@@ -25,6 +25,7 @@
 #include "cli/commands.hpp"
 #include "cli/setup.hpp"
 #include "cli/vision_run.hpp"
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/common/json.hpp"
 #include "tcpest/render/sidecar.hpp"
 
@@ -275,7 +276,7 @@ bool load_sidecars(const char* dir, const ModelSetup& setup, std::vector<Frame>&
         const solver::CentrelineFrame c = setup.instrument.centreline(pf, s_mm);
         for (int a = 0; a < 120; ++a) {
           const double angle = 2.0 * solver::kPi * a / 120.0;
-          const solver::Vec3 normal = std::cos(angle) * c.normal + std::sin(angle) * c.binormal;
+          const solver::Vec3 normal = dmath::cos(angle) * c.normal + dmath::sin(angle) * c.binormal;
           const solver::Vec3 x = c.position + g.radius_mm * normal;
           if (normal.dot(x.normalized()) > -0.35) {
             continue;  // grazing or turned away: near the silhouette

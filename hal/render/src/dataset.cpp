@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "scene_random.hpp"
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/render/renderer.hpp"
 
 namespace tcpest {
@@ -103,7 +104,7 @@ SequenceSample SequenceGenerator::sample(std::uint32_t frame) const noexcept {
   auto wave_sum = [t](const auto& waves) {
     double v = 0.0;
     for (const auto& w : waves) {
-      v += w.amplitude * std::sin(2.0 * kPi * w.frequency_hz * t + w.phase);
+      v += w.amplitude * dmath::sin(2.0 * kPi * w.frequency_hz * t + w.phase);
     }
     return v;
   };

@@ -8,6 +8,7 @@
 #include <new>
 
 #include "scene_random.hpp"
+#include "tcpest/common/dmath.hpp"
 
 namespace tcpest {
 namespace render {
@@ -501,8 +502,8 @@ void Renderer::Impl::bake_textures() noexcept {
       // second finer; looks like a branching vessel network.
       const double n1 = fractal(kBakeSeed + 4U, u, v, 128, 3);
       const double n2 = fractal(kBakeSeed + 5U, u, v, 64, 3);
-      const double v1 = std::exp(-(n1 * n1) / (2.0 * 0.018 * 0.018));
-      const double v2 = 0.7 * std::exp(-(n2 * n2) / (2.0 * 0.012 * 0.012));
+      const double v1 = dmath::exp(-(n1 * n1) / (2.0 * 0.018 * 0.018));
+      const double v2 = 0.7 * dmath::exp(-(n2 * n2) / (2.0 * 0.012 * 0.012));
       // Faded in places: segments and branches rather than closed loops.
       const double fade = smoothstep(-0.25, 0.35, fractal(kBakeSeed + 8U, u, v, 128, 3));
       tex[kTexVessel].at(x, y) = static_cast<float>(std::max(v1, v2) * fade);
@@ -562,8 +563,8 @@ void Renderer::Impl::bake_textures() noexcept {
   // 8-bit levels. Index = linear * kToneLutSize / kToneMax.
   for (int i = 0; i <= kToneLutSize; ++i) {
     const double x = 4.0 * static_cast<double>(i) / kToneLutSize;
-    const double shoulder = 1.0 - std::exp(-1.6 * x);
-    tone[i] = static_cast<float>(255.0 * std::pow(shoulder, 1.0 / 2.2));
+    const double shoulder = 1.0 - dmath::exp(-1.6 * x);
+    tone[i] = static_cast<float>(255.0 * dmath::pow_positive(shoulder, 1.0 / 2.2));
   }
   materials.albedo[kPartShaft] = Rgb{0.008, 0.008, 0.009};
   materials.specular[kPartShaft] = 0.35;
@@ -748,8 +749,8 @@ bool Renderer::Impl::in_occluder(double x, double y) const noexcept {
   if (r2 > outer * outer) {
     return false;
   }
-  const double a = std::atan2(dy, dx);
-  const double rim = s.occ_radius * (1.0 + 0.14 * std::sin(2.0 * a + s.occ_p1) + 0.07 * std::sin(3.0 * a + s.occ_p2));
+  const double a = dmath::atan2(dy, dx);
+  const double rim = s.occ_radius * (1.0 + 0.14 * dmath::sin(2.0 * a + s.occ_p1) + 0.07 * dmath::sin(3.0 * a + s.occ_p2));
   return r2 < rim * rim;
 }
 
@@ -807,8 +808,8 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueS
     const double dy = sy - s.decoy_y;
     const double d = std::sqrt(dx * dx + dy * dy);
     if (d < 1.3 * s.decoy_radius) {
-      const double a = std::atan2(dy, dx);
-      const double rim = s.decoy_radius * (1.0 + 0.15 * std::sin(2.0 * a + 1.0) + 0.08 * std::sin(5.0 * a));
+      const double a = dmath::atan2(dy, dx);
+      const double rim = s.decoy_radius * (1.0 + 0.15 * dmath::sin(2.0 * a + 1.0) + 0.08 * dmath::sin(5.0 * a));
       if (d < rim) {
         albedo = mix(albedo, s.decoy_albedo, 0.9);
         label = kLabelDecoy;
@@ -920,7 +921,7 @@ Rgb Renderer::Impl::apply_haze(const Rgb& c, double depth, double x, double y) c
   // Patchy: smoke drifts in wisps.
   const double wisps = smoothstep(-0.4, 0.5, sample_tissue(u * 0.7, v * 0.7).height);
   const double density = s.haze_density * (0.2 + 1.6 * wisps);
-  const double f = 1.0 - std::exp(-density * depth);
+  const double f = 1.0 - dmath::exp(-density * depth);
   return mix(c, s.haze_radiance, f);
 }
 
@@ -984,8 +985,8 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   s.tilt_y = rng.uniform(-0.25, 0.25);
   s.bump_mm = rng.uniform(2.0, 6.0);
   const double angle = rng.uniform(0.0, 6.283185307179586);
-  s.tex_cos = std::cos(angle);
-  s.tex_sin = std::sin(angle);
+  s.tex_cos = dmath::cos(angle);
+  s.tex_sin = dmath::sin(angle);
   s.tex_u0 = rng.uniform(0.0, kTexSize);
   s.tex_v0 = rng.uniform(0.0, kTexSize);
   s.clean = scene.clean;
@@ -1029,8 +1030,8 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
     }
     const double a = hard_rng.uniform(0.0, 6.283185307179586);
     const double dist = hard_rng.uniform(0.15, 0.35);
-    const double nx = cx + dist * std::cos(a);
-    const double ny = cy + dist * std::sin(a);
+    const double nx = cx + dist * dmath::cos(a);
+    const double ny = cy + dist * dmath::sin(a);
     const double plane = s.depth_mm * (1.0 + s.tilt_x * nx + s.tilt_y * ny);
     s.decoy_x = nx * plane;
     s.decoy_y = ny * plane;
@@ -1050,8 +1051,8 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
     s.motion_blur = true;
     const double a = hard_rng.uniform(0.0, 6.283185307179586);
     const double len = hard_rng.uniform(5.0, 14.0);
-    s.blur_dx = len * std::cos(a);
-    s.blur_dy = len * std::sin(a);
+    s.blur_dx = len * dmath::cos(a);
+    s.blur_dy = len * dmath::sin(a);
   }
 }
 
@@ -1130,7 +1131,7 @@ void Renderer::Impl::apply_motion_blur(const float* src, float* dst) const noexc
   const int w = width;
   const int h = height;
   constexpr int kMaxSteps = 32;
-  const int steps = std::min(kMaxSteps, std::max(2, static_cast<int>(std::ceil(std::hypot(s.blur_dx, s.blur_dy)))));
+  const int steps = std::min(kMaxSteps, std::max(2, static_cast<int>(std::ceil(dmath::hypot(s.blur_dx, s.blur_dy)))));
   int off_x[kMaxSteps + 1];
   int off_y[kMaxSteps + 1];
   int reach_x = 0;
@@ -1175,7 +1176,7 @@ void Renderer::Impl::apply_motion_blur(const float* src, float* dst) const noexc
 void Renderer::Impl::apply_optical_blur(float* image, float* tmp) const noexcept {
   const int w = width;
   const int h = height;
-  const auto side = static_cast<float>(std::exp(-1.0 / (2.0 * layout.blur_sigma * layout.blur_sigma)));
+  const auto side = static_cast<float>(dmath::exp(-1.0 / (2.0 * layout.blur_sigma * layout.blur_sigma)));
   const float norm = 1.0F / (1.0F + 2.0F * side);
   const float wc = norm;
   const float ws = side * norm;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "tcpest/common/dmath.hpp"
 #include "tcpest/common/splitmix64.hpp"
 
 namespace tcpest {
@@ -27,7 +28,7 @@ class Random {
   double normal() noexcept {
     const double u1 = 1.0 - uniform();  // (0, 1]
     const double u2 = uniform();
-    return std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+    return std::sqrt(-2.0 * dmath::log(u1)) * dmath::cos(6.283185307179586 * u2);
   }
   int below(int n) noexcept { return static_cast<int>(next() % static_cast<std::uint64_t>(n)); }
 
