@@ -31,8 +31,8 @@ if [ "$quick" -eq 0 ]; then
   cmake --preset clang >/dev/null
   cmake --build build/clang -j"$jobs"
 
-  step "aarch64 cross build"
-  toolchain/cross-aarch64.sh
+  step "aarch64 cross build, its tests under qemu-user, the same bits as the host's"
+  toolchain/cross-aarch64.sh --test
 
   step "vcan tests (SocketCAN against the kernel's vcan driver)"
   ctest --test-dir build/default -L vcan --output-on-failure
