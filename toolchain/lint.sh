@@ -1,12 +1,23 @@
 #!/usr/bin/env bash
 # clang-tidy (config: .clang-tidy) and cppcheck over the first-party sources
-# of a configured build (its compile_commands.json). Fails on any finding.
+# of a configured build (its compile_commands.json), after a check that no
+# product code calls libm's transcendental functions. Fails on any finding.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build="${1:-build/default}"
 mapfile -t sources < <(git ls-files '*.cpp' | grep -E '^(common|solver|vision|can_iface|hal|firmware_like)/' | grep -v '/test/')
 if [ "${#sources[@]}" -eq 0 ]; then
   echo "lint: no sources"; exit 0
+fi
+# Reproducible arithmetic (docs/architecture.md): product code calls
+# tcpest::dmath, never libm's transcendental functions, whose last bit
+# depends on the CPU. Tests may call libm (dmath's own tests compare with it).
+mapfile -t product_code < <(git ls-files '*.cpp' '*.hpp' | grep -E '^(common|solver|vision|can_iface|hal|firmware_like)/' |
+                            grep -v -E '/test/|/bench/')
+libm_pattern='std::(sin|cos|tan|asin|acos|atan|atan2|sinh|cosh|tanh|exp|exp2|expm1|log|log2|log10|log1p|pow|cbrt|hypot|erf|erfc|tgamma|lgamma)[[:space:]]*\('
+if grep -n -E "$libm_pattern" "${product_code[@]}"; then
+  echo "lint: libm's transcendental functions above; call tcpest::dmath (common/include/tcpest/common/dmath.hpp)"
+  exit 1
 fi
 echo "clang-tidy: ${#sources[@]} files"
 log="$(mktemp)"
