@@ -11,8 +11,9 @@
 #   3. those frames estimated by both builds (tcpest estimate --json, the
 #      temporal priors chaining them): the same output but the timings.
 # The host's release build (build/default) must exist for 2 and 3.
-# --test all: every test of the ARM64 build but the vcan ones (about an
-# hour under emulation on two cores; not in CI).
+# --test all: every test of the ARM64 build but the vcan ones; not in CI
+# (on two cores, 380 tests take about 25 minutes under emulation, and the
+# demo's and the bench's command tests far longer).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! dpkg --print-foreign-architectures | grep -qx arm64; then
