@@ -51,9 +51,12 @@ double clamp_score(double v) noexcept {
 
 Lab srgb_to_lab(std::uint8_t red, std::uint8_t green, std::uint8_t blue) noexcept {
   const detail::LinearLight& linear = detail::linear_light();
-  const double r = linear.of_code(red);
-  const double g = linear.of_code(green);
-  const double b = linear.of_code(blue);
+  return linear_to_lab(linear.of_code(red), linear.of_code(green), linear.of_code(blue));
+}
+
+double srgb_code_to_linear(std::uint8_t code) noexcept { return detail::linear_light().of_code(code); }
+
+Lab linear_to_lab(double r, double g, double b) noexcept {
   // sRGB primaries, D65 white (IEC 61966-2-1).
   const double x = 0.4124564 * r + 0.3575761 * g + 0.1804375 * b;
   const double y = 0.2126729 * r + 0.7151522 * g + 0.0721750 * b;
@@ -62,6 +65,20 @@ Lab srgb_to_lab(std::uint8_t red, std::uint8_t green, std::uint8_t blue) noexcep
   const double fy = lab_f(y);
   const double fz = lab_f(z / 1.08883);
   return Lab{116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)};
+}
+
+void lab_to_linear(const Lab& lab, double& red, double& green, double& blue) noexcept {
+  constexpr double kDelta = 6.0 / 29.0;
+  const auto finv = [](double f) {
+    return f > kDelta ? f * f * f : 3.0 * kDelta * kDelta * (f - 4.0 / 29.0);
+  };
+  const double fy = (lab.l + 16.0) / 116.0;
+  const double x = 0.95047 * finv(fy + lab.a / 500.0);
+  const double y = finv(fy);
+  const double z = 1.08883 * finv(fy - lab.b / 200.0);
+  red = 3.2404542 * x - 1.5371385 * y - 0.4985314 * z;
+  green = -0.9692660 * x + 1.8760108 * y + 0.0415560 * z;
+  blue = 0.0556434 * x - 0.2040259 * y + 1.0572252 * z;
 }
 
 double ColorGaussian::distance(double a, double b) const noexcept {

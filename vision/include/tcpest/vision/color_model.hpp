@@ -27,6 +27,12 @@ struct Lab {
 
 // sRGB (8 bit per channel, IEC 61966-2-1 transfer curve) to CIE L*a*b*, D65.
 Lab srgb_to_lab(std::uint8_t red, std::uint8_t green, std::uint8_t blue) noexcept;
+// An 8-bit sRGB code's linear light (0..1, IEC 61966-2-1).
+double srgb_code_to_linear(std::uint8_t code) noexcept;
+// Linear-light sRGB (0..1 nominal) to L*a*b* and back (D65): light mixes
+// linearly, so a blur is modelled in linear light between the two.
+Lab linear_to_lab(double red, double green, double blue) noexcept;
+void lab_to_linear(const Lab& lab, double& red, double& green, double& blue) noexcept;
 
 struct ColorGaussian {
   double mean_a = 0.0;

@@ -1,0 +1,71 @@
+// The dense stage (ours, after the model-guided rounds): the pose fitted to
+// every pixel around the instrument (DenseFit) from several starts, the
+// best kept by the fit's own cost. Starts: the poses the pipeline found
+// (its image fit's, its solve's), and the start pose (the encoders' or the
+// track's) with its insertion and bend moved by the encoders' accuracy.
+// Each start is first fitted coarsely on a small work image; the best of
+// those, and the pipeline's own poses as they are, are fitted finely on a
+// larger one, and the lowest cost wins. The corners are then the model's
+// at that pose, those the image shows (DenseFit::corner_support).
+// docs/vision.md, "The dense stage".
+#pragma once
+
+#include <array>
+
+#include "tcpest/common/image.hpp"
+#include "tcpest/solver/camera.hpp"
+#include "tcpest/solver/instrument.hpp"
+#include "tcpest/vision/dense_fit.hpp"
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace vision {
+
+struct DenseOptions {
+  int coarse_pixels = 6000;
+  int fine_pixels = 24000;
+  int coarse_iterations = 10;
+  int fine_iterations = 15;
+  int fine_candidates = 2;           // coarse results refined (besides the pipeline's poses)
+  int coarse_smoothing = 0;          // binomial passes over the coarse work image (a wider basin)
+  bool start_variants = true;        // the start moved by +/- lambda_step_mm and +/- bend_step_rad
+  double lambda_step_mm = 2.0;
+  double bend_step_rad = 0.2;
+  bool channel_variants = false;     // the start's channel moved by +/- channel_step_mm in x and y
+                                     // (off: more starts, about the same result on the hard sets)
+  double channel_step_mm = 1.5;
+  double min_corner_support = 0.5;   // a corner is reported when the image around it is the rendering's
+};
+// Ranges: work images of 256 to 2^20 pixels, 1 to 100 iterations, 0 to
+// kMaxDenseFineCandidates fine candidates, 0 to 8 smoothing passes, steps
+// finite and positive (lambda up to 10 mm, bends up to 1 rad, the channel
+// up to 5 mm), the corner support within 0..1.
+bool dense_options_valid(const DenseOptions& options) noexcept;
+constexpr int kMaxDenseSeeds = 2;
+constexpr int kMaxDenseStarts = kMaxDenseSeeds + 11;
+constexpr int kMaxDenseFineCandidates = 4;
+
+struct DenseResult {
+  bool ok = false;
+  solver::PoseVector r = solver::PoseVector::Zero();
+  solver::Vec2 streak_px = solver::Vec2::Zero();
+  DenseFitSummary fit{};
+  std::array<double, kNumCorners> support{};
+  std::array<Corner, kNumCorners> corners{};  // the model's at r, found where supported
+  int corner_count = 0;
+  // The fine stage's candidates (for diagnostics): poses and costs.
+  int fine_count = 0;
+  std::array<solver::PoseVector, kMaxDenseFineCandidates + kMaxDenseSeeds> fine_r{};
+  std::array<double, kMaxDenseFineCandidates + kMaxDenseSeeds> fine_cost{};
+};
+
+// `seeds`: the pipeline's poses (at most kMaxDenseSeeds; may be empty);
+// `start`: the encoders' or the track's; `streak_px`: the streak the
+// pipeline read (zero: none). Allocation-free; bounded by the options.
+DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                           const ImageView& image, const solver::PoseVector* seeds, int seed_count,
+                           const solver::PoseVector& start, const solver::Vec2& streak_px,
+                           const DenseOptions& options) noexcept;
+
+}  // namespace vision
+}  // namespace tcpest

@@ -1,0 +1,240 @@
+// The dense fit (ours, after the paper's pipeline): the pose fitted to every
+// pixel around the instrument. The frame's a*b* chroma is compared with a
+// rendering of the model's parts (shaft, blue and yellow stripes, grasper,
+// tissue) with analytic anti-aliasing, the sensor's slight blur and the
+// motion streak, under a mixture likelihood in which a pixel is either the
+// rendering's or an occluder's (tissue-like) or an outlier. Robust
+// Levenberg-Marquardt over r (and the streak), the appearance of each part
+// solved linearly at every step. docs/vision.md, "The dense stage".
+//
+// Every buffer is allocated in create(); set_region() and fit() allocate
+// nothing, and every loop has a fixed bound.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+
+#include <Eigen/Core>
+
+#include "tcpest/common/image.hpp"
+#include "tcpest/common/result.hpp"
+#include "tcpest/solver/camera.hpp"
+#include "tcpest/solver/instrument.hpp"
+#include "tcpest/vision/color_model.hpp"
+#include "tcpest/vision/features.hpp"
+
+namespace tcpest {
+namespace vision {
+
+struct DenseFitConfig {
+  // The largest camera image (the ray table's size).
+  int max_width = 1920;
+  int max_height = 1080;
+  // The work image: the region around the instrument averaged in square
+  // blocks until it has at most this many pixels (set_region's target).
+  int max_work_pixels = 24000;
+  // Chords per stripe of the rendered bending section (their sagitta at
+  // the tightest bend stays under 0.02 mm).
+  int chords_per_stripe = 4;
+  // The region holds the shaft's last this many mm (the shaft is drawn whole).
+  double shaft_region_mm = 12.0;
+  double margin_px = 10.0;
+  // Mixture likelihood (L*a*b* units): the rendering's spread; an occluder
+  // (anything in front of the instrument: tissue, blood, a highlight) with
+  // its weight, which explains any colour but the stripes' (their position
+  // on the blue-to-yellow axis, -1 to 1 at the colour model's means, within
+  // occluder_stripe_width of 0 is what an occluder may show); the floor.
+  double model_sigma = 10.0;
+  double occluder_weight = 0.1;
+  double occluder_stripe_width = 0.4;
+  double outlier_floor = 1e-4;
+  // The stripes' appearance is the colour model's means times one chroma
+  // scale plus deviations, regularised with this share of the weights.
+  double stripe_deviation_reg = 0.1;
+  double stripe_shading_reg = 0.002;
+  // Longer steps tried along an accepted direction (doubling).
+  int line_search_steps = 3;
+  // Weak Gaussian prior of the channel's pose around its CAD values.
+  double channel_prior_mm = 3.0;
+  double channel_prior_rad = 0.1;
+  // The motion streak (full length, px) is kept within this.
+  double max_streak_px = 20.0;
+  // Binomial passes of the sensor's blur at block size 1.
+  int optical_blur_passes = 1;
+  // L* is compared beside a* and b*, scaled by this (it carries the
+  // shading, and the shaft's and grasper's edges that chroma lacks).
+  double lightness_weight = 0.5;
+  // The blur modelled in linear light (false: in L*a*b*).
+  bool linear_light_blur = true;
+};
+
+struct DenseFitSummary {
+  bool ok = false;
+  int iterations = 0;
+  double cost = 0.0;           // at the final pose, comparable between fits in one region
+  double initial_cost = 0.0;
+  double inlier_share = 0.0;   // mean responsibility of the rendering over the region
+  double chroma_scale = 1.0;   // the stripes' chroma relative to the colour model (haze < 1)
+};
+
+class DenseFit {
+ public:
+  static constexpr int kMaxChordsPerStripe = 8;
+  static constexpr int kMaxSegments = 2 + kNumMarkers * kMaxChordsPerStripe;
+  static constexpr int kParams = 9;  // r (7) and the streak (2)
+  // Parts: 1 shaft, 2..6 markers 1..5, 7 grasper (0: none).
+  static constexpr int kParts = 8;
+  static constexpr int kShadeTerms = 3;        // a part's appearance: 1, c, c^2 (c: cosine of view and normal)
+  static constexpr int kBackgroundTerms = 3;   // the tissue's: 1, x, y
+  // Basis planes: tissue (3), shaft (3), grasper (3), each marker (1), the
+  // blue and the yellow markers' c and c^2 (4).
+  static constexpr int kBasis = 3 * kBackgroundTerms + kNumMarkers + 4;
+  static constexpr int kMaxStreakTaps = 48;
+  static constexpr int kChannels = 3;  // a*, b*, lightness_weight * L*
+  // The fitted parameters: r (7) and the streak (2).
+  using ParamVector = Eigen::Matrix<double, kParams, 1>;
+  using ParamMatrix = Eigen::Matrix<double, kParams, kParams>;
+
+  static Result<std::unique_ptr<DenseFit>, VisionError> create(const solver::CameraModel& camera,
+                                                                const solver::InstrumentModel& model,
+                                                                const ColorModel& colors,
+                                                                const DenseFitConfig& config) noexcept;
+  ~DenseFit();
+  DenseFit(const DenseFit&) = delete;
+  DenseFit& operator=(const DenseFit&) = delete;
+  DenseFit(DenseFit&&) = delete;
+  DenseFit& operator=(DenseFit&&) = delete;
+
+  // The work region for the poses given (the union of their instruments,
+  // grown by the margin and half the streak), averaged into blocks so that
+  // at most `target_pixels` remain, and smoothed by `smoothing_passes`
+  // binomial passes (the prediction gets the same: a wider basin). Fails
+  // with NoInstrument when no pose projects into the image, BadImage for
+  // an image of another size than the camera's.
+  Status<VisionError> set_region(const ImageView& image, const solver::PoseVector* poses, int count,
+                                 double streak_length_px, int target_pixels, int smoothing_passes) noexcept;
+  // Levenberg-Marquardt from r and streak_px within the region; both are
+  // updated. `constrained`: the stripes' colour only scaled, no shading
+  // terms (a coarse start). The streak is fitted when it is longer than
+  // 1 px and fit_streak is set.
+  DenseFitSummary fit(solver::PoseVector& r, solver::Vec2& streak_px, int max_iterations, bool constrained,
+                      bool fit_streak) noexcept;
+  // How much of the image around each corner of r the rendering explains
+  // (mean responsibility within a few pixels; 0 when outside the region or
+  // hidden by the instrument), for the corners to report. After fit().
+  void corner_support(const solver::PoseVector& r, const solver::Vec2& streak_px,
+                      std::array<double, kNumCorners>& support) noexcept;
+  int block_size() const noexcept { return scale_; }
+  int work_pixels() const noexcept { return rw_ * rh_; }
+
+ private:
+  DenseFit() noexcept = default;
+  struct Segment {
+    float ax, ay, az, bx, by, bz, ex, ey, ez;   // ends and unit axis (mm, camera frame)
+    float nax, nay, naz, nbx, nby, nbz;          // cut planes' normals at the ends
+    float len, radius, s_a, ds;                  // length, radius, arc length at a, ds per mm of axis
+    bool cap_a, cap_b;
+    std::uint8_t part;                           // 0 shaft, 1..5 marker, 6 grasper
+  };
+  void build_segments(const solver::PoseVector& r) noexcept;
+  // The image box (px) of the instruments at the poses; false: none in front of the camera.
+  bool instrument_bounds(const solver::PoseVector* poses, int count, double& xmin, double& xmax, double& ymin,
+                         double& ymax) noexcept;
+  // The work image's rays and block-averaged L*a*b* (region and block size set).
+  void sample_work_image(const ImageView& image) noexcept;
+  void compute_occluder_likelihood() noexcept;
+  bool occluded_by_instrument(const solver::Vec3& point, double s_point_mm) const noexcept;
+  void render_geometry(const solver::PoseVector& r) noexcept;
+  // A segment's reach in the work image: its box, and (bounded: both ends
+  // in front of the camera) its projected axis and half width (work
+  // pixels), so that each row is visited only where the segment's band
+  // crosses it.
+  struct SegmentWindow {
+    int bx0 = 0, bx1 = 0, by0 = 0, by1 = 0;
+    double pax = 0.0, pay = 0.0, pbx = 0.0, pby = 0.0, band = 0.0;
+    bool bounded = false;
+  };
+  // The ray-segment terms that do not depend on the ray.
+  struct RayConstants {
+    float md = 0.0F, mpx = 0.0F, mpy = 0.0F, mpz = 0.0F, c0 = 0.0F, r2 = 0.0F;
+  };
+  // False: the segment misses the work image.
+  bool segment_window(const Segment& s, SegmentWindow& w) const noexcept;
+  // The columns [rx0, rx1] of row y the segment's band crosses; false: none.
+  static bool row_span(const SegmentWindow& w, int y, int& rx0, int& rx1) noexcept;
+  // One work pixel's ray against one segment: signed distance, first hit, shading.
+  void trace_ray(const Segment& s, const RayConstants& k, std::size_t i) noexcept;
+  // Each work pixel's coverage by the instrument and its two main parts.
+  void compute_coverage() noexcept;
+  void build_streak_kernel(const solver::Vec2& streak_px) noexcept;
+  void blur_plane(float* plane) noexcept;
+  // Every part's a*b* as 1, c, c^2 terms; the tissue's as 1, x, y (x, y
+  // over the region from -1 to 1); the markers' chroma scales.
+  struct Appearance {
+    double tissue[kBackgroundTerms][kChannels] = {};
+    double part[kParts][kShadeTerms][kChannels] = {};
+    double scale[kNumMarkers] = {1.0, 1.0, 1.0, 1.0, 1.0};
+  };
+  // Predictions and Jacobian columns are kChannels planes of work pixels.
+  void predict_sharp(const Appearance& appearance, float* pred) const noexcept;
+  void render_prediction(const solver::PoseVector& r, const solver::Vec2& streak_px, const Appearance& appearance,
+                         float* pred) noexcept;
+  void render_basis(const solver::PoseVector& r, const solver::Vec2& streak_px) noexcept;
+  void blur_prediction(const Appearance& appearance) noexcept;
+  void blur_in_linear_light(float* pred) noexcept;
+  void solve_appearance(bool constrained, Appearance& appearance) noexcept;
+  void solve_lightness(bool constrained, Appearance& appearance) noexcept;
+  double cost(const float* pred, bool update_weights) noexcept;
+  // The channel's prior, in the cost's units.
+  double prior_cost(const ParamVector& theta) const noexcept;
+  // The appearance at theta from the default; returns the cost there.
+  double start_appearance(const ParamVector& theta, bool constrained, Appearance& app) noexcept;
+  // Gauss-Newton's H and gradient at theta (the appearance held; the
+  // Jacobian by forward differences); parameters from nparams on are held.
+  void normal_equations(const ParamVector& theta, const Appearance& app, int nparams, ParamMatrix& H,
+                        ParamVector& grad) noexcept;
+  // Levenberg-Marquardt's step from theta with damping mu (both updated),
+  // then longer ones along it; false: no step lowered the cost.
+  bool damped_step(const ParamMatrix& H, const ParamVector& grad, const Appearance& app, double c_cur, double& mu,
+                   ParamVector& theta) noexcept;
+  void default_appearance(Appearance& appearance) noexcept;
+
+  solver::CameraModel camera_{};
+  solver::InstrumentModel model_{};
+  ColorModel colors_{};
+  DenseFitConfig config_{};
+  int width_ = 0;
+  int height_ = 0;
+  // Rays (normalised undistorted x, y) of every second pixel, interpolated.
+  int ray_w_ = 0;
+  int ray_h_ = 0;
+  std::unique_ptr<float[]> ray_x_, ray_y_;
+  std::array<Segment, kMaxSegments> segs_{};
+  int seg_count_ = 0;
+  // The region (full resolution) and the work image.
+  int fx0_ = 0, fy0_ = 0, fw_ = 0, fh_ = 0;
+  int scale_ = 1, rw_ = 0, rh_ = 0, smoothing_ = 0;
+  std::size_t capacity_ = 0U;
+  std::unique_ptr<float[]> wrx_, wry_, obs_, occluder_;  // occluder_: the occluder's likelihood of each work pixel
+  // Geometry per work pixel.
+  std::unique_ptr<float[]> sd_, snear_, thit_, shit_, shade_, sval_;
+  std::unique_ptr<float[]> cov0_, cov1_;
+  std::unique_ptr<std::uint8_t[]> cls0_, cls1_;
+  // Blurred basis planes (kBasis), predictions, Jacobian (kParams x 2), weights, scratch.
+  std::unique_ptr<float[]> basis_, pred_, trial_, jac_, weights_, tmp_, scratch_;
+  // The streak's kernel: offsets (work pixels) and weights.
+  static constexpr std::size_t kMaxKernelTaps = 4U * static_cast<std::size_t>(kMaxStreakTaps);
+  std::array<int, kMaxKernelTaps> k_dx_{}, k_dy_{};
+  std::array<float, kMaxKernelTaps> k_w_{};
+  int k_count_ = 0;
+  int k_reach_ = 0;
+  bool blur_streak_ = false;
+  int taps_ = 1;
+  double sigma_ = 10.0;
+  double tissue_[kBackgroundTerms][kChannels] = {};
+  double chroma_scale_ = 1.0;
+};
+
+}  // namespace vision
+}  // namespace tcpest

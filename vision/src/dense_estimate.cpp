@@ -1,0 +1,167 @@
+#include "tcpest/vision/dense_estimate.hpp"
+
+namespace tcpest {
+namespace vision {
+
+using solver::PoseVector;
+using solver::Vec2;
+
+namespace {
+
+struct Candidate {
+  PoseVector r = PoseVector::Zero();
+  Vec2 streak = Vec2::Zero();
+  double cost = 0.0;
+};
+
+// Insertion sort by cost (a handful of candidates).
+void sort_by_cost(Candidate* c, int n) noexcept {
+  for (int i = 1; i < n; ++i) {
+    for (int j = i; j > 0 && c[j].cost < c[j - 1].cost; --j) {
+      const Candidate t = c[j];
+      c[j] = c[j - 1];
+      c[j - 1] = t;
+    }
+  }
+}
+
+// The starts: the pipeline's poses, the start pose and its variants (at
+// most kMaxDenseStarts: 2 seeds, the start, 6 + 4 variants).
+int collect_starts(const PoseVector* seeds, int nseeds, const PoseVector& start, const DenseOptions& options,
+                   PoseVector* starts) noexcept {
+  int n = 0;
+  for (int i = 0; i < nseeds; ++i) {
+    if (seeds[i].allFinite()) {
+      starts[n++] = seeds[i];
+    }
+  }
+  if (start.allFinite()) {
+    starts[n++] = start;
+    if (options.start_variants) {
+      for (int d = -1; d <= 1; d += 2) {
+        PoseVector q = start;
+        q[solver::kLambda] += d * options.lambda_step_mm;
+        starts[n++] = q;
+        q = start;
+        q[solver::kTheta] += d * options.bend_step_rad;
+        starts[n++] = q;
+        q = start;
+        q[solver::kPhi] += d * options.bend_step_rad;
+        starts[n++] = q;
+      }
+    }
+    if (options.channel_variants) {
+      for (int d = -1; d <= 1; d += 2) {
+        PoseVector q = start;
+        q[solver::kXch] += d * options.channel_step_mm;
+        starts[n++] = q;
+        q = start;
+        q[solver::kYch] += d * options.channel_step_mm;
+        starts[n++] = q;
+      }
+    }
+  }
+  return n;
+}
+
+}  // namespace
+
+bool dense_options_valid(const DenseOptions& options) noexcept {
+  const auto pixels_ok = [](int n) noexcept { return n >= 256 && n <= (1 << 20); };
+  const auto iterations_ok = [](int n) noexcept { return n >= 1 && n <= 100; };
+  return pixels_ok(options.coarse_pixels) && pixels_ok(options.fine_pixels) &&
+         iterations_ok(options.coarse_iterations) && iterations_ok(options.fine_iterations) &&
+         options.fine_candidates >= 0 && options.fine_candidates <= kMaxDenseFineCandidates &&
+         options.coarse_smoothing >= 0 && options.coarse_smoothing <= 8 &&
+         options.lambda_step_mm > 0.0 && options.lambda_step_mm <= 10.0 && options.bend_step_rad > 0.0 &&
+         options.bend_step_rad <= 1.0 && options.channel_step_mm > 0.0 && options.channel_step_mm <= 5.0 &&
+         options.min_corner_support >= 0.0 && options.min_corner_support <= 1.0;
+}
+
+DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
+                           const ImageView& image, const PoseVector* seeds, int seed_count, const PoseVector& start,
+                           const Vec2& streak_px, const DenseOptions& options) noexcept {
+  DenseResult result;
+  const int nseeds = seed_count < 0 ? 0 : (seed_count > kMaxDenseSeeds ? kMaxDenseSeeds : seed_count);
+  PoseVector starts[kMaxDenseStarts];
+  const int n = collect_starts(seeds, nseeds, start, options, starts);
+  if (n == 0) {
+    return result;
+  }
+  const Vec2 streak0 = streak_px.allFinite() ? streak_px : Vec2::Zero();
+  // Coarse: every start on a small work image over all of them.
+  Candidate coarse[kMaxDenseStarts];
+  int nc = 0;
+  if (fit.set_region(image, starts, n, streak0.norm(), options.coarse_pixels, options.coarse_smoothing).ok()) {
+    for (int i = 0; i < n; ++i) {
+      Candidate c;
+      c.r = starts[i];
+      c.streak = streak0;
+      const DenseFitSummary s = fit.fit(c.r, c.streak, options.coarse_iterations, false, true);
+      if (s.ok) {
+        c.cost = s.cost;
+        coarse[nc++] = c;
+      }
+    }
+  }
+  sort_by_cost(coarse, nc);
+  // Fine: the best coarse results and the pipeline's own poses as they are.
+  Candidate fine[kMaxDenseFineCandidates + kMaxDenseSeeds];
+  int nf = 0;
+  const int keep = options.fine_candidates < kMaxDenseFineCandidates ? options.fine_candidates : kMaxDenseFineCandidates;
+  for (int i = 0; i < nc && i < keep; ++i) {
+    fine[nf++] = coarse[i];
+  }
+  if (nseeds > 0 && seeds[0].allFinite()) {
+    fine[nf].r = seeds[0];
+    fine[nf].streak = streak0;
+    ++nf;
+  }
+  PoseVector region[kMaxDenseFineCandidates + kMaxDenseSeeds];
+  for (int i = 0; i < nf; ++i) {
+    region[i] = fine[i].r;
+  }
+  if (nf == 0 || !fit.set_region(image, region, nf, streak0.norm(), options.fine_pixels, 0).ok()) {
+    return result;
+  }
+  bool have = false;
+  Candidate best;
+  for (int i = 0; i < nf; ++i) {
+    Candidate c = fine[i];
+    const DenseFitSummary s = fit.fit(c.r, c.streak, options.fine_iterations, false, true);
+    result.fine_r[static_cast<std::size_t>(result.fine_count)] = c.r;
+    result.fine_cost[static_cast<std::size_t>(result.fine_count)] = s.ok ? s.cost : 0.0;
+    ++result.fine_count;
+    if (s.ok && (!have || s.cost < best.cost)) {
+      c.cost = s.cost;
+      best = c;
+      have = true;
+    }
+  }
+  if (!have) {
+    return result;
+  }
+  // Once more from the best, so that the responsibilities are its own.
+  result.fit = fit.fit(best.r, best.streak, 3, false, true);
+  if (!result.fit.ok) {
+    return result;
+  }
+  result.ok = true;
+  result.r = best.r;
+  result.streak_px = best.streak;
+  fit.corner_support(best.r, best.streak, result.support);
+  solver::CornerSet corners;
+  model.corners(camera, best.r, corners);
+  for (std::size_t k = 0; k < static_cast<std::size_t>(kNumCorners); ++k) {
+    if (corners.in_image[k] && result.support[k] >= options.min_corner_support) {
+      result.corners[k].found = true;
+      result.corners[k].pixel = Point{corners.pixel[k].x(), corners.pixel[k].y()};
+      result.corners[k].confidence = result.support[k];
+      ++result.corner_count;
+    }
+  }
+  return result;
+}
+
+}  // namespace vision
+}  // namespace tcpest

@@ -1,0 +1,239 @@
+// The dense fit and the dense stage on frames rendered by hal/render: the
+// pose found again from a start displaced by the encoders' accuracy, its
+// corners against the truth, no heap allocation after create(), and every
+// bad input an error value.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "tcpest/render/renderer.hpp"
+#include "tcpest/test/alloc_counter.hpp"
+#include "tcpest/vision/color_model.hpp"
+#include "tcpest/vision/dense_estimate.hpp"
+#include "tcpest/vision/dense_fit.hpp"
+
+namespace tcpest {
+namespace vision {
+namespace {
+
+struct DenseFixture {
+  solver::CameraModel camera = solver::CameraModel::create(solver::default_pal_camera()).value();
+  solver::InstrumentModel model = solver::InstrumentModel::create(solver::InstrumentGeometry{}).value();
+  std::vector<std::uint8_t> pixels;
+  render::GroundTruth truth;
+  solver::PoseVector truth_r = solver::PoseVector::Zero();
+
+  // A frame of the default scene (noise, blur, vignetting) at a bent pose
+  // whose channel has moved by some play.
+  ImageView render_frame(std::uint32_t hard_cases = 0U) {
+    auto created = render::Renderer::create(camera, model, render::RenderSettings{});
+    EXPECT_TRUE(created.ok());
+    pixels.assign(static_cast<std::size_t>(camera.width()) * static_cast<std::size_t>(camera.height()) * 3U, 0U);
+    const MutableImageView out{pixels.data(), camera.width(), camera.height(),
+                               static_cast<std::size_t>(camera.width()) * 3U};
+    truth_r = model.geometry().nominal_pose(28.0, 0.7, 0.8);
+    truth_r[solver::kXch] += 0.6;
+    truth_r[solver::kYch] -= 0.4;
+    render::SceneSpec spec;
+    spec.r = truth_r;
+    spec.seed = 5U;
+    spec.hard_cases = hard_cases;
+    if (created.ok()) {
+      EXPECT_TRUE(created.value()->render(spec, out, truth).ok());
+    }
+    return out.view();
+  }
+};
+
+// Small work images and few iterations: the same code paths at a fraction
+// of the default's time (the sanitizer and emulated builds run this too).
+DenseOptions quick_options() {
+  DenseOptions options;
+  options.coarse_pixels = 3000;
+  options.fine_pixels = 8000;
+  options.coarse_iterations = 6;
+  options.fine_iterations = 8;
+  options.fine_candidates = 1;
+  return options;
+}
+
+std::unique_ptr<DenseFit> make_fit(const DenseFixture& f, const DenseOptions& options) {
+  DenseFitConfig config;
+  config.max_work_pixels = options.fine_pixels;
+  auto created = DenseFit::create(f.camera, f.model, default_color_model(), config);
+  EXPECT_TRUE(created.ok());
+  return created.ok() ? std::move(created.value()) : nullptr;
+}
+
+// The start is the encoders' pose: the nominal channel, the insertion 1.5 mm
+// and the bend 0.1 rad off. The dense stage finds the frame's pose again,
+// and its corners are the truth's, allocating nothing on the way.
+TEST(DenseFit, FindsThePoseAndTheCornersFromTheEncodersStart) {
+  DenseFixture f;
+  const ImageView image = f.render_frame();
+  const DenseOptions options = quick_options();
+  std::unique_ptr<DenseFit> fit = make_fit(f, options);
+  ASSERT_NE(fit, nullptr);
+  solver::PoseVector start = f.model.geometry().nominal_pose(28.0 + 1.5, 0.7, 0.8 - 0.1);
+  DenseResult result;
+  {
+    test::AllocationScope scope;
+    result = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, solver::Vec2::Zero(), options);
+    EXPECT_EQ(scope.count(), 0U);
+  }
+  ASSERT_TRUE(result.ok);
+  EXPECT_GT(result.fit.inlier_share, 0.5);
+  const solver::Vec3 tcp_error = f.model.tcp(result.r) - f.truth.instruments[0].tcp;
+  EXPECT_LT(tcp_error.norm(), 1.0) << result.r.transpose();
+  int visible = 0;
+  int found = 0;
+  for (std::size_t k = 0; k < static_cast<std::size_t>(kNumCorners); ++k) {
+    const Corner& c = result.corners[k];
+    if (c.found) {
+      // A reported corner is never another corner's or far off.
+      const solver::Vec2 error = solver::Vec2(c.pixel.x, c.pixel.y) - f.truth.instruments[0].corners[k];
+      EXPECT_LT(error.norm(), 3.0) << "corner " << k;
+      EXPECT_TRUE(f.truth.instruments[0].in_image[k]) << "corner " << k;
+      EXPECT_GE(c.confidence, options.min_corner_support);
+    }
+    if (!f.truth.instruments[0].visible[k]) {
+      continue;
+    }
+    ++visible;
+    if (c.found && (solver::Vec2(c.pixel.x, c.pixel.y) - f.truth.instruments[0].corners[k]).norm() <= 1.5) {
+      ++found;
+    }
+  }
+  ASSERT_GT(visible, 6);
+  EXPECT_GE(found, (8 * visible + 9) / 10) << found << " of " << visible;
+}
+
+// Fitted from the truth itself, the fit stays there (the cost's minimum is
+// the truth's, not a bias of the rendering), and its cost is lower than
+// from a start 2 mm off that it is not allowed to leave (no iteration).
+TEST(DenseFit, TheTruthIsTheMinimumOfTheCost) {
+  DenseFixture f;
+  const ImageView image = f.render_frame();
+  const DenseOptions options = quick_options();
+  std::unique_ptr<DenseFit> fit = make_fit(f, options);
+  ASSERT_NE(fit, nullptr);
+  solver::PoseVector off = f.truth_r;
+  off[solver::kLambda] += 2.0;
+  const solver::PoseVector region[2] = {f.truth_r, off};
+  ASSERT_TRUE(fit->set_region(image, region, 2, 0.0, options.fine_pixels, 0).ok());
+  solver::PoseVector r = f.truth_r;
+  solver::Vec2 streak = solver::Vec2::Zero();
+  const DenseFitSummary at_truth = fit->fit(r, streak, 8, false, false);
+  ASSERT_TRUE(at_truth.ok);
+  EXPECT_LT(std::fabs(r[solver::kLambda] - f.truth_r[solver::kLambda]), 0.3) << r.transpose();
+  EXPECT_LT(std::fabs(r[solver::kTheta] - f.truth_r[solver::kTheta]), 0.03) << r.transpose();
+  solver::PoseVector held = off;
+  const DenseFitSummary at_off = fit->fit(held, streak, 0, false, false);
+  ASSERT_TRUE(at_off.ok);
+  EXPECT_EQ(at_off.iterations, 0);
+  EXPECT_GT(at_off.cost, at_truth.cost);
+}
+
+TEST(DenseFit, BadInputsAreErrorValues) {
+  DenseFixture f;
+  const ImageView image = f.render_frame();
+  DenseFitConfig bad;
+  bad.max_work_pixels = 10;
+  auto refused = DenseFit::create(f.camera, f.model, default_color_model(), bad);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error(), VisionError::BadParameter);
+  bad = DenseFitConfig{};
+  bad.model_sigma = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(DenseFit::create(f.camera, f.model, default_color_model(), bad).ok());
+  bad = DenseFitConfig{};
+  bad.max_width = 320;  // smaller than the camera's image
+  EXPECT_FALSE(DenseFit::create(f.camera, f.model, default_color_model(), bad).ok());
+
+  const DenseOptions options = quick_options();
+  std::unique_ptr<DenseFit> fit = make_fit(f, options);
+  ASSERT_NE(fit, nullptr);
+  solver::PoseVector r = f.truth_r;
+  solver::Vec2 streak = solver::Vec2::Zero();
+  EXPECT_FALSE(fit->fit(r, streak, 5, false, false).ok);  // no region yet
+
+  // An image of another size than the camera's.
+  const ImageView small{image.data, 64, 48, image.stride_bytes};
+  auto status = fit->set_region(small, &f.truth_r, 1, 0.0, options.fine_pixels, 0);
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error(), VisionError::BadImage);
+  // Poses that show nothing: not finite, behind the camera.
+  solver::PoseVector nan_pose = f.truth_r;
+  nan_pose[solver::kPhi] = std::numeric_limits<double>::quiet_NaN();
+  status = fit->set_region(image, &nan_pose, 1, 0.0, options.fine_pixels, 0);
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error(), VisionError::NoInstrument);
+  solver::PoseVector behind = f.truth_r;
+  behind[solver::kLambda] = -500.0;
+  status = fit->set_region(image, &behind, 1, 0.0, options.fine_pixels, 0);
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error(), VisionError::NoInstrument);
+
+  // A start that is not finite is refused by the fit; an absurd streak is
+  // held within its bound.
+  ASSERT_TRUE(fit->set_region(image, &f.truth_r, 1, 1e9, options.fine_pixels, 0).ok());
+  EXPECT_FALSE(fit->fit(nan_pose, streak, 5, false, false).ok);
+  streak = solver::Vec2(1e6, 0.0);
+  const DenseFitSummary held = fit->fit(r, streak, 1, false, true);
+  ASSERT_TRUE(held.ok);
+  EXPECT_LE(streak.norm(), DenseFitConfig{}.max_streak_px + 1e-9);
+
+  // The dense stage: nothing to start from, or a start showing nothing.
+  const DenseResult none = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, nan_pose, solver::Vec2::Zero(),
+                                          options);
+  EXPECT_FALSE(none.ok);
+  const DenseResult hidden = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, behind, solver::Vec2::Zero(),
+                                            options);
+  EXPECT_FALSE(hidden.ok);
+  EXPECT_EQ(hidden.corner_count, 0);
+}
+
+TEST(DenseFit, OptionsOutOfRangeAreRefused) {
+  EXPECT_TRUE(dense_options_valid(DenseOptions{}));
+  DenseOptions o;
+  o.fine_pixels = 100;
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.coarse_iterations = 0;
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.fine_candidates = kMaxDenseFineCandidates + 1;
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.bend_step_rad = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.min_corner_support = 1.5;
+  EXPECT_FALSE(dense_options_valid(o));
+}
+
+// Linear light and L*a*b* convert into each other (the fit blurs in
+// linear light between the two).
+TEST(DenseFit, LinearLightAndLabRoundTrip) {
+  const double samples[][3] = {{0.0, 0.0, 0.0}, {1.0, 1.0, 1.0}, {0.2, 0.5, 0.1}, {0.02, 0.003, 0.6}, {0.9, 0.4, 0.0}};
+  for (const auto& s : samples) {
+    double r = -1.0;
+    double g = -1.0;
+    double b = -1.0;
+    lab_to_linear(linear_to_lab(s[0], s[1], s[2]), r, g, b);
+    EXPECT_NEAR(r, s[0], 1e-6);
+    EXPECT_NEAR(g, s[1], 1e-6);
+    EXPECT_NEAR(b, s[2], 1e-6);
+  }
+  const Lab direct = srgb_to_lab(200, 120, 40);
+  const Lab via_linear = linear_to_lab(srgb_code_to_linear(200), srgb_code_to_linear(120), srgb_code_to_linear(40));
+  EXPECT_DOUBLE_EQ(direct.l, via_linear.l);
+  EXPECT_DOUBLE_EQ(direct.a, via_linear.a);
+  EXPECT_DOUBLE_EQ(direct.b, via_linear.b);
+}
+
+}  // namespace
+}  // namespace vision
+}  // namespace tcpest
