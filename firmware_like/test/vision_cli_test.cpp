@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -441,6 +442,80 @@ TEST(VisionCommands, CornersAreReportedWhenFoundThisFrame) {
   extraction.refined = false;
   result.extraction_ok = true;
   EXPECT_TRUE(corner_reported(result, extraction, 0U));
+}
+
+// --dense: the dense stage runs only on the frames the pipeline leaves
+// without a valid estimate, and what it keeps is reported degraded at
+// best (its estimates have no validity rules of their own yet); frames the
+// pipeline makes valid are left as they are. Out-of-range options are
+// refused; evaluate reports the stage's frames.
+TEST(VisionCommands, DenseStageRunsOnlyOnFramesNotValidAndKeepsThemDegraded) {
+  ModelSetup setup;
+  ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
+  std::unique_ptr<EstimatePipeline> plain(new EstimatePipeline());
+  std::unique_ptr<EstimatePipeline> dense(new EstimatePipeline());
+  ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), false));
+  ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), false));
+  vision::DenseOptions options;
+  options.fine_pixels = 100;  // below the smallest work image
+  EXPECT_FALSE(dense->enable_dense(options));
+  options = vision::DenseOptions{};
+  options.coarse_pixels = 3000;
+  options.fine_pixels = 8000;
+  options.coarse_iterations = 6;
+  options.fine_iterations = 8;
+  ASSERT_TRUE(dense->enable_dense(options));
+  // Stage 4's corners alone on hard frames: most are not valid there.
+  for (EstimatePipeline* p : {plain.get(), dense.get()}) {
+    p->guided_options().rounds = 0;
+    p->guided_options().fallback_seeds = 0;
+  }
+  auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
+  ASSERT_TRUE(created.ok());
+  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
+  const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
+                             static_cast<std::size_t>(setup.camera.width()) * 3U};
+  int ran = 0;
+  int valid = 0;
+  for (int i = 0; i < 4; ++i) {
+    const double joints[3] = {24.0 + 2.0 * i, 0.4 - 0.3 * i, 0.7 - 0.1 * i};
+    render::SceneSpec spec;
+    spec.r = setup.instrument.geometry().nominal_pose(joints[0], joints[1], joints[2]);
+    spec.seed = static_cast<std::uint64_t>(11 + i);
+    spec.hard_cases = i < 3 ? (render::kHardOccluder | render::kHardHaze | render::kHardMotionBlur) : 0U;
+    render::GroundTruth truth;
+    ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
+    plain->reset_sequence();
+    dense->reset_sequence();
+    const EstimateResult before = plain->process(out.view(), joints);
+    const EstimateResult after = dense->process(out.view(), joints);
+    EXPECT_EQ(after.dense_ran, before.status != EstimateStatus::Valid) << i;
+    if (after.dense_kept) {
+      EXPECT_NE(after.status, EstimateStatus::Valid) << i;
+    }
+    if (!after.dense_ran) {
+      EXPECT_EQ(after.status, before.status) << i;
+      EXPECT_EQ((after.tcp - before.tcp).norm(), 0.0) << i;
+      ++valid;
+    }
+    ran += after.dense_ran ? 1 : 0;
+  }
+  EXPECT_GE(ran, 1);
+  EXPECT_GE(valid, 1);
+
+  const std::string hard = make_dataset("vision_cli_dense", render::kHardOccluder | render::kHardHaze);
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"evaluate", "--dense", "--guided-rounds", "0", "--fallback-seeds", "0", "--max", "1", hard}),
+            kExitOk);
+  const std::string summary = testing::internal::GetCapturedStdout();
+  const bool reported = summary.find("dense stage: ran on ") != std::string::npos;
+  const bool none_to_run = summary.find("frames not succeeding: 0 (no estimate 0, of which 0 report no corner; "
+                                        "degraded 0; valid 0)") != std::string::npos;
+  EXPECT_TRUE(reported || none_to_run) << summary;
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"estimate", "--dense", "--json", hard + "/0000.ppm"}), kExitOk);
+  const std::string line = testing::internal::GetCapturedStdout();
+  EXPECT_NE(line.find("\"status\": "), std::string::npos) << line;
 }
 
 }  // namespace

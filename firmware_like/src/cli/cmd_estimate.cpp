@@ -23,6 +23,7 @@ const OptionSpec kSpecs[] = {
     {"fixed-model", nullptr, "estimate lambda, phi, theta only (channel pose held at its nominal value)"},
     kGuidedRoundsOption,
     kFallbackSeedsOption,
+    kDenseOption,
     {"overlay", "DIR", "write DIR/<image name>.overlay.jpg: borders, corners, model at the estimate, TCP"},
     {"json", nullptr, "one JSON object per image and line"},
 };
@@ -132,7 +133,7 @@ int cmd_estimate(int argc, char** argv) {
   }
   if (args.help_requested()) {
     print_usage("tcpest estimate --calib CAM.yaml [--config CFG] [--colors MODEL] [--prior LAMBDA,PHI,THETA] "
-                "[--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--overlay DIR] [--json] IMAGE...",
+                "[--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--dense] [--overlay DIR] [--json] IMAGE...",
                 "Extracts the labelled apparent corners of each image (JPEG or PPM) and solves the pose.",
                 kSpecs, kSpecCount);
     return kExitOk;

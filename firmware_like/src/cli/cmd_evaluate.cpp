@@ -36,6 +36,7 @@ const OptionSpec kSpecs[] = {
     {"fixed-model", nullptr, "solve with the channel pose held at its nominal value"},
     kGuidedRoundsOption,
     kFallbackSeedsOption,
+    kDenseOption,
     {"no-prior", nullptr, "ignore the sidecars' encoder priors (generic / temporal priors only)"},
     {"true-prior", nullptr,
      "diagnostic: the sidecars' true joints (lambda, phi, theta of r) as the prior, to tell the seed's "
@@ -292,6 +293,12 @@ struct EvaluateTotals {
   // The solve's TCP errors of the estimates demoted from valid because that
   // TCP lay too far from the image fit's (EstimateResult::fit_disagrees).
   std::vector<double> fit_disagrees_mm;
+  // The dense stage (--dense): frames it ran on, frames its estimate was
+  // kept on and those of them that succeed, and its frames' solve times.
+  int dense_ran = 0;
+  int dense_kept = 0;
+  int dense_kept_success = 0;
+  std::vector<double> dense_solve_us;
 
   // Adds one frame; returns its TCP error (mm; -1 without a pose or a true TCP).
   double add(const render::Sidecar& truth, const EstimateResult& result, const CornerScore& score,
@@ -315,6 +322,12 @@ struct EvaluateTotals {
           case EstimateStatus::Valid: ++failed_valid; break;
         }
       }
+    }
+    if (result.dense_ran) {
+      ++dense_ran;
+      dense_solve_us.push_back(result.times.solve_us);
+      dense_kept += result.dense_kept ? 1 : 0;
+      dense_kept_success += result.dense_kept && success ? 1 : 0;
     }
     streaks.add(truth, result.streak_px);
     for (int s = 0; s < 4; ++s) {
@@ -375,6 +388,11 @@ struct EvaluateTotals {
     format_visible_corners_tally(by_visible, case_line, sizeof case_line);
     if (case_line[0] != '\0') {
       std::printf("%s\n", case_line);
+    }
+    if (dense_ran > 0) {
+      std::printf("dense stage: ran on %d frames (not valid after the pipeline), its estimate kept on %d, of which %d "
+                  "succeed; median solve time with it %.0f ms\n",
+                  dense_ran, dense_kept, dense_kept_success, 1e-3 * median_of(dense_solve_us));
     }
     if (streaks.blurred_frames > 0) {
       std::printf("motion-blur streak read on %d of %d blurred frames (length error median %.2f px, direction error "
@@ -525,7 +543,7 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitUsage;
   }
   if (args.help_requested() || args.positional_count() < 1U) {
-    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--no-prior | --true-prior] "
+    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--dense] [--no-prior | --true-prior] "
                 "[--max N] [--verbose] DATASET_DIR...",
                 "Runs extraction and the solver on every image of one or more datasets and scores them against the "
                 "sidecars; several datasets are pooled, with a frame-success line for each.",

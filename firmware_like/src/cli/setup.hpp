@@ -23,6 +23,10 @@ constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
                                           "the regions' pose, the prior's pose moved +/- 2 mm along the insertion, then "
                                           "with its theta and phi moved +/- 0.2 rad) on a frame not yet valid, 0..9 "
                                           "(default 9; the loop's loop.fallback_seeds: 1)"};
+constexpr OptionSpec kDenseOption{"dense", nullptr,
+                                  "the dense fit (every pixel around the instrument against a rendering of the "
+                                  "model) on each frame not yet valid; its estimate is reported degraded at best; "
+                                  "offline only: about a second per such frame (docs/vision.md)"};
 
 struct ModelSetup {
   solver::CameraModel camera;

@@ -231,6 +231,64 @@ bool EstimatePipeline::init(const char* command, const ModelSetup& setup, const 
   return true;
 }
 
+bool EstimatePipeline::enable_dense(const vision::DenseOptions& options) noexcept {
+  if (!vision::dense_options_valid(options)) {
+    return false;
+  }
+  vision::DenseFitConfig config;
+  config.max_width = setup_.camera.width();
+  config.max_height = setup_.camera.height();
+  config.max_work_pixels = options.coarse_pixels > options.fine_pixels ? options.coarse_pixels : options.fine_pixels;
+  auto created = vision::DenseFit::create(setup_.camera, setup_.instrument, extractor_->colors(), config);
+  if (!created.ok()) {
+    return false;
+  }
+  dense_ = std::move(created.value());
+  dense_options_ = options;
+  return true;
+}
+
+void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedResult& guided,
+                                   const solver::PoseVector& start, solver::SolveMode mode, solver::Estimate& estimate,
+                                   EstimateResult& out) noexcept {
+  // Seeds: the image fit's pose and the solve's, when the pipeline has them.
+  solver::PoseVector seeds[vision::kMaxDenseSeeds];
+  int seed_count = 0;
+  if (guided.rounds_kept > 0) {
+    seeds[seed_count++] = guided.fitted_r;
+  }
+  if (estimate.quality != solver::EstimateQuality::None) {
+    seeds[seed_count++] = estimate.r;
+  }
+  const vision::DenseResult dense = vision::dense_estimate(*dense_, setup_.camera, setup_.instrument, image, seeds,
+                                                           seed_count, start, guided.fit.streak_px, dense_options_);
+  out.dense_ran = true;
+  if (!dense.ok) {
+    return;
+  }
+  solver::CornerObservation observation;
+  for (std::size_t k = 0; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
+    if (dense.corners[k].found) {
+      observation.pixel[k] = solver::Vec2(dense.corners[k].pixel.x, dense.corners[k].pixel.y);
+      observation.visible[k] = true;
+    }
+  }
+  solver::Estimate refined = estimator_->estimate(observation, mode, dense.r);
+  if (refined.quality == solver::EstimateQuality::None) {
+    return;  // the pipeline's own result stays
+  }
+  // The dense stage's estimates have no validity rules of their own yet:
+  // at best degraded (docs/vision.md, "The dense stage").
+  refined.quality = solver::EstimateQuality::Degraded;
+  estimate = refined;
+  vision::FeatureExtractor::CornerSnapshot snapshot;
+  snapshot.corners = dense.corners;
+  snapshot.refined = true;
+  extractor_->restore_snapshot(snapshot);
+  out.dense_kept = true;
+  out.streak_px = dense.streak_px;
+}
+
 void EstimatePipeline::reset_sequence() noexcept {
   temporal_.reset();
   have_previous_ = false;
@@ -277,6 +335,10 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   const vision::GuidedResult guided = vision::guided_estimate(fx, *estimator_, setup_.camera, setup_.instrument, image,
                                                               status.ok(), mode, start, guided_);
   solver::Estimate estimate = guided.estimate;
+  out.streak_px = guided.fit.streak_px;
+  if (dense_ != nullptr && estimate.quality != solver::EstimateQuality::Valid) {
+    apply_dense(image, guided, start, mode, estimate, out);
+  }
   if (prior_joints != nullptr) {  // `start` holds the encoders' joints
     out.encoder_disagrees = solver::check_against_encoders(estimate, start, encoder_check_);
   }
@@ -291,7 +353,6 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   out.corners_rejected = estimate.corners_rejected;
   out.guided_rounds = guided.rounds_kept;
   out.fit_disagrees = guided.disagreement_demoted;
-  out.streak_px = guided.fit.streak_px;
   if (estimate.quality != solver::EstimateQuality::None) {
     out.r = estimate.r;
     out.tcp = setup_.instrument.tcp(estimate.r);
@@ -348,8 +409,16 @@ bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& 
     return false;
   }
   exit_code = kExitUsage;
-  return apply_guided_rounds(command, args.value("guided-rounds"), pipeline) &&
-         apply_fallback_seeds(command, args.value("fallback-seeds"), pipeline);
+  if (!apply_guided_rounds(command, args.value("guided-rounds"), pipeline) ||
+      !apply_fallback_seeds(command, args.value("fallback-seeds"), pipeline)) {
+    return false;
+  }
+  if (args.flag("dense") && !pipeline.enable_dense(vision::DenseOptions{})) {
+    std::fprintf(stderr, "tcpest %s: --dense: the dense fit's buffers could not be allocated\n", command);
+    exit_code = kExitFailure;
+    return false;
+  }
+  return true;
 }
 
 void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept {

@@ -14,6 +14,7 @@
 #include "tcpest/hal/camera/jpeg_decoder.hpp"
 #include "tcpest/render/renderer.hpp"
 #include "tcpest/solver/pose_estimator.hpp"
+#include "tcpest/vision/dense_estimate.hpp"
 #include "tcpest/vision/features.hpp"
 #include "tcpest/vision/guided_estimate.hpp"
 
@@ -73,6 +74,10 @@ struct EstimateResult {
   // Valid -> Degraded: the solve's TCP lay farther from fit_tcp than
   // vision::GuidedOptions::max_valid_tcp_disagreement_mm.
   bool fit_disagrees = false;
+  // The dense stage ran on this frame (enabled and the pipeline's estimate
+  // not valid), and its result replaced the pipeline's (then degraded).
+  bool dense_ran = false;
+  bool dense_kept = false;
   bool extraction_ok = false;
   const char* extraction_error = "";
   // The motion-blur streak the kept image fit read (px, image; its sign is
@@ -93,6 +98,10 @@ class EstimatePipeline {
   const ModelSetup& setup() const noexcept { return setup_; }
   // The model-guided rounds after the first solve (0: stage 4's corners only).
   vision::GuidedOptions& guided_options() noexcept { return guided_; }
+  // The dense stage on the frames the pipeline does not make valid (off
+  // until enabled; offline only: about a second per frame). False: the
+  // options are out of range or its buffers could not be allocated.
+  bool enable_dense(const vision::DenseOptions& options) noexcept;
   // Overlay of the last frame (extraction, model at the estimate, TCP) into `pixels`.
   void draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept;
 
@@ -104,6 +113,10 @@ class EstimatePipeline {
   vision::GuidedOptions guided_{};
   solver::EncoderCheck encoder_check_{};  // applied when a frame has the encoders' joints (docs/solver.md)
   bool fixed_model_ = false;
+  void apply_dense(const ImageView& image, const vision::GuidedResult& guided, const solver::PoseVector& start,
+                   solver::SolveMode mode, solver::Estimate& estimate, EstimateResult& out) noexcept;
+  std::unique_ptr<vision::DenseFit> dense_;
+  vision::DenseOptions dense_options_{};
   bool have_previous_ = false;
   solver::PoseVector previous_r_ = solver::PoseVector::Zero();
 };
