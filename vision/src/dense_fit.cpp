@@ -106,6 +106,21 @@ void binomial_pass(float* p, float* tmp, int w, int h) noexcept {
   }
 }
 
+// One observation's row of a sparse linear model (its n non-zero
+// coefficients `value` at `index`) added to the normal equations with
+// weight w and observed value o.
+template <typename MatrixT, typename VectorT>
+void add_weighted_row(const int* index, const double* value, int n, double w, double o, MatrixT& M,
+                      VectorT& rhs) noexcept {
+  for (int x = 0; x < n; ++x) {
+    const double wx = w * value[x];
+    for (int y = 0; y < n; ++y) {
+      M(index[x], index[y]) += wx * value[y];
+    }
+    rhs(index[x]) += wx * o;
+  }
+}
+
 // The appearance's normal equations (solve_appearance's unknowns) over the
 // work pixels, each weighted by its responsibility; returns the weights' sum.
 struct AppearanceInputs {
@@ -180,20 +195,8 @@ double accumulate_appearance(const AppearanceInputs& in, AppearanceMatrix& M, Ap
     }
     const double oa = static_cast<double>(in.obs[i]);
     const double ob = static_cast<double>(in.obs[np + i]);
-    for (int x = 0; x < na; ++x) {
-      const double wx = w * va[x];
-      for (int y = 0; y < na; ++y) {
-        M(ia[x], ia[y]) += wx * va[y];
-      }
-      rhs(ia[x]) += wx * oa;
-    }
-    for (int x = 0; x < nb; ++x) {
-      const double wx = w * vb[x];
-      for (int y = 0; y < nb; ++y) {
-        M(ib[x], ib[y]) += wx * vb[y];
-      }
-      rhs(ib[x]) += wx * ob;
-    }
+    add_weighted_row(ia, va, na, w, oa, M, rhs);
+    add_weighted_row(ib, vb, nb, w, ob, M, rhs);
     wsum += w;
   }
   return wsum;
@@ -1120,13 +1123,7 @@ void DenseFit::solve_lightness(bool constrained, Appearance& app) noexcept {
       put(12 + t, plane(15 + t));
     }
     const double o = static_cast<double>(obs[i]);
-    for (int x = 0; x < n; ++x) {
-      const double wx = w * vu[x];
-      for (int y = 0; y < n; ++y) {
-        M(iu[x], iu[y]) += wx * vu[y];
-      }
-      rhs(iu[x]) += wx * o;
-    }
+    add_weighted_row(iu, vu, n, w, o, M, rhs);
     wsum += w;
   }
   // A small ridge towards the last values: parts the region hides keep theirs.
