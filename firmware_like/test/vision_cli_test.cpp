@@ -444,8 +444,26 @@ TEST(VisionCommands, CornersAreReportedWhenFoundThisFrame) {
   EXPECT_TRUE(corner_reported(result, extraction, 0U));
 }
 
+// The corners measured on the image: all of stage 4's; after a guided
+// round only those above the predicted corners' confidence.
+TEST(VisionCommands, MeasuredCornersLeaveOutThePredictedOnes) {
+  const vision::ExtractorConfig config;
+  vision::Extraction e = one_corner(0U, vision::Point{1.0, 2.0}, 0.9);
+  e.corners[1].found = true;
+  e.corners[1].confidence = 0.46;  // stage 4's, low but read
+  EXPECT_EQ(measured_corner_count(e, config), 2);
+  e.refined = true;
+  e.corners[1].confidence = config.refine_predicted_confidence;
+  e.corners[2].found = true;
+  e.corners[2].confidence = config.refine_predicted_confidence;
+  EXPECT_EQ(measured_corner_count(e, config), 1);
+  e.corners[0].found = false;
+  EXPECT_EQ(measured_corner_count(e, config), 0);
+}
+
 // --dense: the dense stage runs only on the frames the pipeline leaves
-// without a valid estimate, and what it keeps is reported degraded at
+// without a valid estimate (here on all of those; by default only where
+// it measured at most 2 corners), and what it keeps is reported degraded at
 // best (its estimates have no validity rules of their own yet); frames the
 // pipeline makes valid are left as they are. Out-of-range options are
 // refused; evaluate reports the stage's frames.
@@ -464,6 +482,7 @@ TEST(VisionCommands, DenseStageRunsOnlyOnFramesNotValidAndKeepsThemDegraded) {
   options.fine_pixels = 8000;
   options.coarse_iterations = 6;
   options.fine_iterations = 8;
+  options.max_measured_corners = vision::kNumCorners;  // every frame not valid
   ASSERT_TRUE(dense->enable_dense(options));
   // Stage 4's corners alone on hard frames: most are not valid there.
   for (EstimatePipeline* p : {plain.get(), dense.get()}) {

@@ -75,7 +75,8 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.coarse_smoothing >= 0 && options.coarse_smoothing <= 8 &&
          options.lambda_step_mm > 0.0 && options.lambda_step_mm <= 10.0 && options.bend_step_rad > 0.0 &&
          options.bend_step_rad <= 1.0 && options.channel_step_mm > 0.0 && options.channel_step_mm <= 5.0 &&
-         options.min_corner_support >= 0.0 && options.min_corner_support <= 1.0;
+         options.min_corner_support >= 0.0 && options.min_corner_support <= 1.0 &&
+         options.max_measured_corners >= 0 && options.max_measured_corners <= kNumCorners;
 }
 
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
@@ -108,7 +109,8 @@ DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, con
   // Fine: the best coarse results and the pipeline's own poses as they are.
   Candidate fine[kMaxDenseFineCandidates + kMaxDenseSeeds];
   int nf = 0;
-  const int keep = options.fine_candidates < kMaxDenseFineCandidates ? options.fine_candidates : kMaxDenseFineCandidates;
+  const int keep =
+      options.fine_candidates < kMaxDenseFineCandidates ? options.fine_candidates : kMaxDenseFineCandidates;
   for (int i = 0; i < nc && i < keep; ++i) {
     fine[nf++] = coarse[i];
   }

@@ -252,7 +252,8 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
   ok = ok && make(f->sd_, 1U) && make(f->snear_, 1U) && make(f->thit_, 1U) && make(f->shit_, 1U);
   ok = ok && make(f->shade_, 1U) && make(f->sval_, 1U) && make(f->cov0_, 1U) && make(f->cov1_, 1U);
   ok = ok && make(f->basis_, static_cast<std::size_t>(kBasis)) && make(f->pred_, kChannels);
-  ok = ok && make(f->trial_, kChannels) && make(f->jac_, static_cast<std::size_t>(kChannels) * static_cast<std::size_t>(kParams));
+  ok = ok && make(f->trial_, kChannels) &&
+       make(f->jac_, static_cast<std::size_t>(kChannels) * static_cast<std::size_t>(kParams));
   ok = ok && make(f->weights_, 1U) && make(f->tmp_, 1U) && make(f->scratch_, 2U);
   if (ok) {
     f->cls0_.reset(new (std::nothrow) std::uint8_t[n]);
@@ -744,7 +745,8 @@ void DenseFit::build_streak_kernel(const Vec2& streak_px) noexcept {
         continue;
       }
       int j = 0;
-      while (j < k_count_ && (k_dx_[static_cast<std::size_t>(j)] != ox[c] || k_dy_[static_cast<std::size_t>(j)] != oy[c])) {
+      while (j < k_count_ &&
+             (k_dx_[static_cast<std::size_t>(j)] != ox[c] || k_dy_[static_cast<std::size_t>(j)] != oy[c])) {
         ++j;
       }
       if (j == k_count_) {
@@ -782,7 +784,8 @@ void DenseFit::blur_plane(float* plane) noexcept {
     if (inner_row) {
       for (int k = 0; k < k_count_; ++k) {
         const float w = k_w_[static_cast<std::size_t>(k)];
-        const float* in = src + idx(0, y + k_dy_[static_cast<std::size_t>(k)], rw_) + k_dx_[static_cast<std::size_t>(k)];
+        const std::size_t tap = static_cast<std::size_t>(k);
+        const float* in = src + idx(0, y + k_dy_[tap], rw_) + k_dx_[tap];
         for (int x = x_lo; x < x_hi; ++x) {
           out[x] += w * in[x];
         }
@@ -867,7 +870,8 @@ void DenseFit::blur_in_linear_light(float* pred) noexcept {
     double r = 0.0;
     double g = 0.0;
     double b = 0.0;
-    lab_to_linear(Lab{static_cast<double>(pl[i]) * inv_w, static_cast<double>(pa[i]), static_cast<double>(pb[i])}, r, g, b);
+    const Lab lab{static_cast<double>(pl[i]) * inv_w, static_cast<double>(pa[i]), static_cast<double>(pb[i])};
+    lab_to_linear(lab, r, g, b);
     pa[i] = static_cast<float>(r);
     pb[i] = static_cast<float>(g);
     pl[i] = static_cast<float>(b);
@@ -1110,7 +1114,8 @@ void DenseFit::solve_lightness(bool constrained, Appearance& app) noexcept {
     double blue_sum = 0.0;
     double yellow_sum = 0.0;
     for (int m = 0; m < kNumMarkers; ++m) {
-      (g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue ? blue_sum : yellow_sum) += plane(9 + m);
+      const bool blue = g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue;
+      (blue ? blue_sum : yellow_sum) += plane(9 + m);
     }
     for (int t = 0; t < terms; ++t) {
       put(3 + t, plane(3 + t));

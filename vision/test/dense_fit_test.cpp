@@ -212,6 +212,11 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   o = DenseOptions{};
   o.min_corner_support = 1.5;
   EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.max_measured_corners = kNumCorners + 1;
+  EXPECT_FALSE(dense_options_valid(o));
+  o.max_measured_corners = -1;
+  EXPECT_FALSE(dense_options_valid(o));
 }
 
 // Linear light and L*a*b* convert into each other (the fit blurs in

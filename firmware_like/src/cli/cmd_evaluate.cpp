@@ -390,8 +390,8 @@ struct EvaluateTotals {
       std::printf("%s\n", case_line);
     }
     if (dense_ran > 0) {
-      std::printf("dense stage: ran on %d frames (not valid after the pipeline), its estimate kept on %d, of which %d "
-                  "succeed; median solve time with it %.0f ms\n",
+      std::printf("dense stage: ran on %d frames (not valid, few corners measured), its estimate kept on %d, of "
+                  "which %d succeed; median solve time with it %.0f ms\n",
                   dense_ran, dense_kept, dense_kept_success, 1e-3 * median_of(dense_solve_us));
     }
     if (streaks.blurred_frames > 0) {
@@ -543,7 +543,8 @@ int cmd_evaluate(int argc, char** argv) {
     return kExitUsage;
   }
   if (args.help_requested() || args.positional_count() < 1U) {
-    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--dense] [--no-prior | --true-prior] "
+    print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] "
+                "[--guided-rounds N] [--fallback-seeds N] [--dense] [--no-prior | --true-prior] "
                 "[--max N] [--verbose] DATASET_DIR...",
                 "Runs extraction and the solver on every image of one or more datasets and scores them against the "
                 "sidecars; several datasets are pooled, with a frame-success line for each.",

@@ -336,7 +336,8 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
                                                               status.ok(), mode, start, guided_);
   solver::Estimate estimate = guided.estimate;
   out.streak_px = guided.fit.streak_px;
-  if (dense_ != nullptr && estimate.quality != solver::EstimateQuality::Valid) {
+  if (dense_ != nullptr && estimate.quality != solver::EstimateQuality::Valid &&
+      measured_corner_count(fx.result(), extractor_->config()) <= dense_options_.max_measured_corners) {
     apply_dense(image, guided, start, mode, estimate, out);
   }
   if (prior_joints != nullptr) {  // `start` holds the encoders' joints
@@ -438,6 +439,16 @@ void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableI
     }
   }
   vision::draw_extraction(image, extractor_->result(), model);
+}
+
+int measured_corner_count(const vision::Extraction& e, const vision::ExtractorConfig& config) noexcept {
+  int count = 0;
+  for (const vision::Corner& c : e.corners) {
+    if (c.found && (!e.refined || c.confidence > config.refine_predicted_confidence)) {
+      ++count;
+    }
+  }
+  return count;
 }
 
 bool corner_reported(const EstimateResult& result, const vision::Extraction& extraction, std::size_t k) noexcept {

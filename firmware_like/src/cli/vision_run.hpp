@@ -145,6 +145,11 @@ bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& 
 // find_regions clears every corner at a frame's start, so neither is an
 // older frame's.
 bool corner_reported(const EstimateResult& result, const vision::Extraction& extraction, std::size_t k) noexcept;
+// The corners the extraction measured on the image: stage 4's, or after a
+// guided round those whose boundary arc was read (the others are the
+// fitted pose's predictions, ExtractorConfig::refine_predicted_confidence).
+// The dense stage runs where they are few (DenseOptions::max_measured_corners).
+int measured_corner_count(const vision::Extraction& extraction, const vision::ExtractorConfig& config) noexcept;
 
 // The JSON line of `tcpest estimate --json` (no newline).
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,

@@ -35,11 +35,16 @@ struct DenseOptions {
                                      // (off: more starts, about the same result on the hard sets)
   double channel_step_mm = 1.5;
   double min_corner_support = 0.5;   // a corner is reported when the image around it is the rendering's
+  // The pipeline's result is left alone where it measured more corners
+  // than this on the image (read, not predicted at its pose): there it is
+  // mostly right, and the dense fit's own minimum more often elsewhere
+  // (docs/vision.md, "The dense stage"). 12: every frame not valid.
+  int max_measured_corners = 2;
 };
 // Ranges: work images of 256 to 2^20 pixels, 1 to 100 iterations, 0 to
 // kMaxDenseFineCandidates fine candidates, 0 to 8 smoothing passes, steps
 // finite and positive (lambda up to 10 mm, bends up to 1 rad, the channel
-// up to 5 mm), the corner support within 0..1.
+// up to 5 mm), the corner support within 0..1, max_measured_corners 0..12.
 bool dense_options_valid(const DenseOptions& options) noexcept;
 constexpr int kMaxDenseSeeds = 2;
 constexpr int kMaxDenseStarts = kMaxDenseSeeds + 11;
