@@ -25,7 +25,8 @@ constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
                                           "(default 9; the loop's loop.fallback_seeds: 1)"};
 constexpr OptionSpec kDenseOption{"dense", nullptr,
                                   "the dense fit (every pixel around the instrument against a rendering of the "
-                                  "model) on each frame not yet valid; its estimate is reported degraded at best; "
+                                  "model) on each frame not yet valid where at most 2 corners were measured on the "
+                                  "image; its estimate is reported degraded at best; "
                                   "offline only: about a second per such frame (docs/vision.md)"};
 
 struct ModelSetup {
