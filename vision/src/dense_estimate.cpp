@@ -131,9 +131,6 @@ DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, con
   for (int i = 0; i < nf; ++i) {
     Candidate c = fine[i];
     const DenseFitSummary s = fit.fit(c.r, c.streak, options.fine_iterations, false, true);
-    result.fine_r[static_cast<std::size_t>(result.fine_count)] = c.r;
-    result.fine_cost[static_cast<std::size_t>(result.fine_count)] = s.ok ? s.cost : 0.0;
-    ++result.fine_count;
     if (s.ok && (!have || s.cost < best.cost)) {
       c.cost = s.cost;
       best = c;

@@ -56,6 +56,18 @@ std::size_t idx(int x, int y, int w) noexcept {
 
 float clamp01(float v) noexcept { return v < 0.0F ? 0.0F : (v > 1.0F ? 1.0F : v); }
 
+// A work image's pixel columns and rows as -1..1 across it: the
+// coordinates the tissue's linear terms are written in.
+struct NormalisedAxes {
+  float x_step = 0.0F;
+  float y_step = 0.0F;
+  NormalisedAxes(int width, int height) noexcept
+      : x_step(width > 1 ? 2.0F / static_cast<float>(width - 1) : 0.0F),
+        y_step(height > 1 ? 2.0F / static_cast<float>(height - 1) : 0.0F) {}
+  float x(int column) const noexcept { return static_cast<float>(column) * x_step - 1.0F; }
+  float y(int row) const noexcept { return static_cast<float>(row) * y_step - 1.0F; }
+};
+
 // Magnitude of a field's gradient at (x, y) from its four neighbours
 // (kFar: not computed there; one-sided where only one neighbour is).
 float gradient_norm(const float* f, int w, int h, int x, int y) noexcept {
@@ -820,12 +832,11 @@ void DenseFit::predict_sharp(const Appearance& app, float* pred) const noexcept 
       bg[c][t] = static_cast<float>(app.tissue[t][c]);
     }
   }
-  const float xs = rw_ > 1 ? 2.0F / static_cast<float>(rw_ - 1) : 0.0F;
-  const float ys = rh_ > 1 ? 2.0F / static_cast<float>(rh_ - 1) : 0.0F;
+  const NormalisedAxes axes(rw_, rh_);
   for (int y = 0; y < rh_; ++y) {
-    const float yn = static_cast<float>(y) * ys - 1.0F;
+    const float yn = axes.y(y);
     for (int x = 0; x < rw_; ++x) {
-      const float xn = static_cast<float>(x) * xs - 1.0F;
+      const float xn = axes.x(x);
       const std::size_t i = idx(x, y, rw_);
       const float w0 = cov0_[i];
       const float w1 = cov1_[i];
@@ -925,12 +936,11 @@ void DenseFit::render_basis(const PoseVector& r, const Vec2& streak_px) noexcept
     plane_c[2 + m] = blue ? 14U : 16U;
     plane_c2[2 + m] = blue ? 15U : 17U;
   }
-  const float xs = rw_ > 1 ? 2.0F / static_cast<float>(rw_ - 1) : 0.0F;
-  const float ys = rh_ > 1 ? 2.0F / static_cast<float>(rh_ - 1) : 0.0F;
+  const NormalisedAxes axes(rw_, rh_);
   for (int y = 0; y < rh_; ++y) {
-    const float yn = static_cast<float>(y) * ys - 1.0F;
+    const float yn = axes.y(y);
     for (int x = 0; x < rw_; ++x) {
-      const float xn = static_cast<float>(x) * xs - 1.0F;
+      const float xn = axes.x(x);
       const std::size_t i = idx(x, y, rw_);
       const float bg = 1.0F - cov0_[i] - cov1_[i];
       basis[i] = bg;

@@ -58,10 +58,6 @@ struct DenseResult {
   std::array<double, kNumCorners> support{};
   std::array<Corner, kNumCorners> corners{};  // the model's at r, found where supported
   int corner_count = 0;
-  // The fine stage's candidates (for diagnostics): poses and costs.
-  int fine_count = 0;
-  std::array<solver::PoseVector, kMaxDenseFineCandidates + kMaxDenseSeeds> fine_r{};
-  std::array<double, kMaxDenseFineCandidates + kMaxDenseSeeds> fine_cost{};
 };
 
 // `seeds`: the pipeline's poses (at most kMaxDenseSeeds; may be empty);
