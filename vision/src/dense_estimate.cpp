@@ -26,7 +26,8 @@ void sort_by_cost(Candidate* c, int n) noexcept {
 }
 
 // The starts: the pipeline's poses, the start pose and its variants (at
-// most kMaxDenseStarts: 2 seeds, the start, 6 + 4 variants).
+// most kMaxDenseStarts - kMaxDenseScreenKeep: 2 seeds, the start, 6 + 4
+// variants; the screen's come after).
 int collect_starts(const PoseVector* seeds, int nseeds, const PoseVector& start, const DenseOptions& options,
                    PoseVector* starts) noexcept {
   int n = 0;
@@ -64,6 +65,83 @@ int collect_starts(const PoseVector* seeds, int nseeds, const PoseVector& start,
   return n;
 }
 
+// The coarse region's poses: the starts' and, with the screen, the start's
+// channel moved to the screen's extremes in x and y.
+int coarse_region(const PoseVector* starts, int n, const PoseVector& start, bool screen,
+                  const DenseOptions& options, PoseVector* region) noexcept {
+  int nr = 0;
+  for (int i = 0; i < n; ++i) {
+    region[nr++] = starts[i];
+  }
+  if (screen) {
+    for (int d = -1; d <= 1; d += 2) {
+      const double shift_mm = d * options.screen_channel_mm;
+      PoseVector q = start;
+      q[solver::kXch] += shift_mm;
+      region[nr++] = q;
+      q = start;
+      q[solver::kYch] += shift_mm;
+      region[nr++] = q;
+    }
+  }
+  return nr;
+}
+
+// The screen: the cost alone at the start's channel and insertion moved
+// on a small grid; the `keep` cheapest appended to `starts` (n updated).
+void screen_starts(DenseFit& fit, const PoseVector& start, const Vec2& streak0, const DenseOptions& options,
+                   PoseVector* starts, int& n) noexcept {
+  constexpr int kChannelSteps = 1;  // -1..1 in x and in y
+  constexpr int kLambdaSteps = 2;   // -2..2
+  constexpr int kScreenSize = (2 * kChannelSteps + 1) * (2 * kChannelSteps + 1) * (2 * kLambdaSteps + 1);
+  Candidate screened[kScreenSize];
+  int ns = 0;
+  for (int ix = -kChannelSteps; ix <= kChannelSteps; ++ix) {
+    for (int iy = -kChannelSteps; iy <= kChannelSteps; ++iy) {
+      for (int il = -kLambdaSteps; il <= kLambdaSteps; ++il) {
+        if (ix == 0 && iy == 0 && il == 0) {
+          continue;  // the start itself is fitted anyway
+        }
+        Candidate c;
+        c.r = start;
+        c.r[solver::kXch] += ix * options.screen_channel_mm;
+        c.r[solver::kYch] += iy * options.screen_channel_mm;
+        c.r[solver::kLambda] += il * options.screen_lambda_mm;
+        c.streak = streak0;
+        PoseVector r = c.r;
+        const DenseFitSummary s = fit.fit(r, c.streak, 0, false, true);
+        if (s.ok) {
+          c.cost = s.cost;
+          screened[ns++] = c;
+        }
+      }
+    }
+  }
+  sort_by_cost(screened, ns);
+  const int keep = options.screen_keep < kMaxDenseScreenKeep ? options.screen_keep : kMaxDenseScreenKeep;
+  for (int i = 0; i < ns && i < keep && n < kMaxDenseStarts; ++i) {
+    starts[n++] = screened[i].r;
+  }
+}
+
+// Every start fitted coarsely in the region set; sorted by cost.
+int coarse_fits(DenseFit& fit, const PoseVector* starts, int n, const Vec2& streak0, const DenseOptions& options,
+                Candidate* out) noexcept {
+  int nc = 0;
+  for (int i = 0; i < n; ++i) {
+    Candidate c;
+    c.r = starts[i];
+    c.streak = streak0;
+    const DenseFitSummary s = fit.fit(c.r, c.streak, options.coarse_iterations, false, true);
+    if (s.ok) {
+      c.cost = s.cost;
+      out[nc++] = c;
+    }
+  }
+  sort_by_cost(out, nc);
+  return nc;
+}
+
 }  // namespace
 
 bool dense_options_valid(const DenseOptions& options) noexcept {
@@ -76,7 +154,9 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.lambda_step_mm > 0.0 && options.lambda_step_mm <= 10.0 && options.bend_step_rad > 0.0 &&
          options.bend_step_rad <= 1.0 && options.channel_step_mm > 0.0 && options.channel_step_mm <= 5.0 &&
          options.min_corner_support >= 0.0 && options.min_corner_support <= 1.0 &&
-         options.max_measured_corners >= 0 && options.max_measured_corners <= kNumCorners;
+         options.max_measured_corners >= 0 && options.max_measured_corners <= kNumCorners &&
+         options.screen_keep >= 0 && options.screen_keep <= kMaxDenseScreenKeep && options.screen_channel_mm > 0.0 &&
+         options.screen_channel_mm <= 5.0 && options.screen_lambda_mm > 0.0 && options.screen_lambda_mm <= 5.0;
 }
 
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
@@ -85,28 +165,24 @@ DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, con
   DenseResult result;
   const int nseeds = seed_count < 0 ? 0 : (seed_count > kMaxDenseSeeds ? kMaxDenseSeeds : seed_count);
   PoseVector starts[kMaxDenseStarts];
-  const int n = collect_starts(seeds, nseeds, start, options, starts);
+  int n = collect_starts(seeds, nseeds, start, options, starts);
   if (n == 0) {
     return result;
   }
   const Vec2 streak0 = streak_px.allFinite() ? streak_px : Vec2::Zero();
-  // Coarse: every start on a small work image over all of them.
+  // Coarse: every start on a small work image over all of them (with the
+  // screen: and over the channel's reach, the screen's starts added).
+  const bool screen = options.screen_keep > 0 && start.allFinite();
+  PoseVector coarse_poses[kMaxDenseStarts + 4];
+  const int nr = coarse_region(starts, n, start, screen, options, coarse_poses);
   Candidate coarse[kMaxDenseStarts];
   int nc = 0;
-  if (fit.set_region(image, starts, n, streak0.norm(), options.coarse_pixels, options.coarse_smoothing).ok()) {
-    for (int i = 0; i < n; ++i) {
-      Candidate c;
-      c.r = starts[i];
-      c.streak = streak0;
-      const DenseFitSummary s = fit.fit(c.r, c.streak, options.coarse_iterations, false, true);
-      if (s.ok) {
-        c.cost = s.cost;
-        coarse[nc++] = c;
-      }
+  if (fit.set_region(image, coarse_poses, nr, streak0.norm(), options.coarse_pixels, options.coarse_smoothing).ok()) {
+    if (screen) {
+      screen_starts(fit, start, streak0, options, starts, n);
     }
+    nc = coarse_fits(fit, starts, n, streak0, options, coarse);
   }
-  sort_by_cost(coarse, nc);
-  // Fine: the best coarse results and the pipeline's own poses as they are.
   Candidate fine[kMaxDenseFineCandidates + kMaxDenseSeeds];
   int nf = 0;
   const int keep =
@@ -114,6 +190,7 @@ DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, con
   for (int i = 0; i < nc && i < keep; ++i) {
     fine[nf++] = coarse[i];
   }
+  // Fine: the best coarse results and the pipeline's own poses as they are.
   if (nseeds > 0 && seeds[0].allFinite()) {
     fine[nf].r = seeds[0];
     fine[nf].streak = streak0;

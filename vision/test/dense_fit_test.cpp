@@ -28,15 +28,15 @@ struct DenseFixture {
 
   // A frame of the default scene (noise, blur, vignetting) at a bent pose
   // whose channel has moved by some play.
-  ImageView render_frame(std::uint32_t hard_cases = 0U) {
+  ImageView render_frame(std::uint32_t hard_cases = 0U, double play_x_mm = 0.6, double play_y_mm = -0.4) {
     auto created = render::Renderer::create(camera, model, render::RenderSettings{});
     EXPECT_TRUE(created.ok());
     pixels.assign(static_cast<std::size_t>(camera.width()) * static_cast<std::size_t>(camera.height()) * 3U, 0U);
     const MutableImageView out{pixels.data(), camera.width(), camera.height(),
                                static_cast<std::size_t>(camera.width()) * 3U};
     truth_r = model.geometry().nominal_pose(28.0, 0.7, 0.8);
-    truth_r[solver::kXch] += 0.6;
-    truth_r[solver::kYch] -= 0.4;
+    truth_r[solver::kXch] += play_x_mm;
+    truth_r[solver::kYch] += play_y_mm;
     render::SceneSpec spec;
     spec.r = truth_r;
     spec.seed = 5U;
@@ -109,6 +109,34 @@ TEST(DenseFit, FindsThePoseAndTheCornersFromTheEncodersStart) {
   }
   ASSERT_GT(visible, 6);
   EXPECT_GE(found, (8 * visible + 9) / 10) << found << " of " << visible;
+}
+
+// The channel moved by a large play (3 mm in x and y, two standard
+// deviations; the encoders know nothing of it) and the encoders' start 2 mm
+// and 0.1 rad off: the fits from the starts alone end in another basin
+// (some 3 mm off at the TCP); with the screen (its cheapest starts of the
+// channel's and the insertion's neighbourhood, the coarse region widened
+// to the channel's reach) the search ends in the truth's.
+TEST(DenseFit, TheScreenFindsAChannelMovedFarByThePlay) {
+  DenseFixture f;
+  const ImageView image = f.render_frame(0U, -3.0, -3.0);
+  DenseOptions options = quick_options();
+  std::unique_ptr<DenseFit> fit = make_fit(f, options);
+  ASSERT_NE(fit, nullptr);
+  const solver::PoseVector start = f.model.geometry().nominal_pose(28.0 - 2.0, 0.7, 0.8 - 0.1);
+  const auto tcp_error_mm = [&f](const DenseResult& result) {
+    return (f.model.tcp(result.r) - f.truth.instruments[0].tcp).norm();
+  };
+  options.screen_keep = 0;
+  const DenseResult without = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, solver::Vec2::Zero(),
+                                             options);
+  options.screen_keep = DenseOptions{}.screen_keep;
+  const DenseResult with = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, solver::Vec2::Zero(),
+                                          options);
+  ASSERT_TRUE(with.ok);
+  EXPECT_LT(tcp_error_mm(with), 1.0) << with.r.transpose();
+  ASSERT_TRUE(without.ok);
+  EXPECT_GT(tcp_error_mm(without), 2.0) << without.r.transpose();
 }
 
 // Fitted from the truth itself, the fit stays there (the cost's minimum is
@@ -216,6 +244,15 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   o.max_measured_corners = kNumCorners + 1;
   EXPECT_FALSE(dense_options_valid(o));
   o.max_measured_corners = -1;
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.screen_keep = kMaxDenseScreenKeep + 1;
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.screen_channel_mm = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.screen_lambda_mm = 0.0;
   EXPECT_FALSE(dense_options_valid(o));
 }
 
