@@ -66,7 +66,8 @@ int collect_starts(const PoseVector* seeds, int nseeds, const PoseVector& start,
 }
 
 // The coarse region's poses: the starts' and, with the screen, the start's
-// channel moved to the screen's extremes in x and y.
+// channel moved to the screen's extremes in x and y (kScreenReachPoses).
+constexpr int kScreenReachPoses = 4;
 int coarse_region(const PoseVector* starts, int n, const PoseVector& start, bool screen,
                   const DenseOptions& options, PoseVector* region) noexcept {
   int nr = 0;
@@ -173,7 +174,7 @@ DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, con
   // Coarse: every start on a small work image over all of them (with the
   // screen: and over the channel's reach, the screen's starts added).
   const bool screen = options.screen_keep > 0 && start.allFinite();
-  PoseVector coarse_poses[kMaxDenseStarts + 4];
+  PoseVector coarse_poses[kMaxDenseStarts + kScreenReachPoses];
   const int nr = coarse_region(starts, n, start, screen, options, coarse_poses);
   Candidate coarse[kMaxDenseStarts];
   int nc = 0;
