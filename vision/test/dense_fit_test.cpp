@@ -165,6 +165,28 @@ TEST(DenseFit, TheTruthIsTheMinimumOfTheCost) {
   EXPECT_GT(at_off.cost, at_truth.cost);
 }
 
+// The default fine stage sees a PAL frame's instrument at the camera's own
+// resolution (blocks of 1 px): the corners at the bend's far end move by
+// pixels for hundredths of a radian, which coarser blocks blur away.
+TEST(DenseFit, TheDefaultFineStageWorksAtTheCamerasResolution) {
+  DenseFixture f;
+  const ImageView image = f.render_frame();
+  const DenseFitConfig config;
+  const DenseOptions defaults;
+  ASSERT_LE(defaults.fine_pixels, config.max_work_pixels);
+  auto created = DenseFit::create(f.camera, f.model, default_color_model(), config);
+  ASSERT_TRUE(created.ok());
+  DenseFit& fit = *created.value();
+  // A fine region as dense_estimate builds it: candidates apart by about
+  // the encoders' accuracy.
+  solver::PoseVector region[3] = {f.truth_r, f.truth_r, f.truth_r};
+  region[1][solver::kLambda] += 2.0;
+  region[2][solver::kTheta] -= 0.2;
+  ASSERT_TRUE(fit.set_region(image, region, 3, 0.0, defaults.fine_pixels, 0).ok());
+  EXPECT_EQ(fit.block_size(), 1);
+  EXPECT_LE(fit.work_pixels(), defaults.fine_pixels);
+}
+
 TEST(DenseFit, BadInputsAreErrorValues) {
   DenseFixture f;
   const ImageView image = f.render_frame();

@@ -32,8 +32,9 @@ struct DenseFitConfig {
   int max_width = 1920;
   int max_height = 1080;
   // The work image: the region around the instrument averaged in square
-  // blocks until it has at most this many pixels (set_region's target).
-  int max_work_pixels = 24000;
+  // blocks until it has at most this many pixels (set_region's target;
+  // about 280 bytes of buffers each, allocated by create()).
+  int max_work_pixels = 100000;
   // Chords per stripe of the rendered bending section (their sagitta at
   // the tightest bend stays under 0.02 mm).
   int chords_per_stripe = 4;
