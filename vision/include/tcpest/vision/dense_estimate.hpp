@@ -26,11 +26,7 @@ namespace vision {
 
 struct DenseOptions {
   int coarse_pixels = 6000;
-  // The fine stage at the camera's own resolution for a PAL frame's region
-  // (blocks of 1 px up to 100000 px): the corners at the bend's far end
-  // move by pixels for hundredths of a radian, and 2x2 or 3x3 blocks cost
-  // frames there (docs/vision-measurements.md).
-  int fine_pixels = 100000;
+  int fine_pixels = kDenseFineWorkPixels;  // the camera's own pixels for a PAL frame
   int coarse_iterations = 10;
   int fine_iterations = 15;
   int fine_candidates = 2;           // coarse results refined (besides the pipeline's poses)

@@ -27,6 +27,13 @@
 namespace tcpest {
 namespace vision {
 
+// The fine stage's work image (px): a PAL frame's instrument region at the
+// camera's own pixels. The corners at the bend's far end move by pixels for
+// hundredths of a radian, and 2x2 or 3x3 blocks cost frames there
+// (docs/vision-measurements.md). DenseFitConfig's capacity by default, and
+// DenseOptions::fine_pixels.
+constexpr int kDenseFineWorkPixels = 100000;
+
 struct DenseFitConfig {
   // The largest camera image (the ray table's size).
   int max_width = 1920;
@@ -34,7 +41,7 @@ struct DenseFitConfig {
   // The work image: the region around the instrument averaged in square
   // blocks until it has at most this many pixels (set_region's target;
   // about 280 bytes of buffers each, allocated by create()).
-  int max_work_pixels = 100000;
+  int max_work_pixels = kDenseFineWorkPixels;
   // Chords per stripe of the rendered bending section (their sagitta at
   // the tightest bend stays under 0.02 mm).
   int chords_per_stripe = 4;
