@@ -461,9 +461,32 @@ TEST(VisionCommands, MeasuredCornersLeaveOutThePredictedOnes) {
   EXPECT_EQ(measured_corner_count(e, config), 0);
 }
 
+// The dense stage's rule: never on a valid estimate; on the others where
+// few corners were measured, or where the encoders contradict the estimate
+// (there it would end none) unless that is turned off.
+TEST(VisionCommands, DenseStageAppliesWhereFewCornersWereMeasuredOrTheEncodersDisagree) {
+  using Q = solver::EstimateQuality;
+  vision::DenseOptions options;
+  options.max_measured_corners = 2;
+  ASSERT_TRUE(options.run_when_encoders_disagree);
+  EXPECT_FALSE(dense_stage_applies(Q::Valid, 0, true, options));
+  EXPECT_FALSE(dense_stage_applies(Q::Valid, 0, false, options));
+  for (const Q q : {Q::Degraded, Q::None}) {
+    EXPECT_TRUE(dense_stage_applies(q, 0, false, options));
+    EXPECT_TRUE(dense_stage_applies(q, 2, false, options));
+    EXPECT_FALSE(dense_stage_applies(q, 3, false, options));
+    EXPECT_TRUE(dense_stage_applies(q, 3, true, options));
+    EXPECT_TRUE(dense_stage_applies(q, 12, true, options));
+  }
+  options.run_when_encoders_disagree = false;
+  EXPECT_FALSE(dense_stage_applies(Q::Degraded, 3, true, options));
+  EXPECT_TRUE(dense_stage_applies(Q::Degraded, 2, true, options));
+}
+
 // --dense: the dense stage runs only on the frames the pipeline leaves
 // without a valid estimate (here on all of those; by default only where
-// it measured at most 2 corners), and what it keeps is reported degraded at
+// it measured at most 2 corners or the encoders contradict the estimate),
+// and what it keeps is reported degraded at
 // best (its estimates have no validity rules of their own yet); frames the
 // pipeline makes valid are left as they are. Out-of-range options are
 // refused; evaluate reports the stage's frames.

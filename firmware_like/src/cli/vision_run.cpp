@@ -336,9 +336,16 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
                                                               status.ok(), mode, start, guided_);
   solver::Estimate estimate = guided.estimate;
   out.streak_px = guided.fit.streak_px;
-  if (dense_ != nullptr && estimate.quality != solver::EstimateQuality::Valid &&
-      measured_corner_count(fx.result(), extractor_->config()) <= dense_options_.max_measured_corners) {
-    apply_dense(image, guided, start, mode, estimate, out);
+  if (dense_ != nullptr) {
+    // The check below on a copy: would the encoders reject the pipeline's
+    // estimate (then it ends none)?
+    solver::Estimate checked = estimate;
+    const bool encoders_disagree =
+        prior_joints != nullptr && solver::check_against_encoders(checked, start, encoder_check_);
+    if (dense_stage_applies(estimate.quality, measured_corner_count(fx.result(), extractor_->config()),
+                            encoders_disagree, dense_options_)) {
+      apply_dense(image, guided, start, mode, estimate, out);
+    }
   }
   if (prior_joints != nullptr) {  // `start` holds the encoders' joints
     out.encoder_disagrees = solver::check_against_encoders(estimate, start, encoder_check_);
@@ -439,6 +446,14 @@ void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableI
     }
   }
   vision::draw_extraction(image, extractor_->result(), model);
+}
+
+bool dense_stage_applies(solver::EstimateQuality quality, int measured_corners, bool encoders_disagree,
+                         const vision::DenseOptions& options) noexcept {
+  if (quality == solver::EstimateQuality::Valid) {
+    return false;
+  }
+  return measured_corners <= options.max_measured_corners || (options.run_when_encoders_disagree && encoders_disagree);
 }
 
 int measured_corner_count(const vision::Extraction& e, const vision::ExtractorConfig& config) noexcept {

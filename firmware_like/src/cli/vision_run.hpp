@@ -150,6 +150,11 @@ bool corner_reported(const EstimateResult& result, const vision::Extraction& ext
 // fitted pose's predictions, ExtractorConfig::refine_predicted_confidence).
 // The dense stage runs where they are few (DenseOptions::max_measured_corners).
 int measured_corner_count(const vision::Extraction& extraction, const vision::ExtractorConfig& config) noexcept;
+// Whether the dense stage runs on a frame: the pipeline's estimate is not
+// valid, and it measured at most DenseOptions::max_measured_corners or the
+// encoders contradict its estimate (DenseOptions::run_when_encoders_disagree).
+bool dense_stage_applies(solver::EstimateQuality quality, int measured_corners, bool encoders_disagree,
+                         const vision::DenseOptions& options) noexcept;
 
 // The JSON line of `tcpest estimate --json` (no newline).
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,
