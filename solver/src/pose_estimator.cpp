@@ -43,7 +43,7 @@ bool encoder_check_valid(const EncoderCheck& check) noexcept {
          std::isfinite(check.bend_tolerance_rad) && check.bend_tolerance_rad >= 0.0;
 }
 
-bool check_against_encoders(Estimate& estimate, const PoseVector& encoders, const EncoderCheck& check) noexcept {
+bool disagrees_with_encoders(const Estimate& estimate, const PoseVector& encoders, const EncoderCheck& check) noexcept {
   if (estimate.quality == EstimateQuality::None || !estimate.r.allFinite() || !encoders.allFinite()) {
     return false;
   }
@@ -53,10 +53,18 @@ bool check_against_encoders(Estimate& estimate, const PoseVector& encoders, cons
   const double bend_dx = r[kTheta] * dmath::cos(r[kPhi]) - encoders[kTheta] * dmath::cos(encoders[kPhi]);
   const double bend_dy = r[kTheta] * dmath::sin(r[kPhi]) - encoders[kTheta] * dmath::sin(encoders[kPhi]);
   const bool bend_off = check.bend_tolerance_rad > 0.0 && dmath::hypot(bend_dx, bend_dy) > check.bend_tolerance_rad;
-  if (!insertion_off && !bend_off) {
+  return insertion_off || bend_off;
+}
+
+EstimateQuality demoted_one_level(EstimateQuality quality) noexcept {
+  return quality == EstimateQuality::Valid ? EstimateQuality::Degraded : EstimateQuality::None;
+}
+
+bool check_against_encoders(Estimate& estimate, const PoseVector& encoders, const EncoderCheck& check) noexcept {
+  if (!disagrees_with_encoders(estimate, encoders, check)) {
     return false;
   }
-  estimate.quality = estimate.quality == EstimateQuality::Valid ? EstimateQuality::Degraded : EstimateQuality::None;
+  estimate.quality = demoted_one_level(estimate.quality);
   return true;
 }
 

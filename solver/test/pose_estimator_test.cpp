@@ -179,6 +179,15 @@ TEST_F(PoseEstimatorTest, AnEstimateFarFromTheEncodersIsDemotedOneLevel) {
   unknown[kLambda] = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(check_against_encoders(e, unknown, check));
   EXPECT_EQ(e.quality, EstimateQuality::Valid);
+  // The predicate answers the same and changes nothing.
+  e = estimate_at(model_, 31.5, 0.3, 0.8, EstimateQuality::Valid);
+  EXPECT_TRUE(disagrees_with_encoders(e, encoders, check));
+  EXPECT_EQ(e.quality, EstimateQuality::Valid);
+  EXPECT_FALSE(disagrees_with_encoders(estimate_at(model_, 29.0, 0.5, 0.6, EstimateQuality::Valid), encoders, check));
+  EXPECT_FALSE(disagrees_with_encoders(estimate_at(model_, 40.0, 0.3, 0.2, EstimateQuality::None), encoders, check));
+  EXPECT_EQ(demoted_one_level(EstimateQuality::Valid), EstimateQuality::Degraded);
+  EXPECT_EQ(demoted_one_level(EstimateQuality::Degraded), EstimateQuality::None);
+  EXPECT_EQ(demoted_one_level(EstimateQuality::None), EstimateQuality::None);
   EXPECT_TRUE(encoder_check_valid(check));
   EXPECT_FALSE(encoder_check_valid(EncoderCheck{-1.0, 0.5}));
   EXPECT_FALSE(encoder_check_valid(EncoderCheck{6.0, std::numeric_limits<double>::infinity()}));

@@ -336,20 +336,21 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
                                                               status.ok(), mode, start, guided_);
   solver::Estimate estimate = guided.estimate;
   out.streak_px = guided.fit.streak_px;
-  if (dense_ != nullptr) {
-    // The check below on a copy: would the encoders reject the pipeline's
-    // estimate (then it ends none)?
-    solver::Estimate checked = estimate;
-    const bool encoders_disagree =
-        prior_joints != nullptr && solver::check_against_encoders(checked, start, encoder_check_);
-    if (dense_stage_applies(estimate.quality, measured_corner_count(fx.result(), extractor_->config()),
-                            encoders_disagree, dense_options_)) {
-      apply_dense(image, guided, start, mode, estimate, out);
-    }
+  // `start` holds the encoders' joints when prior_joints is given. Asked
+  // before the dense stage, which also runs where they disagree.
+  bool encoders_disagree =
+      prior_joints != nullptr && solver::disagrees_with_encoders(estimate, start, encoder_check_);
+  if (dense_ != nullptr && dense_stage_applies(estimate.quality,
+                                               measured_corner_count(fx.result(), extractor_->config()),
+                                               encoders_disagree, dense_options_)) {
+    apply_dense(image, guided, start, mode, estimate, out);
+    // The stage may have replaced the estimate: ask again.
+    encoders_disagree = prior_joints != nullptr && solver::disagrees_with_encoders(estimate, start, encoder_check_);
   }
-  if (prior_joints != nullptr) {  // `start` holds the encoders' joints
-    out.encoder_disagrees = solver::check_against_encoders(estimate, start, encoder_check_);
+  if (encoders_disagree) {
+    estimate.quality = solver::demoted_one_level(estimate.quality);
   }
+  out.encoder_disagrees = encoders_disagree;
   // The prior's turn of phi and sign of theta (the loop reports the same).
   estimate.r = solver::nearest_equivalent_joints(estimate.r, start);
   const vision::Extraction& e = fx.result();

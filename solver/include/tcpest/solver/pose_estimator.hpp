@@ -69,8 +69,16 @@ struct EncoderCheck {
 // Checks ranges (finite, >= 0).
 bool encoder_check_valid(const EncoderCheck& check) noexcept;
 
-// Applies `check` to `estimate` (nothing when encoders or estimate are not
-// finite, or the estimate has no pose). True when it was demoted.
+// True when `estimate` lies beyond `check`'s tolerances of `encoders`;
+// false when encoders or estimate are not finite, or the estimate has no
+// pose. Changes nothing: a caller can ask before it decides.
+bool disagrees_with_encoders(const Estimate& estimate, const PoseVector& encoders, const EncoderCheck& check) noexcept;
+
+// Valid -> Degraded -> None (None stays None).
+EstimateQuality demoted_one_level(EstimateQuality quality) noexcept;
+
+// Applies `check` to `estimate`: demoted one level where
+// disagrees_with_encoders. True when it was demoted.
 bool check_against_encoders(Estimate& estimate, const PoseVector& encoders, const EncoderCheck& check) noexcept;
 
 class PoseEstimator {
