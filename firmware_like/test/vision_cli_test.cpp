@@ -486,10 +486,10 @@ TEST(VisionCommands, DenseStageAppliesWhereFewCornersWereMeasuredOrTheEncodersDi
 // --dense: the dense stage runs only on the frames the pipeline leaves
 // without a valid estimate (here on all of those; by default only where
 // it measured at most 2 corners or the encoders contradict the estimate),
-// and what it keeps is reported degraded at
-// best (its estimates have no validity rules of their own yet); frames the
-// pipeline makes valid are left as they are. Out-of-range options are
-// refused; evaluate reports the stage's frames.
+// and what it keeps is reported degraded at best (its estimates have no
+// validity rules of their own yet); frames the pipeline makes valid are
+// left as they are. Out-of-range options are refused; evaluate reports the
+// stage's frames.
 TEST(VisionCommands, DenseStageRunsOnlyOnFramesNotValidAndKeepsThemDegraded) {
   ModelSetup setup;
   ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));

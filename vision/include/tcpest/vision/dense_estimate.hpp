@@ -50,9 +50,9 @@ struct DenseOptions {
   // mostly right, and the dense fit's own minimum more often elsewhere
   // (docs/vision.md, "The dense stage"). 12: every frame not valid.
   int max_measured_corners = 2;
-  // ... unless the encoders contradict that result (solver::check_against_encoders
-  // would report it none): then it is not mostly right, and the dense stage
-  // runs whatever was measured.
+  // ... unless the encoders contradict that result
+  // (solver::disagrees_with_encoders; it would end none): then it is not
+  // mostly right, and the dense stage runs whatever was measured.
   bool run_when_encoders_disagree = true;
 };
 // Ranges: work images of 256 to 2^20 pixels, 1 to 100 iterations, 0 to
