@@ -270,7 +270,8 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
   if (ok) {
     f->cls0_.reset(new (std::nothrow) std::uint8_t[n]);
     f->cls1_.reset(new (std::nothrow) std::uint8_t[n]);
-    ok = f->cls0_ != nullptr && f->cls1_ != nullptr;
+    f->face_.reset(new (std::nothrow) std::uint8_t[n]);
+    ok = f->cls0_ != nullptr && f->cls1_ != nullptr && f->face_ != nullptr;
   }
   if (!ok) {
     return R::failure(VisionError::OutOfMemory);
@@ -326,6 +327,8 @@ void DenseFit::build_segments(const PoseVector& r) noexcept {
     s.ds = static_cast<float>((s_b - s_a) / len);
     s.cap_a = cap_a;
     s.cap_b = true;
+    s.face_a = false;
+    s.face_b = false;
     s.part = part;
     ++n;
   };
@@ -348,8 +351,17 @@ void DenseFit::build_segments(const PoseVector& r) noexcept {
       const double s1 = (i + 1 == per) ? sb : sa + (sb - sa) * (i + 1) / per;
       const solver::CentrelineFrame c0 = model_.centreline(f, s0);
       const solver::CentrelineFrame c1 = model_.centreline(f, s1);
+      const int before = n;
       add(c0.position, c1.position, c0.tangent, c1.tangent, g.radius_mm, s0, s1, true,
           static_cast<std::uint8_t>(1 + m));
+      if (n > before && config_.end_faces) {
+        // The first stripe's face where the narrower shaft ends and the
+        // last one's around the grasper: the ring between the radii shows
+        // (the shaft and the grasper hide the rest of the disc).
+        Segment& added = segs_[static_cast<std::size_t>(before)];
+        added.face_a = m == 0 && i == 0;
+        added.face_b = m == solver::kNumMarkers - 1 && i + 1 == per;
+      }
     }
   }
   const solver::CentrelineFrame end = model_.centreline(f, g.bend_length_mm);
@@ -583,12 +595,20 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
   if (!(t > 0.0F) || !(t < thit_[i])) {
     return;
   }
+  // Where the side's first hit lies beyond a cut plane, the ray enters the
+  // tube through that end: its face, if the segment has one, is what shows.
   const float hx = t * dx - s.ax, hy = t * dy - s.ay, hz = t - s.az;
   if (s.cap_a && hx * s.nax + hy * s.nay + hz * s.naz < 0.0F) {
+    if (s.face_a) {
+      trace_face(s, true, dx, dy, i);
+    }
     return;
   }
   const float gx = t * dx - s.bx, gy = t * dy - s.by, gz = t - s.bz;
   if (s.cap_b && gx * s.nbx + gy * s.nby + gz * s.nbz > 0.0F) {
+    if (s.face_b) {
+      trace_face(s, false, dx, dy, i);
+    }
     return;
   }
   const float along = hx * s.ex + hy * s.ey + hz * s.ez;
@@ -597,7 +617,34 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
   const float dn = std::sqrt(dx * dx + dy * dy + 1.0F);
   thit_[i] = t;
   shit_[i] = s.s_a + along * s.ds;
+  face_[i] = 0U;
   const float c = (nx * dx + ny * dy + nz) / dn;
+  shade_[i] = c < 0.0F ? -c : c;
+}
+
+void DenseFit::trace_face(const Segment& s, bool at_a, float dx, float dy, std::size_t i) noexcept {
+  const float nx = at_a ? s.nax : s.nbx, ny = at_a ? s.nay : s.nby, nz = at_a ? s.naz : s.nbz;
+  const float ox = at_a ? s.ax : s.bx, oy = at_a ? s.ay : s.by, oz = at_a ? s.az : s.bz;
+  // The face at a looks back along -n_a, the one at b along +n_b: a ray
+  // sees it only travelling the other way.
+  const float dn = dx * nx + dy * ny + nz;
+  if (at_a ? !(dn > 1e-6F) : !(dn < -1e-6F)) {
+    return;
+  }
+  const float t = (ox * nx + oy * ny + oz * nz) / dn;
+  if (!(t > 0.0F) || !(t < thit_[i])) {
+    return;
+  }
+  const float hx = t * dx - ox, hy = t * dy - oy, hz = t - oz;
+  const float along = hx * s.ex + hy * s.ey + hz * s.ez;
+  const float radial2 = hx * hx + hy * hy + hz * hz - along * along;
+  if (!(radial2 <= s.radius * s.radius)) {
+    return;
+  }
+  thit_[i] = t;
+  shit_[i] = at_a ? s.s_a : s.s_a + s.len * s.ds;
+  face_[i] = static_cast<std::uint8_t>(s.part + 1U);
+  const float c = dn / std::sqrt(dx * dx + dy * dy + 1.0F);
   shade_[i] = c < 0.0F ? -c : c;
 }
 
@@ -634,6 +681,7 @@ void DenseFit::render_geometry(const PoseVector& r) noexcept {
   std::fill(thit_.get(), thit_.get() + np, kFar);
   std::fill(shit_.get(), shit_.get() + np, 0.0F);
   std::fill(shade_.get(), shade_.get() + np, 0.0F);
+  std::fill(face_.get(), face_.get() + np, std::uint8_t{0U});
   for (int si = 0; si < seg_count_; ++si) {
     const Segment& s = segs_[static_cast<std::size_t>(si)];
     SegmentWindow w;
@@ -695,6 +743,12 @@ void DenseFit::compute_coverage() noexcept {
       const float gsd = std::max(gradient_norm(sd_.get(), rw_, rh_, x, y), 1e-4F);
       const float cov = clamp01(0.5F - sd_[i] / gsd);
       if (cov <= 0.0F) {
+        continue;
+      }
+      if (face_[i] != 0U) {
+        // An end face lies at one arc length: its stripe's, whole.
+        cov0_[i] = cov;
+        cls0_[i] = face_[i];
         continue;
       }
       const float gs = std::max(gradient_norm(sval_.get(), rw_, rh_, x, y), 1e-4F);

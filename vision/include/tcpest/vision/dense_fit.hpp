@@ -75,6 +75,11 @@ struct DenseFitConfig {
   double lightness_weight = 0.5;
   // The blur modelled in linear light (false: in L*a*b*).
   bool linear_light_blur = true;
+  // The bending section's end faces drawn: the ring at the base where the
+  // shaft (narrower) ends and the one at the tip around the grasper, each
+  // in its stripe's colour shaded by the face's own cosine (false: the
+  // tube's ends are open cuts, as the revisions before).
+  bool end_faces = true;
 };
 
 struct DenseFitSummary {
@@ -143,6 +148,7 @@ class DenseFit {
     float nax, nay, naz, nbx, nby, nbz;          // cut planes' normals at the ends
     float len, radius, s_a, ds;                  // length, radius, arc length at a, ds per mm of axis
     bool cap_a, cap_b;
+    bool face_a, face_b;                         // a flat face at that end (seen from beyond its cut plane)
     std::uint8_t part;                           // 0 shaft, 1..5 marker, 6 grasper
   };
   void build_segments(const solver::PoseVector& r) noexcept;
@@ -173,6 +179,9 @@ class DenseFit {
   static bool row_span(const SegmentWindow& w, int y, int& rx0, int& rx1) noexcept;
   // One work pixel's ray against one segment: signed distance, first hit, shading.
   void trace_ray(const Segment& s, const RayConstants& k, std::size_t i) noexcept;
+  // The same ray against the segment's end face (at_a: the face at a);
+  // the pixel shows the face when it is the nearest hit so far.
+  void trace_face(const Segment& s, bool at_a, float dx, float dy, std::size_t i) noexcept;
   // Each work pixel's coverage by the instrument and its two main parts.
   void compute_coverage() noexcept;
   void build_streak_kernel(const solver::Vec2& streak_px) noexcept;
@@ -229,6 +238,7 @@ class DenseFit {
   std::unique_ptr<float[]> sd_, snear_, thit_, shit_, shade_, sval_;
   std::unique_ptr<float[]> cov0_, cov1_;
   std::unique_ptr<std::uint8_t[]> cls0_, cls1_;
+  std::unique_ptr<std::uint8_t[]> face_;  // the part (1..7) whose end face a work pixel shows; 0: none
   // Blurred basis planes (kBasis), predictions, Jacobian (kParams x 2), weights, scratch.
   std::unique_ptr<float[]> basis_, pred_, trial_, jac_, weights_, tmp_, scratch_;
   // The streak's kernel: offsets (work pixels) and weights.
