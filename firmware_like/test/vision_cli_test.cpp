@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -333,6 +334,31 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessByVisibleCorners) {
                      "8-12 66.7 % of 3");
   char small[20];
   format_visible_corners_tally(tally, small, sizeof small);
+  EXPECT_EQ(std::strlen(small), sizeof small - 1U);
+  EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
+}
+
+// evaluate's line of frame success by the truth's insertion: 5 mm bins on
+// model.md's grid, a lambda beyond it in the end bin, a non-finite one left
+// out, empty bins not printed.
+TEST(VisionCommands, EvaluateTalliesFrameSuccessByInsertion) {
+  InsertionTally tally;
+  char line[512];
+  format_insertion_tally(tally, line, sizeof line);
+  EXPECT_STREQ(line, "");
+  tally.add(std::numeric_limits<double>::quiet_NaN(), true);
+  format_insertion_tally(tally, line, sizeof line);
+  EXPECT_STREQ(line, "");
+  tally.add(10.0, true);
+  tally.add(12.4, false);   // the 10 mm bin
+  tally.add(12.6, true);    // the 15 mm bin
+  tally.add(3.0, true);     // below the grid: the first bin
+  tally.add(40.0, false);
+  tally.add(55.0, true);    // beyond it: the last
+  format_insertion_tally(tally, line, sizeof line);
+  EXPECT_STREQ(line, "frame success by insertion (mm): 10 66.7 % of 3, 15 100.0 % of 1, 40 50.0 % of 2");
+  char small[20];
+  format_insertion_tally(tally, small, sizeof small);
   EXPECT_EQ(std::strlen(small), sizeof small - 1U);
   EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
 }

@@ -275,6 +275,7 @@ struct EvaluateTotals {
   long mislabelled = 0;
   HardCaseTally by_case;  // frame success per hard case
   VisibleCornersTally by_visible;  // ... and by the frame's visible corners
+  InsertionTally by_insertion;     // ... and by the truth's insertion
   // The frames with visible corners that did not succeed, by the estimate's
   // status; of those without a pose, the ones that reported no corner at
   // all (stage 4 found nothing and no seed's image fit held: the reading
@@ -312,6 +313,9 @@ struct EvaluateTotals {
     if (score.visible > 0) {
       by_case.add(truth.hard_cases, success);
       by_visible.add(score.visible, success);
+      if (truth.instrument.has_r) {
+        by_insertion.add(truth.instrument.r[solver::kLambda], success);
+      }
       if (!success) {
         switch (result.status) {
           case EstimateStatus::None:
@@ -386,6 +390,10 @@ struct EvaluateTotals {
       std::printf("%s\n", case_line);
     }
     format_visible_corners_tally(by_visible, case_line, sizeof case_line);
+    if (case_line[0] != '\0') {
+      std::printf("%s\n", case_line);
+    }
+    format_insertion_tally(by_insertion, case_line, sizeof case_line);
     if (case_line[0] != '\0') {
       std::printf("%s\n", case_line);
     }

@@ -614,5 +614,24 @@ void format_visible_corners_tally(const VisibleCornersTally& tally, char* out, s
   }
 }
 
+void InsertionTally::add(double lambda_mm, bool success) noexcept {
+  if (!std::isfinite(lambda_mm)) {
+    return;
+  }
+  const double bin_mm = std::round((lambda_mm - kFirstMm) / kStepMm);
+  const int bin = static_cast<int>(std::min(std::max(bin_mm, 0.0), static_cast<double>(kBins - 1)));
+  ++frames[static_cast<std::size_t>(bin)];
+  successes[static_cast<std::size_t>(bin)] += success ? 1 : 0;
+}
+
+void format_insertion_tally(const InsertionTally& tally, char* out, std::size_t capacity) noexcept {
+  ShareLine line("frame success by insertion (mm): ", out, capacity);
+  for (int b = 0; b < InsertionTally::kBins; ++b) {
+    char name[8];
+    static_cast<void>(std::snprintf(name, sizeof name, "%.0f", InsertionTally::kFirstMm + InsertionTally::kStepMm * b));
+    line.item(name, tally.frames[static_cast<std::size_t>(b)], tally.successes[static_cast<std::size_t>(b)]);
+  }
+}
+
 }  // namespace cli
 }  // namespace tcpest

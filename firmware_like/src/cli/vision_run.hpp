@@ -188,5 +188,24 @@ struct VisibleCornersTally {
 // frame was counted.
 void format_visible_corners_tally(const VisibleCornersTally& tally, char* out, std::size_t capacity) noexcept;
 
+// `tcpest evaluate`'s frame success by the truth's insertion lambda (the
+// sidecar's r), in 5 mm bins centred on model.md's grid (10, 15, ..., 40
+// mm; a lambda beyond the grid joins its end bin). Both ends of the range
+// lose frames for their own reasons (the base at the image's edge and the
+// shaft outside it at 10 mm, a small tube at 40 mm: docs/vision.md), which
+// a pooled rate hides.
+struct InsertionTally {
+  static constexpr int kBins = 7;
+  static constexpr double kFirstMm = 10.0;
+  static constexpr double kStepMm = 5.0;
+  std::array<int, kBins> frames{};
+  std::array<int, kBins> successes{};
+  void add(double lambda_mm, bool success) noexcept;  // a non-finite lambda is not counted
+};
+// "frame success by insertion (mm): 10 70.7 % of 335, ..., 40 74.9 % of
+// 335" (no newline; empty bins left out); an empty string when no frame
+// was counted.
+void format_insertion_tally(const InsertionTally& tally, char* out, std::size_t capacity) noexcept;
+
 }  // namespace cli
 }  // namespace tcpest
