@@ -212,6 +212,19 @@ TEST(DenseFit, TheDefaultFineStageWorksAtTheCamerasResolution) {
   ASSERT_TRUE(fit.set_region(image, region, 3, 0.0, defaults.fine_pixels, 0).ok());
   EXPECT_EQ(fit.block_size(), 1);
   EXPECT_LE(fit.work_pixels(), defaults.fine_pixels);
+  // Any region of the frame fits whole; at the shortest insertion the tube
+  // is near and its region larger than the 100000 px that once sufficed.
+  EXPECT_GE(defaults.fine_pixels, f.camera.width() * f.camera.height());
+  solver::PoseVector near[3];
+  for (solver::PoseVector& r : near) {
+    r = f.model.geometry().nominal_pose(10.0, 0.7, 1.4);
+  }
+  near[1][solver::kLambda] += 2.0;
+  near[2][solver::kTheta] -= 0.2;
+  ASSERT_TRUE(fit.set_region(image, near, 3, 0.0, defaults.fine_pixels, 0).ok());
+  EXPECT_EQ(fit.block_size(), 1);
+  EXPECT_GT(fit.work_pixels(), 100000);
+  EXPECT_LE(fit.work_pixels(), defaults.fine_pixels);
 }
 
 TEST(DenseFit, BadInputsAreErrorValues) {

@@ -27,7 +27,7 @@ constexpr OptionSpec kDenseOption{"dense", nullptr,
                                   "the dense fit (every pixel around the instrument against a rendering of the "
                                   "model) on each frame not yet valid where at most 2 corners were measured on the "
                                   "image or the encoders contradict its estimate; its estimate is reported degraded "
-                                  "at best; offline only: two or three seconds per such frame (docs/vision.md)"};
+                                  "at best; offline only: several seconds per such frame (docs/vision.md)"};
 
 struct ModelSetup {
   solver::CameraModel camera;

@@ -99,7 +99,7 @@ class EstimatePipeline {
   // The model-guided rounds after the first solve (0: stage 4's corners only).
   vision::GuidedOptions& guided_options() noexcept { return guided_; }
   // The dense stage on the frames the pipeline does not make valid (off
-  // until enabled; offline only: two or three seconds per frame). False: the
+  // until enabled; offline only: several seconds per frame). False: the
   // options are out of range or its buffers could not be allocated.
   bool enable_dense(const vision::DenseOptions& options) noexcept;
   // Overlay of the last frame (extraction, model at the estimate, TCP) into `pixels`.

@@ -27,12 +27,14 @@
 namespace tcpest {
 namespace vision {
 
-// The fine stage's work image (px): a PAL frame's instrument region at the
-// camera's own pixels. The corners at the bend's far end move by pixels for
-// hundredths of a radian, and 2x2 or 3x3 blocks cost frames there
-// (docs/vision-measurements.md). DenseFitConfig's capacity by default, and
-// DenseOptions::fine_pixels.
-constexpr int kDenseFineWorkPixels = 100000;
+// The fine stage's work image (px): a whole PAL frame, so that the
+// instrument's region is at the camera's own pixels whatever its size (at
+// 10-15 mm of insertion the near tube's region can exceed 250000 px). The
+// corners at the bend's far end move by pixels for hundredths of a radian,
+// and 2x2 or 3x3 blocks cost frames there (docs/vision-measurements.md).
+// DenseFitConfig's capacity by default (about 116 MB of buffers, allocated
+// once, only for the offline stage), and DenseOptions::fine_pixels.
+constexpr int kDenseFineWorkPixels = 720 * 576;
 
 struct DenseFitConfig {
   // The largest camera image (the ray table's size).
