@@ -298,6 +298,16 @@ TEST(VisionCommands, EvaluateReportsTheStreakReadingUnderMotionBlur) {
   EXPECT_EQ(plain.find("motion-blur streak"), std::string::npos) << plain;
 }
 
+// A line written into a buffer too short for it keeps what fits, terminated.
+template <typename Tally>
+void expect_short_buffer_keeps_the_start(void (*format)(const Tally&, char*, std::size_t) noexcept,
+                                         const Tally& tally, const char* line) {
+  char small[20];
+  format(tally, small, sizeof small);
+  EXPECT_EQ(std::strlen(small), sizeof small - 1U);
+  EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
+}
+
 // evaluate's line of frame success per hard case: a frame counts under each
 // of its cases; no line for a set without hard cases; a short buffer keeps
 // what fits.
@@ -311,10 +321,7 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessPerHardCase) {
   tally.add(render::kHardOccluder, true);
   format_hard_case_tally(tally, line, sizeof line);
   EXPECT_STREQ(line, "frame success by hard case: occluder 50.0 % of 2, haze 0.0 % of 1, none 100.0 % of 1");
-  char small[24];
-  format_hard_case_tally(tally, small, sizeof small);
-  EXPECT_EQ(std::strlen(small), sizeof small - 1U);
-  EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
+  expect_short_buffer_keeps_the_start(format_hard_case_tally, tally, line);
 }
 
 TEST(VisionCommands, EvaluateTalliesFrameSuccessByVisibleCorners) {
@@ -332,10 +339,7 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessByVisibleCorners) {
   format_visible_corners_tally(tally, line, sizeof line);
   EXPECT_STREQ(line, "frame success by visible corners: 1-3 50.0 % of 2, 4-5 100.0 % of 1, 6-7 100.0 % of 1, "
                      "8-12 66.7 % of 3");
-  char small[20];
-  format_visible_corners_tally(tally, small, sizeof small);
-  EXPECT_EQ(std::strlen(small), sizeof small - 1U);
-  EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
+  expect_short_buffer_keeps_the_start(format_visible_corners_tally, tally, line);
 }
 
 // evaluate's line of frame success by the truth's insertion: 5 mm bins on
@@ -357,10 +361,7 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessByInsertion) {
   tally.add(55.0, true);    // beyond it: the last
   format_insertion_tally(tally, line, sizeof line);
   EXPECT_STREQ(line, "frame success by insertion (mm): 10 66.7 % of 3, 15 100.0 % of 1, 40 50.0 % of 2");
-  char small[20];
-  format_insertion_tally(tally, small, sizeof small);
-  EXPECT_EQ(std::strlen(small), sizeof small - 1U);
-  EXPECT_EQ(std::strncmp(small, line, sizeof small - 1U), 0);
+  expect_short_buffer_keeps_the_start(format_insertion_tally, tally, line);
 }
 
 // The image shows the shape, not which of the equivalent joints, (phi,
