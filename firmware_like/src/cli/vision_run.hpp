@@ -191,9 +191,9 @@ void format_visible_corners_tally(const VisibleCornersTally& tally, char* out, s
 // `tcpest evaluate`'s frame success by the truth's insertion lambda (the
 // sidecar's r), in 5 mm bins centred on model.md's grid (10, 15, ..., 40
 // mm; a lambda beyond the grid joins its end bin). Both ends of the range
-// lose frames for their own reasons (the base at the image's edge and the
-// shaft outside it at 10 mm, a small tube at 40 mm: docs/vision.md), which
-// a pooled rate hides.
+// lose frames for their own reasons (at 10 mm the base at the image's edge
+// and the shaft outside it, at 40 mm the shaft hiding most of the first
+// stripe: docs/vision-measurements.md), which a pooled rate hides.
 struct InsertionTally {
   static constexpr int kBins = 7;
   static constexpr double kFirstMm = 10.0;
