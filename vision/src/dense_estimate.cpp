@@ -1,5 +1,7 @@
 #include "tcpest/vision/dense_estimate.hpp"
 
+#include <algorithm>
+
 namespace tcpest {
 namespace vision {
 
@@ -66,8 +68,9 @@ int collect_starts(const PoseVector* seeds, int nseeds, const PoseVector& start,
 }
 
 // The coarse region's poses: the starts' and, with the screen, the start's
-// channel moved to the screen's extremes in x and y (kScreenReachPoses).
-constexpr int kScreenReachPoses = 4;
+// channel moved to the screen's extremes in x and y, and tilted to its
+// extremes in psi and mu when the screen tilts (kScreenReachPoses).
+constexpr int kScreenReachPoses = 8;
 int coarse_region(const PoseVector* starts, int n, const PoseVector& start, bool screen,
                   const DenseOptions& options, PoseVector* region) noexcept {
   int nr = 0;
@@ -75,6 +78,7 @@ int coarse_region(const PoseVector* starts, int n, const PoseVector& start, bool
     region[nr++] = starts[i];
   }
   if (screen) {
+    const bool tilt = options.screen_tilt_rad > 0.0;
     for (int d = -1; d <= 1; d += 2) {
       const double shift_mm = d * options.screen_channel_mm;
       PoseVector q = start;
@@ -83,45 +87,79 @@ int coarse_region(const PoseVector* starts, int n, const PoseVector& start, bool
       q = start;
       q[solver::kYch] += shift_mm;
       region[nr++] = q;
+      if (tilt) {
+        q = start;
+        q[solver::kPsi] += d * options.screen_tilt_rad;
+        region[nr++] = q;
+        q = start;
+        q[solver::kMu] += d * options.screen_tilt_rad;
+        region[nr++] = q;
+      }
     }
   }
   return nr;
 }
 
+// `c` into the `keep` cheapest so far, sorted by cost (on a tie the
+// earlier stays first; a costlier one than all `keep` is not kept).
+void keep_cheapest(const Candidate& c, Candidate* best, int keep, int& count) noexcept {
+  int at = count;
+  while (at > 0 && c.cost < best[at - 1].cost) {
+    --at;
+  }
+  if (at >= keep) {
+    return;
+  }
+  const int last = count < keep ? count : keep - 1;
+  for (int j = last; j > at; --j) {
+    best[j] = best[j - 1];
+  }
+  best[at] = c;
+  if (count < keep) {
+    ++count;
+  }
+}
+
 // The screen: the cost alone at the start's channel and insertion moved
-// on a small grid; the `keep` cheapest appended to `starts` (n updated).
+// (and its channel tilted, with screen_tilt_rad) on a small grid; the
+// `keep` cheapest appended to `starts` (n updated).
 void screen_starts(DenseFit& fit, const PoseVector& start, const Vec2& streak0, const DenseOptions& options,
                    PoseVector* starts, int& n) noexcept {
   constexpr int kChannelSteps = 1;  // -1..1 in x and in y
   constexpr int kLambdaSteps = 2;   // -2..2
-  constexpr int kScreenSize = (2 * kChannelSteps + 1) * (2 * kChannelSteps + 1) * (2 * kLambdaSteps + 1);
-  Candidate screened[kScreenSize];
-  int ns = 0;
+  const int tilt_steps = options.screen_tilt_rad > 0.0 ? 1 : 0;
+  const int keep = std::clamp(options.screen_keep, 0, kMaxDenseScreenKeep);
+  Candidate best[kMaxDenseScreenKeep];
+  int nb = 0;
   for (int ix = -kChannelSteps; ix <= kChannelSteps; ++ix) {
     for (int iy = -kChannelSteps; iy <= kChannelSteps; ++iy) {
-      for (int il = -kLambdaSteps; il <= kLambdaSteps; ++il) {
-        if (ix == 0 && iy == 0 && il == 0) {
-          continue;  // the start itself is fitted anyway
-        }
-        Candidate c;
-        c.r = start;
-        c.r[solver::kXch] += ix * options.screen_channel_mm;
-        c.r[solver::kYch] += iy * options.screen_channel_mm;
-        c.r[solver::kLambda] += il * options.screen_lambda_mm;
-        c.streak = streak0;
-        PoseVector r = c.r;
-        const DenseFitSummary s = fit.fit(r, c.streak, 0, false, true);
-        if (s.ok) {
-          c.cost = s.cost;
-          screened[ns++] = c;
+      for (int ip = -tilt_steps; ip <= tilt_steps; ++ip) {
+        for (int im = -tilt_steps; im <= tilt_steps; ++im) {
+          for (int il = -kLambdaSteps; il <= kLambdaSteps; ++il) {
+            if (ix == 0 && iy == 0 && ip == 0 && im == 0 && il == 0) {
+              continue;  // the start itself is fitted anyway
+            }
+            Candidate c;
+            c.r = start;
+            c.r[solver::kXch] += ix * options.screen_channel_mm;
+            c.r[solver::kYch] += iy * options.screen_channel_mm;
+            c.r[solver::kPsi] += ip * options.screen_tilt_rad;
+            c.r[solver::kMu] += im * options.screen_tilt_rad;
+            c.r[solver::kLambda] += il * options.screen_lambda_mm;
+            c.streak = streak0;
+            PoseVector r = c.r;
+            const DenseFitSummary s = fit.fit(r, c.streak, 0, false, true);
+            if (s.ok) {
+              c.cost = s.cost;
+              keep_cheapest(c, best, keep, nb);
+            }
+          }
         }
       }
     }
   }
-  sort_by_cost(screened, ns);
-  const int keep = options.screen_keep < kMaxDenseScreenKeep ? options.screen_keep : kMaxDenseScreenKeep;
-  for (int i = 0; i < ns && i < keep && n < kMaxDenseStarts; ++i) {
-    starts[n++] = screened[i].r;
+  for (int i = 0; i < nb && n < kMaxDenseStarts; ++i) {
+    starts[n++] = best[i].r;
   }
 }
 
@@ -156,7 +194,8 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.bend_step_rad <= 1.0 && options.channel_step_mm > 0.0 && options.channel_step_mm <= 5.0 &&
          options.min_corner_support >= 0.0 && options.min_corner_support <= 1.0 &&
          options.max_measured_corners >= 0 && options.max_measured_corners <= kNumCorners &&
-         options.screen_keep >= 0 && options.screen_keep <= kMaxDenseScreenKeep && options.screen_channel_mm > 0.0 &&
+         options.screen_keep >= 0 && options.screen_keep <= kMaxDenseScreenKeep && options.screen_tilt_rad >= 0.0 &&
+         options.screen_tilt_rad <= 0.3 && options.screen_channel_mm > 0.0 &&
          options.screen_channel_mm <= 5.0 && options.screen_lambda_mm > 0.0 && options.screen_lambda_mm <= 5.0;
 }
 

@@ -3,9 +3,10 @@
 // best kept by the fit's own cost. Starts: the poses the pipeline found
 // (its image fit's, its solve's), and the start pose (the encoders' or the
 // track's) with its insertion and bend moved by the encoders' accuracy,
-// and the cheapest few of a screen of the start's channel and insertion
-// moved on a grid (the cost alone: the channel's play, which the encoders
-// do not see, moves the tube by more than a fit's basin is wide).
+// and the cheapest few of a screen of the start's channel moved and
+// tilted and its insertion moved on a grid (the cost alone: the channel's
+// play, which the encoders do not see, moves the tube by more than a fit's
+// basin is wide; a tilt moves the bend's far end the most).
 // Each start is first fitted coarsely on a small work image; the best of
 // those, and the pipeline's own poses as they are, are fitted finely on a
 // larger one, and the lowest cost wins. The corners are then the model's
@@ -38,11 +39,13 @@ struct DenseOptions {
                                      // (off: more starts, about the same result on the hard sets)
   double channel_step_mm = 1.5;
   // A screen before the coarse fits: the cost alone (no iterations) at the
-  // start with its channel moved by -1, 0, +1 screen_channel_mm in x and y
+  // start with its channel moved by -1, 0, +1 screen_channel_mm in x and
+  // y, tilted by -1, 0, +1 screen_tilt_rad in psi and mu (0: not tilted),
   // and its insertion by -2..2 screen_lambda_mm, and the screen_keep
   // cheapest of those fitted too (0: no screen).
   int screen_keep = 3;
   double screen_channel_mm = 2.5;
+  double screen_tilt_rad = 0.07;
   double screen_lambda_mm = 1.5;
   double min_corner_support = 0.5;   // a corner is reported when the image around it is the rendering's
   // The pipeline's result is left alone where it measured more corners
@@ -59,7 +62,8 @@ struct DenseOptions {
 // kMaxDenseFineCandidates fine candidates, 0 to 8 smoothing passes, steps
 // finite and positive (lambda up to 10 mm, bends up to 1 rad, the channel
 // up to 5 mm), the corner support within 0..1, max_measured_corners 0..12,
-// the screen's kept starts 0..kMaxDenseScreenKeep and its steps up to 5 mm.
+// the screen's kept starts 0..kMaxDenseScreenKeep, its tilt 0..0.3 rad
+// and its steps up to 5 mm.
 bool dense_options_valid(const DenseOptions& options) noexcept;
 constexpr int kMaxDenseSeeds = 2;
 constexpr int kMaxDenseScreenKeep = 4;
