@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <ostream>
 #include <vector>
 
 #include "tcpest/render/renderer.hpp"
@@ -116,11 +117,18 @@ TEST(DenseFit, FindsThePoseAndTheCornersFromTheEncodersStart) {
 
 // The dense stage run twice on `image` from the encoders' start (2 mm
 // and 0.1 rad off the fixture's pose), with `off` and with `on`: each
-// run's TCP error (mm; infinite when the stage gave no pose).
+// run's TCP error (mm; infinite when the stage gave no pose) and the pose
+// it ended at (NaN when none), printed when a test fails.
 struct ScreenRuns {
   double off_tcp_mm = std::numeric_limits<double>::infinity();
   double on_tcp_mm = std::numeric_limits<double>::infinity();
+  solver::PoseVector off_r = solver::PoseVector::Constant(std::numeric_limits<double>::quiet_NaN());
+  solver::PoseVector on_r = solver::PoseVector::Constant(std::numeric_limits<double>::quiet_NaN());
 };
+std::ostream& operator<<(std::ostream& out, const ScreenRuns& runs) {
+  return out << "off: " << runs.off_tcp_mm << " mm at r = " << runs.off_r.transpose() << "; on: " << runs.on_tcp_mm
+             << " mm at r = " << runs.on_r.transpose();
+}
 ScreenRuns run_both_ways(const DenseFixture& f, const ImageView& image, const DenseOptions& off,
                          const DenseOptions& on) {
   ScreenRuns runs;
@@ -130,14 +138,16 @@ ScreenRuns run_both_ways(const DenseFixture& f, const ImageView& image, const De
     return runs;
   }
   const solver::PoseVector start = f.model.geometry().nominal_pose(28.0 - 2.0, 0.7, 0.8 - 0.1);
-  const auto tcp_error_mm = [&](const DenseOptions& options) {
+  const auto run = [&](const DenseOptions& options, double& tcp_error_mm, solver::PoseVector& end_r) {
     const DenseResult result =
         dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, solver::Vec2::Zero(), options);
-    return result.ok ? (f.model.tcp(result.r) - f.truth.instruments[0].tcp).norm()
-                     : std::numeric_limits<double>::infinity();
+    if (result.ok) {
+      tcp_error_mm = (f.model.tcp(result.r) - f.truth.instruments[0].tcp).norm();
+      end_r = result.r;
+    }
   };
-  runs.off_tcp_mm = tcp_error_mm(off);
-  runs.on_tcp_mm = tcp_error_mm(on);
+  run(off, runs.off_tcp_mm, runs.off_r);
+  run(on, runs.on_tcp_mm, runs.on_r);
   return runs;
 }
 
@@ -153,9 +163,9 @@ TEST(DenseFit, TheScreenFindsAChannelMovedFarByThePlay) {
   DenseOptions without = quick_options();
   without.screen_keep = 0;
   const ScreenRuns runs = run_both_ways(f, image, without, quick_options());
-  EXPECT_LT(runs.on_tcp_mm, 1.0);
-  EXPECT_GT(runs.off_tcp_mm, 2.0);
-  EXPECT_TRUE(std::isfinite(runs.off_tcp_mm));
+  EXPECT_LT(runs.on_tcp_mm, 1.0) << runs;
+  EXPECT_GT(runs.off_tcp_mm, 2.0) << runs;
+  EXPECT_TRUE(std::isfinite(runs.off_tcp_mm)) << runs;
 }
 
 // The channel tilted by a large play (0.1 rad in psi and in mu, two
@@ -173,9 +183,9 @@ TEST(DenseFit, TheScreenFindsAChannelTiltedFarByThePlay) {
   DenseOptions untilted = quick_options();
   untilted.screen_tilt_rad = 0.0;
   const ScreenRuns runs = run_both_ways(f, image, untilted, quick_options());
-  EXPECT_LT(runs.on_tcp_mm, 2.0);
-  EXPECT_GT(runs.off_tcp_mm, 3.0);
-  EXPECT_TRUE(std::isfinite(runs.off_tcp_mm));
+  EXPECT_LT(runs.on_tcp_mm, 2.0) << runs;
+  EXPECT_GT(runs.off_tcp_mm, 3.0) << runs;
+  EXPECT_TRUE(std::isfinite(runs.off_tcp_mm)) << runs;
 }
 
 // Fitted from the truth itself, the fit stays there (the cost's minimum is
