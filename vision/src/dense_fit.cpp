@@ -230,6 +230,7 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
       config.chords_per_stripe > kMaxChordsPerStripe || !(config.shaft_region_mm >= 0.0) ||
       !(config.margin_px >= 0.0 && config.margin_px <= 200.0) || !(config.model_sigma > 0.0) ||
       !(config.occluder_stripe_width > 0.0) || !(config.occluder_weight >= 0.0) || !(config.outlier_floor > 0.0) ||
+      !(config.edge_emphasis >= 0.0 && config.edge_emphasis <= 100.0) ||
       !(config.stripe_deviation_reg >= 0.0) || config.line_search_steps < 0 || config.line_search_steps > 8 ||
       !(config.channel_prior_mm > 0.0) || !(config.channel_prior_rad > 0.0) || !(config.max_streak_px >= 0.0) ||
       !(config.lightness_weight > 0.0 && config.lightness_weight <= 4.0) ||
@@ -260,7 +261,8 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
     return p != nullptr;
   };
   bool ok = f->ray_x_ != nullptr && f->ray_y_ != nullptr;
-  ok = ok && make(f->wrx_, 1U) && make(f->wry_, 1U) && make(f->obs_, kChannels) && make(f->occluder_, 1U);
+  ok = ok && make(f->wrx_, 1U) && make(f->wry_, 1U) && make(f->obs_, kChannels) && make(f->occluder_, 1U) &&
+       make(f->emphasis_, 1U);
   ok = ok && make(f->sd_, 1U) && make(f->snear_, 1U) && make(f->thit_, 1U) && make(f->shit_, 1U);
   ok = ok && make(f->shade_, 1U) && make(f->sval_, 1U) && make(f->cov0_, 1U) && make(f->cov1_, 1U);
   ok = ok && make(f->basis_, static_cast<std::size_t>(kBasis)) && make(f->pred_, kChannels);
@@ -444,7 +446,7 @@ Status<VisionError> DenseFit::set_region(const ImageView& image, const PoseVecto
       binomial_pass(obs_.get() + static_cast<std::size_t>(c) * np, tmp_.get(), rw_, rh_);
     }
   }
-  compute_occluder_likelihood();
+  compute_pixel_terms();
   return ok_status<VisionError>();
 }
 
@@ -491,9 +493,11 @@ void DenseFit::sample_work_image(const ImageView& image) noexcept {
   }
 }
 
-void DenseFit::compute_occluder_likelihood() noexcept {
+void DenseFit::compute_pixel_terms() noexcept {
   const std::size_t np = static_cast<std::size_t>(rw_) * static_cast<std::size_t>(rh_);
-  // The occluder's likelihood: anything but the stripes' colours.
+  // The occluder's likelihood: anything but the stripes' colours. The
+  // position on the blue-to-yellow axis is kept in tmp_ (free until the
+  // first rendering) for the emphasis below.
   const double ma = 0.5 * (colors_.blue.mean_a + colors_.yellow.mean_a);
   const double mb = 0.5 * (colors_.blue.mean_b + colors_.yellow.mean_b);
   const double da = colors_.yellow.mean_a - colors_.blue.mean_a;
@@ -504,6 +508,17 @@ void DenseFit::compute_occluder_likelihood() noexcept {
     const double t = ((static_cast<double>(obs_[i]) - ma) * da + (static_cast<double>(obs_[np + i]) - mb) * db) * axis;
     const double q = t * t / width2;
     occluder_[i] = static_cast<float>(config_.occluder_weight * (q < 60.0 ? dmath::exp(-0.5 * q) : 0.0));
+    tmp_[i] = static_cast<float>(t);
+  }
+  // Each pixel's share of the cost: more where the axis position changes
+  // (DenseFitConfig::edge_emphasis).
+  const float emphasis = static_cast<float>(config_.edge_emphasis);
+  for (int y = 0; y < rh_; ++y) {
+    for (int x = 0; x < rw_; ++x) {
+      const std::size_t i = idx(x, y, rw_);
+      emphasis_[i] = emphasis > 0.0F ? 1.0F + emphasis * std::min(gradient_norm(tmp_.get(), rw_, rh_, x, y), 1.0F)
+                                     : 1.0F;
+    }
   }
 }
 
@@ -1247,7 +1262,7 @@ double DenseFit::cost(const float* pred, bool update_weights) noexcept {
     qm /= s2;
     const double pm = qm < 60.0 ? dmath::exp(-0.5 * qm) : 0.0;
     const double den = pm + static_cast<double>(occluder_[i]) + config_.outlier_floor;
-    total -= s2 * dmath::log(den);
+    total -= s2 * static_cast<double>(emphasis_[i]) * dmath::log(den);
     if (update_weights) {
       weights_[i] = static_cast<float>(pm / den);
     }
@@ -1317,7 +1332,7 @@ void DenseFit::normal_equations(const ParamVector& theta, const Appearance& app,
   H = ParamMatrix::Zero();
   grad = ParamVector::Zero();
   for (std::size_t i = 0; i < np; ++i) {
-    const double w = static_cast<double>(weights_[i]);
+    const double w = static_cast<double>(weights_[i]) * static_cast<double>(emphasis_[i]);
     if (w < 1e-6) {
       continue;
     }

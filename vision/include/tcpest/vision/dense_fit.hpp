@@ -32,7 +32,7 @@ namespace vision {
 // 10-15 mm of insertion the near tube's region can exceed 250000 px). The
 // corners at the bend's far end move by pixels for hundredths of a radian,
 // and 2x2 or 3x3 blocks cost frames there (docs/vision-measurements.md).
-// DenseFitConfig's capacity by default (about 116 MB of buffers, allocated
+// DenseFitConfig's capacity by default (about 117 MB of buffers, allocated
 // once, only for the offline stage), and DenseOptions::fine_pixels.
 constexpr int kDenseFineWorkPixels = 720 * 576;
 
@@ -42,7 +42,7 @@ struct DenseFitConfig {
   int max_height = 1080;
   // The work image: the region around the instrument averaged in square
   // blocks until it has at most this many pixels (set_region's target;
-  // about 280 bytes of buffers each, allocated by create()).
+  // about 284 bytes of buffers each, allocated by create()).
   int max_work_pixels = kDenseFineWorkPixels;
   // Chords per stripe of the rendered bending section (their sagitta at
   // the tightest bend stays under 0.02 mm).
@@ -59,6 +59,16 @@ struct DenseFitConfig {
   double occluder_weight = 0.1;
   double occluder_stripe_width = 0.4;
   double outlier_floor = 1e-4;
+  // Extra weight of the pixels where the observed colour changes along the
+  // blue-to-yellow axis (the stripes' ends and sides): a pixel's share of
+  // the cost and of the step is 1 + edge_emphasis x min(1, the gradient of
+  // its position on that axis per work pixel). The many pixels of the
+  // tube's long sides, where shading and highlights are modelled least
+  // well, otherwise outweigh the few that place the stripes along the tube
+  // (docs/vision-measurements.md). The weight comes from the image alone,
+  // so costs stay comparable between poses; the appearance's solve does
+  // not use it. 0: every pixel alike.
+  double edge_emphasis = 15.0;
   // The stripes' appearance is the colour model's means times one chroma
   // scale plus deviations, regularised with this share of the weights.
   double stripe_deviation_reg = 0.1;
@@ -159,7 +169,9 @@ class DenseFit {
                          double& ymax) noexcept;
   // The work image's rays and block-averaged L*a*b* (region and block size set).
   void sample_work_image(const ImageView& image) noexcept;
-  void compute_occluder_likelihood() noexcept;
+  // Per work pixel, from the observation alone: the occluder's likelihood
+  // and the pixel's share of the cost (edge_emphasis).
+  void compute_pixel_terms() noexcept;
   bool occluded_by_instrument(const solver::Vec3& point, double s_point_mm) const noexcept;
   void render_geometry(const solver::PoseVector& r) noexcept;
   // A segment's reach in the work image: its box, and (bounded: both ends
@@ -236,6 +248,7 @@ class DenseFit {
   int scale_ = 1, rw_ = 0, rh_ = 0, smoothing_ = 0;
   std::size_t capacity_ = 0U;
   std::unique_ptr<float[]> wrx_, wry_, obs_, occluder_;  // occluder_: the occluder's likelihood of each work pixel
+  std::unique_ptr<float[]> emphasis_;                    // each work pixel's share of the cost (edge_emphasis)
   // Geometry per work pixel.
   std::unique_ptr<float[]> sd_, snear_, thit_, shit_, shade_, sval_;
   std::unique_ptr<float[]> cov0_, cov1_;
