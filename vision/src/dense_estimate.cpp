@@ -181,6 +181,32 @@ int coarse_fits(DenseFit& fit, const PoseVector* starts, int n, const Vec2& stre
   return nc;
 }
 
+// The softest steps: the fine stage's winner moved by -/+ its softest
+// step (DenseFit::softest_step), each fitted finely; a lower cost replaces
+// the winner. Along that direction the fit's minima line up (the tube slid
+// along itself, the base the most), each basin narrower than the spacing
+// the fit would have to cross; a fixed hop along the insertion alone lands
+// beside the valley (docs/vision.md, "The dense stage").
+void softest_steps(DenseFit& fit, const DenseOptions& options, Candidate& best) noexcept {
+  if (!(options.softest_step_px > 0.0)) {
+    return;
+  }
+  PoseVector step;
+  if (!fit.softest_step(best.r, best.streak, options.softest_step_px, step)) {
+    return;  // no corner in the image or no factorisation: the winner stays
+  }
+  const Candidate from = best;
+  for (int d = -1; d <= 1; d += 2) {
+    Candidate c = from;
+    c.r += d * step;
+    const DenseFitSummary s = fit.fit(c.r, c.streak, options.fine_iterations, false, true);
+    if (s.ok && s.cost < best.cost) {
+      c.cost = s.cost;
+      best = c;
+    }
+  }
+}
+
 }  // namespace
 
 bool dense_options_valid(const DenseOptions& options) noexcept {
@@ -196,7 +222,8 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.max_measured_corners >= 0 && options.max_measured_corners <= kNumCorners &&
          options.screen_keep >= 0 && options.screen_keep <= kMaxDenseScreenKeep && options.screen_tilt_rad >= 0.0 &&
          options.screen_tilt_rad <= 0.3 && options.screen_channel_mm > 0.0 &&
-         options.screen_channel_mm <= 5.0 && options.screen_lambda_mm > 0.0 && options.screen_lambda_mm <= 5.0;
+         options.screen_channel_mm <= 5.0 && options.screen_lambda_mm > 0.0 && options.screen_lambda_mm <= 5.0 &&
+         options.softest_step_px >= 0.0 && options.softest_step_px <= 20.0;
 }
 
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
@@ -257,6 +284,7 @@ DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, con
   if (!have) {
     return result;
   }
+  softest_steps(fit, options, best);
   // Once more from the best, so that the responsibilities are its own.
   result.fit = fit.fit(best.r, best.streak, 3, false, true);
   if (!result.fit.ok) {

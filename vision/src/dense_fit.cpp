@@ -1407,13 +1407,7 @@ bool DenseFit::damped_step(const ParamMatrix& H, const ParamVector& grad, const 
   return false;
 }
 
-DenseFitSummary DenseFit::fit(PoseVector& r, Vec2& streak_px, int max_iterations, bool constrained,
-                              bool fit_streak) noexcept {
-  DenseFitSummary summary;
-  if (rw_ <= 0 || rh_ <= 0 || !r.allFinite() || !streak_px.allFinite()) {
-    return summary;
-  }
-  const std::size_t np = static_cast<std::size_t>(rw_) * static_cast<std::size_t>(rh_);
+Vec2 DenseFit::prepare_streak(const Vec2& streak_px) noexcept {
   sigma_ = config_.model_sigma;
   Vec2 streak = streak_px;
   if (streak.norm() > config_.max_streak_px) {
@@ -1421,7 +1415,18 @@ DenseFitSummary DenseFit::fit(PoseVector& r, Vec2& streak_px, int max_iterations
   }
   const bool blur = streak.norm() > 1.0;
   taps_ = blur ? std::min(kMaxStreakTaps, static_cast<int>(std::ceil((streak.norm() + 4.0) / scale_)) + 2) : 1;
-  const bool streak_free = blur && fit_streak;
+  return streak;
+}
+
+DenseFitSummary DenseFit::fit(PoseVector& r, Vec2& streak_px, int max_iterations, bool constrained,
+                              bool fit_streak) noexcept {
+  DenseFitSummary summary;
+  if (rw_ <= 0 || rh_ <= 0 || !r.allFinite() || !streak_px.allFinite()) {
+    return summary;
+  }
+  const std::size_t np = static_cast<std::size_t>(rw_) * static_cast<std::size_t>(rh_);
+  const Vec2 streak = prepare_streak(streak_px);
+  const bool streak_free = taps_ > 1 && fit_streak;
   const int nparams = streak_free ? kParams : solver::kNumParams;
   ParamVector theta;
   theta.head<solver::kNumParams>() = r;
@@ -1470,6 +1475,57 @@ DenseFitSummary DenseFit::fit(PoseVector& r, Vec2& streak_px, int max_iterations
   }
   summary.inlier_share = wsum / static_cast<double>(np);
   return summary;
+}
+
+bool DenseFit::softest_step(const PoseVector& r, const Vec2& streak_px, double rms_px, PoseVector& step) noexcept {
+  using Mat7 = Eigen::Matrix<double, solver::kNumParams, solver::kNumParams>;
+  if (rw_ <= 0 || rh_ <= 0 || !r.allFinite() || !streak_px.allFinite() || !(rms_px > 0.0)) {
+    return false;
+  }
+  // The corners' metric: sum over the corners in the image of J_k^T J_k.
+  solver::CornerSet corners;
+  solver::CornerJacobians jacobians;
+  model_.corners(camera_, r, corners, &jacobians);
+  Mat7 metric = Mat7::Zero();
+  int count = 0;
+  for (std::size_t k = 0; k < static_cast<std::size_t>(kNumCorners); ++k) {
+    if (corners.in_image[k] && jacobians[k].allFinite()) {
+      metric.noalias() += jacobians[k].transpose() * jacobians[k];
+      ++count;
+    }
+  }
+  if (count == 0) {
+    return false;
+  }
+  // A direction the corners do not see at all is not a slide: a small
+  // floor keeps the metric definite (px^2 per unit of r).
+  metric += 1e-6 * metric.trace() * Mat7::Identity();
+  // The fit's Gauss-Newton matrix at r (the pose's block; the streak held).
+  const Vec2 streak = prepare_streak(streak_px);
+  ParamVector theta;
+  theta.head<solver::kNumParams>() = r;
+  theta[7] = streak.x();
+  theta[8] = streak.y();
+  Appearance app;
+  (void)start_appearance(theta, false, app);  // the cost is not needed, only the appearance and weights
+  ParamMatrix H;
+  ParamVector grad;
+  normal_equations(theta, app, solver::kNumParams, H, grad);
+  const Mat7 h7 = H.topLeftCorner<solver::kNumParams, solver::kNumParams>();
+  if (!h7.allFinite() || !metric.allFinite()) {
+    return false;
+  }
+  Eigen::GeneralizedSelfAdjointEigenSolver<Mat7> eig(h7, metric, Eigen::ComputeEigenvectors | Eigen::Ax_lBx);
+  if (eig.info() != Eigen::Success) {
+    return false;
+  }
+  const PoseVector v = eig.eigenvectors().col(0);  // eigenvalues ascending
+  const double moved_px2 = v.dot(metric * v) / static_cast<double>(count);
+  if (!(moved_px2 > 0.0) || !v.allFinite()) {
+    return false;
+  }
+  step = v * (rms_px / std::sqrt(moved_px2));
+  return true;
 }
 
 bool DenseFit::occluded_by_instrument(const Vec3& point, double s_point) const noexcept {

@@ -221,6 +221,93 @@ TEST(DenseFit, TheTruthIsTheMinimumOfTheCost) {
   EXPECT_GT(at_off.cost, at_truth.cost);
 }
 
+// The softest steps in the dense stage: from a pipeline's pose 2 mm
+// along the tube, without the screen or the start's variants, the winner
+// moved both ways along its softest direction and fitted again is kept
+// only at a lower cost, so the stage ends no costlier than without them.
+TEST(DenseFit, TheSoftestStepsReplaceTheWinnerOnlyByALowerCost) {
+  DenseFixture f;
+  const ImageView image = f.render_frame();
+  DenseOptions with_steps = quick_options();
+  with_steps.start_variants = false;
+  with_steps.screen_keep = 0;
+  with_steps.softest_step_px = 3.0;
+  DenseOptions without = with_steps;
+  without.softest_step_px = 0.0;
+  std::unique_ptr<DenseFit> fit = make_fit(f, with_steps);
+  ASSERT_NE(fit, nullptr);
+  solver::PoseVector slid = f.truth_r;
+  slid[solver::kLambda] += 2.0;
+  const solver::PoseVector none = solver::PoseVector::Constant(std::numeric_limits<double>::quiet_NaN());
+  DenseResult stepped;
+  {
+    test::AllocationScope scope;
+    stepped = dense_estimate(*fit, f.camera, f.model, image, &slid, 1, none, solver::Vec2::Zero(), with_steps);
+    EXPECT_EQ(scope.count(), 0U);
+  }
+  const DenseResult stayed =
+      dense_estimate(*fit, f.camera, f.model, image, &slid, 1, none, solver::Vec2::Zero(), without);
+  ASSERT_TRUE(stepped.ok);
+  ASSERT_TRUE(stayed.ok);
+  // Both runs rank their candidates on the same work image (the fine
+  // region is set from the same candidates), so their costs compare.
+  EXPECT_LE(stepped.fit.cost, stayed.fit.cost * (1.0 + 1e-9)) << stepped.r.transpose() << " / " << stayed.r.transpose();
+  // On this frame the stage alone ends in a basin 0.7 mm along the tube;
+  // a step lands in a far cheaper one (about a third less).
+  EXPECT_LT(stepped.fit.cost, 0.8 * stayed.fit.cost);
+  EXPECT_LT((f.model.tcp(stepped.r) - f.truth.instruments[0].tcp).norm(), 1.0) << stepped.r.transpose();
+}
+
+// The softest step at the fit's minimum moves the model's corners by the
+// pixels asked (RMS over the corners in the image), allocates nothing,
+// and bad inputs are refused. (That it costs less than any single
+// parameter's step moving the corners as far holds only once the held
+// cost is continuous; the chords' arc lengths still jump at the stripes'
+// ends: docs/vision.md, "The dense stage".)
+TEST(DenseFit, TheSoftestStepMovesTheCornersByThePixelsAsked) {
+  DenseFixture f;
+  const ImageView image = f.render_frame();
+  const DenseOptions options = quick_options();
+  std::unique_ptr<DenseFit> fit = make_fit(f, options);
+  ASSERT_NE(fit, nullptr);
+  solver::PoseVector step;
+  EXPECT_FALSE(fit->softest_step(f.truth_r, solver::Vec2::Zero(), 2.0, step));  // no region yet
+  const solver::PoseVector region[1] = {f.truth_r};
+  ASSERT_TRUE(fit->set_region(image, region, 1, 0.0, options.fine_pixels, 0).ok());
+  solver::PoseVector r = f.truth_r;
+  solver::Vec2 streak = solver::Vec2::Zero();
+  ASSERT_TRUE(fit->fit(r, streak, 8, false, false).ok);
+  for (const double rms_px : {0.5, 2.0, 5.0}) {
+    {
+      test::AllocationScope scope;
+      ASSERT_TRUE(fit->softest_step(r, streak, rms_px, step));
+      EXPECT_EQ(scope.count(), 0U);
+    }
+    // The corners' RMS motion of a small part of the step, scaled back.
+    solver::CornerSet at;
+    solver::CornerSet moved;
+    f.model.corners(f.camera, r, at);
+    f.model.corners(f.camera, r + 1e-3 * step, moved);
+    double sum_px2 = 0.0;
+    int n = 0;
+    for (std::size_t k = 0; k < static_cast<std::size_t>(kNumCorners); ++k) {
+      if (at.in_image[k] && moved.in_image[k]) {
+        sum_px2 += (moved.pixel[k] - at.pixel[k]).squaredNorm();
+        ++n;
+      }
+    }
+    ASSERT_GT(n, 6);
+    EXPECT_NEAR(std::sqrt(sum_px2 / n) / 1e-3, rms_px, 0.02 * rms_px) << step.transpose();
+  }
+  EXPECT_FALSE(fit->softest_step(r, streak, 0.0, step));
+  EXPECT_FALSE(fit->softest_step(r, streak, -1.0, step));
+  EXPECT_FALSE(fit->softest_step(r, streak, std::numeric_limits<double>::quiet_NaN(), step));
+  solver::PoseVector bad = r;
+  bad[solver::kPhi] = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(fit->softest_step(bad, streak, 2.0, step));
+  EXPECT_FALSE(fit->softest_step(r, solver::Vec2(std::numeric_limits<double>::quiet_NaN(), 0.0), 2.0, step));
+}
+
 // The rendering draws the bending section's end faces: where the shaft
 // (1.75 mm) ends inside the first stripe (1.81 mm), the camera behind the
 // base sees a ring of the stripe's material, bright where it faces the
@@ -425,6 +512,13 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   o.screen_tilt_rad = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(dense_options_valid(o));
   o.screen_tilt_rad = 0.0;
+  EXPECT_TRUE(dense_options_valid(o));
+  for (const double step_px : {-0.1, 20.5, std::numeric_limits<double>::quiet_NaN()}) {
+    o = DenseOptions{};
+    o.softest_step_px = step_px;
+    EXPECT_FALSE(dense_options_valid(o)) << step_px;
+  }
+  o.softest_step_px = 0.0;
   EXPECT_TRUE(dense_options_valid(o));
 }
 

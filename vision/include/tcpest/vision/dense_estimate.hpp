@@ -9,7 +9,9 @@
 // basin is wide; a tilt moves the bend's far end the most).
 // Each start is first fitted coarsely on a small work image; the best of
 // those, and the pipeline's own poses as they are, are fitted finely on a
-// larger one, and the lowest cost wins. The corners are then the model's
+// larger one, and the lowest cost wins; the winner is fitted again from
+// both sides of its softest direction (the tube slid along itself), and a
+// lower cost replaces it. The corners are then the model's
 // at that pose, those the image shows (DenseFit::corner_support).
 // docs/vision.md, "The dense stage".
 #pragma once
@@ -47,6 +49,11 @@ struct DenseOptions {
   double screen_channel_mm = 2.5;
   double screen_tilt_rad = 0.07;
   double screen_lambda_mm = 1.5;
+  // After the fine stage: its winner moved by -/+ its softest step
+  // (DenseFit::softest_step: the model's corners moved by this many px
+  // RMS), each fitted finely; a lower cost replaces the winner (0: no
+  // such steps).
+  double softest_step_px = 3.0;
   double min_corner_support = 0.5;   // a corner is reported when the image around it is the rendering's
   // The pipeline's result is left alone where it measured more corners
   // than this on the image (read, not predicted at its pose): there it is
@@ -63,7 +70,7 @@ struct DenseOptions {
 // finite and positive (lambda up to 10 mm, bends up to 1 rad, the channel
 // up to 5 mm), the corner support within 0..1, max_measured_corners 0..12,
 // the screen's kept starts 0..kMaxDenseScreenKeep, its tilt 0..0.3 rad
-// and its steps up to 5 mm.
+// and its steps up to 5 mm, the softest step 0..20 px.
 bool dense_options_valid(const DenseOptions& options) noexcept;
 constexpr int kMaxDenseSeeds = 2;
 constexpr int kMaxDenseScreenKeep = 4;

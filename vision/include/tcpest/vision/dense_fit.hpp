@@ -150,6 +150,15 @@ class DenseFit {
   // hidden by the instrument), for the corners to report. After fit().
   void corner_support(const solver::PoseVector& r, const solver::Vec2& streak_px,
                       std::array<double, kNumCorners>& support) noexcept;
+  // The pose's softest direction at r: the step along which the cost
+  // rises least for a given motion of the model's corners in the image
+  // (the generalised eigenvector of the fit's Gauss-Newton matrix against
+  // the corners' own, smallest eigenvalue), scaled so that the corners in
+  // the image move by rms_px (root mean square). The dense fit's minima
+  // line up along it (a tube slid along itself, docs/vision.md). After
+  // set_region(); false: no corner in the image, or a factorisation failed.
+  bool softest_step(const solver::PoseVector& r, const solver::Vec2& streak_px, double rms_px,
+                    solver::PoseVector& step) noexcept;
   int block_size() const noexcept { return scale_; }
   int work_pixels() const noexcept { return rw_ * rh_; }
 
@@ -230,6 +239,10 @@ class DenseFit {
   bool damped_step(const ParamMatrix& H, const ParamVector& grad, const Appearance& app, double c_cur, double& mu,
                    ParamVector& theta) noexcept;
   void default_appearance(Appearance& appearance) noexcept;
+  // The streak within max_streak_px, and the blur's taps and the spread
+  // set for it (fit's and softest_step's start).
+  solver::Vec2 prepare_streak(const solver::Vec2& streak_px) noexcept;
+
 
   solver::CameraModel camera_{};
   solver::InstrumentModel model_{};
