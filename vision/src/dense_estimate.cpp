@@ -183,10 +183,9 @@ int coarse_fits(DenseFit& fit, const PoseVector* starts, int n, const Vec2& stre
 
 // The softest steps: the fine stage's winner moved by -/+ its softest
 // step (DenseFit::softest_step), each fitted finely; a lower cost replaces
-// the winner. Along that direction the fit's minima line up (the tube slid
-// along itself, the base the most), each basin narrower than the spacing
-// the fit would have to cross; a fixed hop along the insertion alone lands
-// beside the valley (docs/vision.md, "The dense stage").
+// the winner. The failing frames' tubes are slid along themselves with
+// every parameter compensating, which a fixed hop along the insertion
+// alone does not follow (docs/vision.md, "The dense stage").
 void softest_steps(DenseFit& fit, const DenseOptions& options, Candidate& best) noexcept {
   if (!(options.softest_step_px > 0.0)) {
     return;

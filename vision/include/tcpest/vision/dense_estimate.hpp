@@ -10,7 +10,7 @@
 // Each start is first fitted coarsely on a small work image; the best of
 // those, and the pipeline's own poses as they are, are fitted finely on a
 // larger one, and the lowest cost wins; the winner is fitted again from
-// both sides of its softest direction (the tube slid along itself), and a
+// both sides of its softest direction (DenseFit::softest_step), and a
 // lower cost replaces it. The corners are then the model's
 // at that pose, those the image shows (DenseFit::corner_support).
 // docs/vision.md, "The dense stage".

@@ -154,9 +154,9 @@ class DenseFit {
   // rises least for a given motion of the model's corners in the image
   // (the generalised eigenvector of the fit's Gauss-Newton matrix against
   // the corners' own, smallest eigenvalue), scaled so that the corners in
-  // the image move by rms_px (root mean square). The dense fit's minima
-  // line up along it (a tube slid along itself, docs/vision.md). After
-  // set_region(); false: no corner in the image, or a factorisation failed.
+  // the image move by rms_px (root mean square); docs/vision.md, "The
+  // dense stage". After set_region(); false: no corner in the image, a
+  // non-finite input or matrix, or a factorisation failed.
   bool softest_step(const solver::PoseVector& r, const solver::Vec2& streak_px, double rms_px,
                     solver::PoseVector& step) noexcept;
   int block_size() const noexcept { return scale_; }
@@ -242,7 +242,6 @@ class DenseFit {
   // The streak within max_streak_px, and the blur's taps and the spread
   // set for it (fit's and softest_step's start).
   solver::Vec2 prepare_streak(const solver::Vec2& streak_px) noexcept;
-
 
   solver::CameraModel camera_{};
   solver::InstrumentModel model_{};
