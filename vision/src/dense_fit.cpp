@@ -1498,8 +1498,9 @@ bool DenseFit::softest_step(const PoseVector& r, const Vec2& streak_px, double r
     return false;
   }
   // A direction the corners do not see at all is not a slide: a small
-  // floor keeps the metric definite (px^2 per unit of r).
-  metric += 1e-6 * metric.trace() * Mat7::Identity();
+  // floor keeps the metric definite (px^2 per unit of r). The step is
+  // scaled by the corners' own motion, without it.
+  const Mat7 floored = metric + 1e-6 * metric.trace() * Mat7::Identity();
   // The fit's Gauss-Newton matrix at r (the pose's block; the streak held).
   const Vec2 streak = prepare_streak(streak_px);
   ParamVector theta;
@@ -1512,10 +1513,10 @@ bool DenseFit::softest_step(const PoseVector& r, const Vec2& streak_px, double r
   ParamVector grad;
   normal_equations(theta, app, solver::kNumParams, H, grad);
   const Mat7 h7 = H.topLeftCorner<solver::kNumParams, solver::kNumParams>();
-  if (!h7.allFinite() || !metric.allFinite()) {
+  if (!h7.allFinite() || !floored.allFinite()) {
     return false;
   }
-  Eigen::GeneralizedSelfAdjointEigenSolver<Mat7> eig(h7, metric, Eigen::ComputeEigenvectors | Eigen::Ax_lBx);
+  Eigen::GeneralizedSelfAdjointEigenSolver<Mat7> eig(h7, floored, Eigen::ComputeEigenvectors | Eigen::Ax_lBx);
   if (eig.info() != Eigen::Success) {
     return false;
   }

@@ -259,7 +259,8 @@ TEST(DenseFit, TheSoftestStepsReplaceTheWinnerOnlyByALowerCost) {
 }
 
 // The softest step at the fit's minimum moves the model's corners by the
-// pixels asked (RMS over the corners in the image), allocates nothing,
+// pixels asked (RMS over the corners in the image; the small floor that
+// keeps the corners' metric definite does not count), allocates nothing,
 // and bad inputs are refused. (That it costs less than any single
 // parameter's step moving the corners as far holds only once the held
 // cost is continuous; the chords' arc lengths still jump at the stripes'
