@@ -43,6 +43,34 @@ Vec3 segment_axis(const SegmentT& s) noexcept {
 
 constexpr float kFar = 1e30F;
 
+// The cosine of the end face a side meets at its crease or rim, for a ray
+// (dx, dy, 1) of length dn (compute_coverage mixes in the face's share of
+// the pixel): the shaft's and the grasper's flat ends lie on their axis's
+// normal plane. Only a face the ray could see (the base's looks back
+// along the tube, the tip's forward) shows beside the side; else, and
+// for a side that meets no face, the side's own cosine.
+template <typename SegmentT>
+float face_cosine_beside(const SegmentT& s, float dx, float dy, float dn, float side_cosine) noexcept {
+  float fx = s.ex, fy = s.ey, fz = s.ez;
+  if (s.face_a) {
+    fx = s.nax;
+    fy = s.nay;
+    fz = s.naz;
+  } else if (s.face_b) {
+    fx = s.nbx;
+    fy = s.nby;
+    fz = s.nbz;
+  }
+  const float cf = (fx * dx + fy * dy + fz) / dn;
+  const bool sees_base_face = (s.face_a || s.part == 0U) && cf > 0.0F;
+  const bool sees_tip_face = (s.face_b || s.part == 6U) && cf < 0.0F;
+  return sees_base_face || sees_tip_face ? (cf < 0.0F ? -cf : cf) : side_cosine;
+}
+// A side hit this far beyond a cut plane (mm) is still the segment's: two
+// chords meet on their shared plane, and rounding must not let a ray
+// through the joint miss both.
+constexpr float kJointToleranceMm = 1e-3F;
+
 using ParamVector = DenseFit::ParamVector;
 using ParamMatrix = DenseFit::ParamMatrix;
 // solve_appearance's unknowns (listed there).
@@ -264,7 +292,8 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
   ok = ok && make(f->wrx_, 1U) && make(f->wry_, 1U) && make(f->obs_, kChannels) && make(f->occluder_, 1U) &&
        make(f->emphasis_, 1U);
   ok = ok && make(f->sd_, 1U) && make(f->snear_, 1U) && make(f->thit_, 1U) && make(f->shit_, 1U);
-  ok = ok && make(f->shade_, 1U) && make(f->sval_, 1U) && make(f->cov0_, 1U) && make(f->cov1_, 1U);
+  ok = ok && make(f->shade_, 1U) && make(f->shade_face_, 1U) && make(f->sval_, 1U);
+  ok = ok && make(f->cov0_, 1U) && make(f->cov1_, 1U);
   ok = ok && make(f->basis_, static_cast<std::size_t>(kBasis)) && make(f->pred_, kChannels);
   ok = ok && make(f->trial_, kChannels) &&
        make(f->jac_, static_cast<std::size_t>(kChannels) * static_cast<std::size_t>(kParams));
@@ -272,8 +301,7 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
   if (ok) {
     f->cls0_.reset(new (std::nothrow) std::uint8_t[n]);
     f->cls1_.reset(new (std::nothrow) std::uint8_t[n]);
-    f->face_.reset(new (std::nothrow) std::uint8_t[n]);
-    ok = f->cls0_ != nullptr && f->cls1_ != nullptr && f->face_ != nullptr;
+    ok = f->cls0_ != nullptr && f->cls1_ != nullptr;
   }
   if (!ok) {
     return R::failure(VisionError::OutOfMemory);
@@ -298,6 +326,8 @@ void DenseFit::build_segments(const PoseVector& r) noexcept {
   const solver::InstrumentGeometry& g = model_.geometry();
   const solver::PoseFrames f = model_.frames(r);
   const Vec3 axis = f.channel_rotation.col(2);
+  base_ring_mm_ = config_.end_faces ? static_cast<float>(std::max(0.0, g.radius_mm - g.shaft_radius_mm)) : 0.0F;
+  tip_ring_mm_ = config_.end_faces ? static_cast<float>(std::max(0.0, g.radius_mm - g.grasper_radius_mm)) : 0.0F;
   int n = 0;
   auto add = [this, &n](const Vec3& a, const Vec3& b, const Vec3& na, const Vec3& nb, double radius, double s_a,
                         double s_b, bool cap_a, std::uint8_t part) {
@@ -327,6 +357,7 @@ void DenseFit::build_segments(const PoseVector& r) noexcept {
     s.radius = static_cast<float>(radius);
     s.s_a = static_cast<float>(s_a);
     s.ds = static_cast<float>((s_b - s_a) / len);
+    s.unroll_mm = part == 0U ? 0.0F : (part == 6U ? base_ring_mm_ + tip_ring_mm_ : base_ring_mm_);
     s.cap_a = cap_a;
     s.cap_b = true;
     s.face_a = false;
@@ -588,10 +619,20 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
   const float tstar = -B / A;
   float u = tstar * dd + k.md;
   float dist2 = 0.0F;
+  float near_frac = 0.0F;
   if (u >= 0.0F && u <= s.len) {
     dist2 = k.c0 - B * B / A;
+    // The ray's point nearest the axis, placed between the cut planes as
+    // a hit is below (at a grazing hit the two are one point, so the arc
+    // length does not jump where a ray's hit begins).
+    const float qx = tstar * dx, qy = tstar * dy;
+    const float near_a = (qx - s.ax) * s.nax + (qy - s.ay) * s.nay + (tstar - s.az) * s.naz;
+    const float near_b = -((qx - s.bx) * s.nbx + (qy - s.by) * s.nby + (tstar - s.bz) * s.nbz);
+    const float near_span = near_a + near_b;
+    near_frac = near_span > 1e-6F ? clamp01(near_a / near_span) : u / s.len;
   } else {
     u = u < 0.0F ? 0.0F : s.len;
+    near_frac = u > 0.0F ? 1.0F : 0.0F;
     const float qx = s.ax + u * s.ex, qy = s.ay + u * s.ey, qz = s.az + u * s.ez;
     const float tp = (qx * dx + qy * dy + qz) / (dx * dx + dy * dy + 1.0F);
     const float ex = tp * dx - qx, ey = tp * dy - qy, ez = tp - qz;
@@ -600,7 +641,7 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
   const float sdv = std::sqrt(dist2 > 0.0F ? dist2 : 0.0F) - s.radius;
   if (sdv < sd_[i]) {
     sd_[i] = sdv;
-    snear_[i] = s.s_a + u * s.ds;
+    snear_[i] = s.s_a + s.len * s.ds * near_frac + s.unroll_mm;
   }
   const float disc = B * B - A * (k.c0 - k.r2);
   if (disc < 0.0F) {
@@ -612,15 +653,18 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
   }
   // Where the side's first hit lies beyond a cut plane, the ray enters the
   // tube through that end: its face, if the segment has one, is what shows.
+  // (Within kJointToleranceMm of it the hit is still the segment's own.)
   const float hx = t * dx - s.ax, hy = t * dy - s.ay, hz = t - s.az;
-  if (s.cap_a && hx * s.nax + hy * s.nay + hz * s.naz < 0.0F) {
+  const float beyond_a = hx * s.nax + hy * s.nay + hz * s.naz;
+  if (s.cap_a && beyond_a < -kJointToleranceMm) {
     if (s.face_a) {
       trace_face(s, true, dx, dy, i);
     }
     return;
   }
   const float gx = t * dx - s.bx, gy = t * dy - s.by, gz = t - s.bz;
-  if (s.cap_b && gx * s.nbx + gy * s.nby + gz * s.nbz > 0.0F) {
+  const float before_b = -(gx * s.nbx + gy * s.nby + gz * s.nbz);
+  if (s.cap_b && before_b < -kJointToleranceMm) {
     if (s.face_b) {
       trace_face(s, false, dx, dy, i);
     }
@@ -631,10 +675,17 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
               nz = (hz - along * s.ez) / s.radius;
   const float dn = std::sqrt(dx * dx + dy * dy + 1.0F);
   thit_[i] = t;
-  shit_[i] = s.s_a + along * s.ds;
-  face_[i] = 0U;
+  // The arc length between the cut planes (the centreline's normal planes
+  // at the chord's ends), not along the chord: on a plane both of its
+  // chords give its own arc length, so the stripes' ends stay continuous
+  // where the hit passes from one chord to the next (along the chord it
+  // jumps there by the mitre's slope times the radius).
+  const float span = beyond_a + before_b;
+  const float frac = span > 1e-6F ? clamp01(beyond_a / span) : along / s.len;
+  shit_[i] = s.s_a + s.len * s.ds * frac + s.unroll_mm;
   const float c = (nx * dx + ny * dy + nz) / dn;
   shade_[i] = c < 0.0F ? -c : c;
+  shade_face_[i] = face_cosine_beside(s, dx, dy, dn, shade_[i]);
 }
 
 void DenseFit::trace_face(const Segment& s, bool at_a, float dx, float dy, std::size_t i) noexcept {
@@ -657,10 +708,20 @@ void DenseFit::trace_face(const Segment& s, bool at_a, float dx, float dy, std::
     return;
   }
   thit_[i] = t;
-  shit_[i] = at_a ? s.s_a : s.s_a + s.len * s.ds;
-  face_[i] = static_cast<std::uint8_t>(s.part + 1U);
-  const float c = dn / std::sqrt(dx * dx + dy * dy + 1.0F);
-  shade_[i] = c < 0.0F ? -c : c;
+  // The surface coordinate runs on across the ring from the crease with
+  // the shaft (or the grasper), where the colour changes, to the rim,
+  // where it meets the side's (compute_coverage).
+  const float radial = std::sqrt(radial2 > 0.0F ? radial2 : 0.0F);
+  shit_[i] = at_a ? s.s_a + std::max(0.0F, std::min(base_ring_mm_, radial - (s.radius - base_ring_mm_)))
+                  : s.s_a + s.len * s.ds + s.unroll_mm + std::max(0.0F, std::min(tip_ring_mm_, s.radius - radial));
+  const float dl = std::sqrt(dx * dx + dy * dy + 1.0F);
+  const float c = dn / dl;
+  shade_face_[i] = c < 0.0F ? -c : c;
+  // The side's cosine where it meets the face (the radial direction), for
+  // the sides' share of the pixel (compute_coverage).
+  const float ax = hx - along * s.ex, ay = hy - along * s.ey, az = hz - along * s.ez;
+  const float cs = radial > 1e-6F ? (ax * dx + ay * dy + az) / (radial * dl) : shade_face_[i];
+  shade_[i] = cs < 0.0F ? -cs : cs;
 }
 
 bool DenseFit::row_span(const SegmentWindow& w, int y, int& rx0, int& rx1) noexcept {
@@ -696,7 +757,7 @@ void DenseFit::render_geometry(const PoseVector& r) noexcept {
   std::fill(thit_.get(), thit_.get() + np, kFar);
   std::fill(shit_.get(), shit_.get() + np, 0.0F);
   std::fill(shade_.get(), shade_.get() + np, 0.0F);
-  std::fill(face_.get(), face_.get() + np, std::uint8_t{0U});
+  std::fill(shade_face_.get(), shade_face_.get() + np, 0.0F);
   for (int si = 0; si < seg_count_; ++si) {
     const Segment& s = segs_[static_cast<std::size_t>(si)];
     SegmentWindow w;
@@ -739,10 +800,17 @@ void DenseFit::compute_coverage() noexcept {
   const solver::InstrumentGeometry& g = model_.geometry();
   float bounds[8];
   bounds[0] = -1e9F;
+  // In the surface coordinate (Segment::unroll_mm): the base's crease at
+  // its arc length, the markers' boundaries beyond the base's ring, the
+  // grasper's crease beyond the tip's ring too.
   for (int j = 0; j < solver::kNumBoundaries; ++j) {
-    bounds[j + 1] = static_cast<float>(g.boundaries_mm[static_cast<std::size_t>(j)]);
+    const float unroll =
+        j == 0 ? 0.0F : (j + 1 == solver::kNumBoundaries ? base_ring_mm_ + tip_ring_mm_ : base_ring_mm_);
+    bounds[j + 1] = static_cast<float>(g.boundaries_mm[static_cast<std::size_t>(j)]) + unroll;
   }
   bounds[7] = 1e9F;
+  // The faces' rings in the surface coordinate (empty without faces).
+  const float rings[2][2] = {{bounds[1], bounds[1] + base_ring_mm_}, {bounds[6] - tip_ring_mm_, bounds[6]}};
   // The part of each interval of s: the shaft, markers 1..5, the grasper.
   const std::uint8_t cls_of[7] = {1U, 2U, 3U, 4U, 5U, 6U, 7U};
   for (int y = 0; y < rh_; ++y) {
@@ -760,14 +828,19 @@ void DenseFit::compute_coverage() noexcept {
       if (cov <= 0.0F) {
         continue;
       }
-      if (face_[i] != 0U) {
-        // An end face lies at one arc length: its stripe's, whole.
-        cov0_[i] = cov;
-        cls0_[i] = face_[i];
-        continue;
-      }
       const float gs = std::max(gradient_norm(sval_.get(), rw_, rh_, x, y), 1e-4F);
       const float sv = sval_[i];
+      // The pixel's footprint along the surface, [sv - gs/2, sv + gs/2]:
+      // the share of it on a face's ring takes the face's cosine, the rest
+      // the side's (one cosine per pixel, so that the shading does not
+      // jump where the hit passes from the side to the face).
+      float on_face = 0.0F;
+      for (const auto& ring : rings) {
+        const float lo = std::max(sv - 0.5F * gs, ring[0]);
+        const float hi = std::min(sv + 0.5F * gs, ring[1]);
+        on_face += hi > lo ? (hi - lo) / gs : 0.0F;
+      }
+      shade_[i] += clamp01(on_face) * (shade_face_[i] - shade_[i]);
       // The two parts of largest share (a transition between stripes is
       // narrower than a stripe).
       float best0 = 0.0F, best1 = 0.0F;

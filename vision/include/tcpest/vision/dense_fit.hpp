@@ -89,8 +89,9 @@ struct DenseFitConfig {
   bool linear_light_blur = true;
   // The bending section's end faces drawn: the ring at the base where the
   // shaft (narrower) ends and the one at the tip around the grasper, each
-  // in its stripe's colour shaded by the face's own cosine (false: the
-  // tube's ends are open cuts, as the revisions before).
+  // in its stripe's colour and by its share of a pixel, shaded by the
+  // face's own cosine (false: the tube's ends are open cuts, as the
+  // revisions before).
   bool end_faces = true;
 };
 
@@ -168,6 +169,7 @@ class DenseFit {
     float ax, ay, az, bx, by, bz, ex, ey, ez;   // ends and unit axis (mm, camera frame)
     float nax, nay, naz, nbx, nby, nbz;          // cut planes' normals at the ends
     float len, radius, s_a, ds;                  // length, radius, arc length at a, ds per mm of axis
+    float unroll_mm;                             // added to s: the surface coordinate (compute_coverage)
     bool cap_a, cap_b;
     bool face_a, face_b;                         // a flat face at that end (seen from beyond its cut plane)
     std::uint8_t part;                           // 0 shaft, 1..5 marker, 6 grasper
@@ -255,6 +257,12 @@ class DenseFit {
   std::unique_ptr<float[]> ray_x_, ray_y_;
   std::array<Segment, kMaxSegments> segs_{};
   int seg_count_ = 0;
+  // The end faces' ring widths (mm; 0 without faces). The surface
+  // coordinate compute_coverage mixes the parts by is the arc length run
+  // on across them: the shaft's side, the base's ring (crease to rim),
+  // the markers' sides, the tip's ring (rim to crease), the grasper's.
+  float base_ring_mm_ = 0.0F;
+  float tip_ring_mm_ = 0.0F;
   // The region (full resolution) and the work image.
   int fx0_ = 0, fy0_ = 0, fw_ = 0, fh_ = 0;
   int scale_ = 1, rw_ = 0, rh_ = 0, smoothing_ = 0;
@@ -263,9 +271,11 @@ class DenseFit {
   std::unique_ptr<float[]> emphasis_;                    // each work pixel's share of the cost (edge_emphasis)
   // Geometry per work pixel.
   std::unique_ptr<float[]> sd_, snear_, thit_, shit_, shade_, sval_;
+  // shade_: the side's cosine (at a face's pixel, the side's where it meets
+  // the face); shade_face_: the end face's beside it, if one is seen there.
+  std::unique_ptr<float[]> shade_face_;
   std::unique_ptr<float[]> cov0_, cov1_;
   std::unique_ptr<std::uint8_t[]> cls0_, cls1_;
-  std::unique_ptr<std::uint8_t[]> face_;  // the part (1..7) whose end face a work pixel shows; 0: none
   // Blurred basis planes (kBasis), predictions, Jacobian (kParams x 2), weights, scratch.
   std::unique_ptr<float[]> basis_, pred_, trial_, jac_, weights_, tmp_, scratch_;
   // The streak's kernel: offsets (work pixels) and weights.
