@@ -203,13 +203,12 @@ TEST(DenseFit, TheScreenFindsAChannelTiltedFarByThePlay) {
 TEST(DenseFit, TheHeldCostIsContinuousAlongTheInsertion) {
   DenseFixture f;
   const ImageView image = f.render_frame();
-  DenseFitConfig config;
-  config.max_work_pixels = 8000;
-  auto created = DenseFit::create(f.camera, f.model, default_color_model(), config);
-  ASSERT_TRUE(created.ok());
-  DenseFit& fit = *created.value();
+  const DenseOptions options = quick_options();
+  std::unique_ptr<DenseFit> created = make_fit(f, options);
+  ASSERT_NE(created, nullptr);
+  DenseFit& fit = *created;
   const solver::PoseVector region[1] = {f.truth_r};
-  ASSERT_TRUE(fit.set_region(image, region, 1, 0.0, config.max_work_pixels, 0).ok());
+  ASSERT_TRUE(fit.set_region(image, region, 1, 0.0, options.fine_pixels, 0).ok());
   solver::PoseVector minimum = f.truth_r;
   solver::Vec2 streak = solver::Vec2::Zero();
   ASSERT_TRUE(fit.fit(minimum, streak, 8, false, false).ok);
