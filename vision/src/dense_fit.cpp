@@ -45,10 +45,10 @@ constexpr float kFar = 1e30F;
 
 // The cosine of the end face a side meets at its crease or rim, for a ray
 // (dx, dy, 1) of length dn (compute_coverage mixes in the face's share of
-// the pixel): the shaft's and the grasper's flat ends lie on their axis's
-// normal plane. Only a face the ray could see (the base's looks back
-// along the tube, the tip's forward) shows beside the side; else, and
-// for a side that meets no face, the side's own cosine.
+// the pixel). The shaft's end and the grasper's start meet the faces on
+// planes normal to their own axes. Only a face the ray could see (the
+// base's looks back along the tube, the tip's forward) shows beside the
+// side; else, and for a side that meets no face, the side's own cosine.
 template <typename SegmentT>
 float face_cosine_beside(const SegmentT& s, float dx, float dy, float dn, float side_cosine) noexcept {
   float fx = s.ex, fy = s.ey, fz = s.ez;
@@ -66,6 +66,7 @@ float face_cosine_beside(const SegmentT& s, float dx, float dy, float dn, float 
   const bool sees_tip_face = (s.face_b || s.part == 6U) && cf < 0.0F;
   return sees_base_face || sees_tip_face ? (cf < 0.0F ? -cf : cf) : side_cosine;
 }
+
 // A side hit this far beyond a cut plane (mm) is still the segment's: two
 // chords meet on their shared plane, and rounding must not let a ray
 // through the joint miss both.
