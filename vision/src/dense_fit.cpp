@@ -85,6 +85,15 @@ std::size_t idx(int x, int y, int w) noexcept {
 
 float clamp01(float v) noexcept { return v < 0.0F ? 0.0F : (v > 1.0F ? 1.0F : v); }
 
+// How far along a chord a point lies, read between the chord's cut planes
+// (the centreline's normal planes at its ends) from its signed distances
+// beyond the plane at a and before the one at b (mm); fallback where the
+// planes meet at the point.
+float cut_plane_fraction(float beyond_a_mm, float before_b_mm, float fallback) noexcept {
+  const float span = beyond_a_mm + before_b_mm;
+  return span > 1e-6F ? clamp01(beyond_a_mm / span) : fallback;
+}
+
 // A work image's pixel columns and rows as -1..1 across it: the
 // coordinates the tissue's linear terms are written in.
 struct NormalisedAxes {
@@ -274,6 +283,9 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
   f->model_ = model;
   f->colors_ = colors;
   f->config_ = config;
+  const solver::InstrumentGeometry& g = model.geometry();
+  f->base_ring_mm_ = config.end_faces ? static_cast<float>(std::max(0.0, g.radius_mm - g.shaft_radius_mm)) : 0.0F;
+  f->tip_ring_mm_ = config.end_faces ? static_cast<float>(std::max(0.0, g.radius_mm - g.grasper_radius_mm)) : 0.0F;
   f->width_ = camera.width();
   f->height_ = camera.height();
   // Rays of every second pixel (the undistortion is smooth: bilinear
@@ -327,8 +339,6 @@ void DenseFit::build_segments(const PoseVector& r) noexcept {
   const solver::InstrumentGeometry& g = model_.geometry();
   const solver::PoseFrames f = model_.frames(r);
   const Vec3 axis = f.channel_rotation.col(2);
-  base_ring_mm_ = config_.end_faces ? static_cast<float>(std::max(0.0, g.radius_mm - g.shaft_radius_mm)) : 0.0F;
-  tip_ring_mm_ = config_.end_faces ? static_cast<float>(std::max(0.0, g.radius_mm - g.grasper_radius_mm)) : 0.0F;
   int n = 0;
   auto add = [this, &n](const Vec3& a, const Vec3& b, const Vec3& na, const Vec3& nb, double radius, double s_a,
                         double s_b, bool cap_a, std::uint8_t part) {
@@ -358,7 +368,7 @@ void DenseFit::build_segments(const PoseVector& r) noexcept {
     s.radius = static_cast<float>(radius);
     s.s_a = static_cast<float>(s_a);
     s.ds = static_cast<float>((s_b - s_a) / len);
-    s.unroll_mm = part == 0U ? 0.0F : (part == 6U ? base_ring_mm_ + tip_ring_mm_ : base_ring_mm_);
+    s.unroll_mm = part_unroll_mm(part);
     s.cap_a = cap_a;
     s.cap_b = true;
     s.face_a = false;
@@ -629,8 +639,7 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
     const float qx = tstar * dx, qy = tstar * dy;
     const float near_a = (qx - s.ax) * s.nax + (qy - s.ay) * s.nay + (tstar - s.az) * s.naz;
     const float near_b = -((qx - s.bx) * s.nbx + (qy - s.by) * s.nby + (tstar - s.bz) * s.nbz);
-    const float near_span = near_a + near_b;
-    near_frac = near_span > 1e-6F ? clamp01(near_a / near_span) : u / s.len;
+    near_frac = cut_plane_fraction(near_a, near_b, u / s.len);
   } else {
     u = u < 0.0F ? 0.0F : s.len;
     near_frac = u > 0.0F ? 1.0F : 0.0F;
@@ -642,7 +651,7 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
   const float sdv = std::sqrt(dist2 > 0.0F ? dist2 : 0.0F) - s.radius;
   if (sdv < sd_[i]) {
     sd_[i] = sdv;
-    snear_[i] = s.s_a + s.len * s.ds * near_frac + s.unroll_mm;
+    snear_[i] = s.surface_mm(near_frac);
   }
   const float disc = B * B - A * (k.c0 - k.r2);
   if (disc < 0.0F) {
@@ -681,9 +690,7 @@ void DenseFit::trace_ray(const Segment& s, const RayConstants& k, std::size_t i)
   // chords give its own arc length, so the stripes' ends stay continuous
   // where the hit passes from one chord to the next (along the chord it
   // jumps there by the mitre's slope times the radius).
-  const float span = beyond_a + before_b;
-  const float frac = span > 1e-6F ? clamp01(beyond_a / span) : along / s.len;
-  shit_[i] = s.s_a + s.len * s.ds * frac + s.unroll_mm;
+  shit_[i] = s.surface_mm(cut_plane_fraction(beyond_a, before_b, along / s.len));
   const float c = (nx * dx + ny * dy + nz) / dn;
   shade_[i] = c < 0.0F ? -c : c;
   shade_face_[i] = face_cosine_beside(s, dx, dy, dn, shade_[i]);
@@ -709,12 +716,13 @@ void DenseFit::trace_face(const Segment& s, bool at_a, float dx, float dy, std::
     return;
   }
   thit_[i] = t;
-  // The surface coordinate runs on across the ring from the crease with
-  // the shaft (or the grasper), where the colour changes, to the rim,
-  // where it meets the side's (compute_coverage).
+  // The surface coordinate runs on across the ring between the crease
+  // with the shaft (or the grasper), where the colour changes, and the
+  // rim, where it meets the side's (compute_coverage): the base's from
+  // its crease at s_a, the tip's from its rim.
   const float radial = std::sqrt(radial2 > 0.0F ? radial2 : 0.0F);
   shit_[i] = at_a ? s.s_a + std::max(0.0F, std::min(base_ring_mm_, radial - (s.radius - base_ring_mm_)))
-                  : s.s_a + s.len * s.ds + s.unroll_mm + std::max(0.0F, std::min(tip_ring_mm_, s.radius - radial));
+                  : s.surface_mm(1.0F) + std::max(0.0F, std::min(tip_ring_mm_, s.radius - radial));
   const float dl = std::sqrt(dx * dx + dy * dy + 1.0F);
   const float c = dn / dl;
   shade_face_[i] = c < 0.0F ? -c : c;
@@ -801,13 +809,12 @@ void DenseFit::compute_coverage() noexcept {
   const solver::InstrumentGeometry& g = model_.geometry();
   float bounds[8];
   bounds[0] = -1e9F;
-  // In the surface coordinate (Segment::unroll_mm): the base's crease at
-  // its arc length, the markers' boundaries beyond the base's ring, the
-  // grasper's crease beyond the tip's ring too.
+  // In the surface coordinate (part_unroll_mm): each boundary where the
+  // part above it begins, the rings counted with the markers, so the
+  // base's crease in the shaft's coordinate and the grasper's in its own.
   for (int j = 0; j < solver::kNumBoundaries; ++j) {
-    const float unroll =
-        j == 0 ? 0.0F : (j + 1 == solver::kNumBoundaries ? base_ring_mm_ + tip_ring_mm_ : base_ring_mm_);
-    bounds[j + 1] = static_cast<float>(g.boundaries_mm[static_cast<std::size_t>(j)]) + unroll;
+    const std::uint8_t part = j == 0 ? 0U : static_cast<std::uint8_t>(j + 1);
+    bounds[j + 1] = static_cast<float>(g.boundaries_mm[static_cast<std::size_t>(j)]) + part_unroll_mm(part);
   }
   bounds[7] = 1e9F;
   // The faces' rings in the surface coordinate (empty without faces).

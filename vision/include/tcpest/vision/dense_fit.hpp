@@ -173,7 +173,16 @@ class DenseFit {
     bool cap_a, cap_b;
     bool face_a, face_b;                         // a flat face at that end (seen from beyond its cut plane)
     std::uint8_t part;                           // 0 shaft, 1..5 marker, 6 grasper
+    // The surface coordinate (mm) at a fraction of the way from the cut
+    // plane at a to the one at b.
+    float surface_mm(float frac) const noexcept { return s_a + len * ds * frac + unroll_mm; }
   };
+  // A part's shift from the arc length to the surface coordinate (mm): the
+  // rings (base_ring_mm_, tip_ring_mm_) lie before the markers' sides and
+  // before the grasper's. The one place that order is written.
+  float part_unroll_mm(std::uint8_t part) const noexcept {
+    return part == 0U ? 0.0F : (part == 6U ? base_ring_mm_ + tip_ring_mm_ : base_ring_mm_);
+  }
   void build_segments(const solver::PoseVector& r) noexcept;
   // The image box (px) of the instruments at the poses; false: none in front of the camera.
   bool instrument_bounds(const solver::PoseVector* poses, int count, double& xmin, double& xmax, double& ymin,
@@ -257,7 +266,7 @@ class DenseFit {
   std::unique_ptr<float[]> ray_x_, ray_y_;
   std::array<Segment, kMaxSegments> segs_{};
   int seg_count_ = 0;
-  // The end faces' ring widths (mm; 0 without faces). The surface
+  // The end faces' ring widths (mm; 0 without faces; set by create). The surface
   // coordinate compute_coverage mixes the parts by is the arc length run
   // on across them: the shaft's side, the base's ring (crease to rim),
   // the markers' sides, the tip's ring (rim to crease), the grasper's.
