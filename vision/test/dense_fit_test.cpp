@@ -173,10 +173,13 @@ TEST(DenseFit, TheScreenFindsAChannelMovedFarByThePlay) {
 // The channel tilted by a large play (0.16 rad in psi and in mu, about
 // three standard deviations of model.md's 3 deg) at a long insertion,
 // where a tilt moves the bend's far end by millimetres more than its base,
-// and the encoders' start 2 mm and 0.1 rad off: the screen that only moves
-// the channel ends in another basin (19 mm off at the TCP); tilting it too
-// finds the truth's (0.3 mm off on the test's small work images). At 0.1
-// and 0.13 rad the fits from the untilted screen's poses reach the
+// and the encoders' start 2 mm and 0.1 rad off: tilting the screen finds
+// the truth's basin (0.3 mm off at the TCP on the test's small work
+// images). Where the screen that only moves the channel ends is not
+// asserted beyond "no nearer": 19 mm off as built, but a change in the
+// last bit of a few pixels' surface coordinate brings it to 1.0 mm (the
+// tilted one to 0.2 mm), so that outcome is the search's, not a property.
+// At 0.1 and 0.13 rad the fits from the untilted screen's poses reach the
 // truth's basin too (0.2-0.3 mm off), and at 0.2 rad neither screen does
 // (17-22 mm).
 TEST(DenseFit, TheScreenFindsAChannelTiltedFarByThePlay) {
@@ -185,8 +188,8 @@ TEST(DenseFit, TheScreenFindsAChannelTiltedFarByThePlay) {
   DenseOptions untilted = quick_options();
   untilted.screen_tilt_rad = 0.0;
   const ScreenRuns runs = run_both_ways(f, image, untilted, quick_options());
-  EXPECT_LT(runs.on_tcp_mm, 2.0) << runs;
-  EXPECT_GT(runs.off_tcp_mm, 3.0) << runs;
+  EXPECT_LT(runs.on_tcp_mm, 1.0) << runs;
+  EXPECT_LE(runs.on_tcp_mm, runs.off_tcp_mm) << runs;
   EXPECT_TRUE(std::isfinite(runs.off_tcp_mm)) << runs;
 }
 
@@ -289,11 +292,12 @@ TEST(DenseFit, TheSoftestStepsReplaceTheWinnerOnlyByALowerCost) {
   // Both runs rank their candidates on the same work image (the fine
   // region is set from the same candidates), so their costs compare.
   EXPECT_LE(stepped.fit.cost, stayed.fit.cost * (1.0 + 1e-9)) << stepped.r.transpose() << " / " << stayed.r.transpose();
-  // On this frame a step does find a lower cost (by half a percent), in
-  // the truth's basin as the stage alone: on the continuous cost the fine
-  // fits reach it from 2-5 mm along the tube (on the cost with the jumps
-  // the stage alone ended in a basin a third costlier from 2 mm).
-  EXPECT_LT(stepped.fit.cost, stayed.fit.cost) << stepped.r.transpose() << " / " << stayed.r.transpose();
+  // Both end in the truth's basin: on the continuous cost the fine fits
+  // reach it from 2-5 mm along the tube (on the cost with the jumps the
+  // stage alone ended in a basin a third costlier from 2 mm). Whether a
+  // step then lowers the cost further is not asserted: as built it does,
+  // by half a percent, but a change in the last bit of a few pixels'
+  // surface coordinate leaves the two equal.
   EXPECT_LT((f.model.tcp(stepped.r) - f.truth.instruments[0].tcp).norm(), 0.5) << stepped.r.transpose();
   EXPECT_LT((f.model.tcp(stayed.r) - f.truth.instruments[0].tcp).norm(), 0.5) << stayed.r.transpose();
 }
