@@ -9,10 +9,11 @@
 // basin is wide; a tilt moves the bend's far end the most).
 // Each start is first fitted coarsely on a small work image; the best of
 // those, and the pipeline's own poses as they are, are fitted finely on a
-// larger one, and the lowest cost wins; the winner is fitted again from
-// both sides of its softest direction (DenseFit::softest_step), and a
-// lower cost replaces it. The corners are then the model's
-// at that pose, those the image shows (DenseFit::corner_support).
+// larger one, and the lowest cost wins; optionally (off by default) the
+// winner is fitted again from both sides of its softest direction
+// (DenseFit::softest_step), and a lower cost replaces it. The corners
+// are then the model's at that pose, those the image shows
+// (DenseFit::corner_support).
 // docs/vision.md, "The dense stage".
 #pragma once
 
@@ -52,8 +53,10 @@ struct DenseOptions {
   // After the fine stage: its winner moved by -/+ its softest step
   // (DenseFit::softest_step: the model's corners moved by this many px
   // RMS), each fitted finely; a lower cost replaces the winner (0: no
-  // such steps).
-  double softest_step_px = 3.0;
+  // such steps). Off: on the continuous rendering 3 px gained 7 frames
+  // of the hard sets' seeds 1-4 and lost 6, for a third more time
+  // (docs/vision.md, "The dense stage").
+  double softest_step_px = 0.0;
   double min_corner_support = 0.5;   // a corner is reported when the image around it is the rendering's
   // The pipeline's result is left alone where it measured more corners
   // than this on the image (read, not predicted at its pose): there it is
