@@ -53,8 +53,8 @@ struct DenseOptions {
   // After the fine stage: its winner moved by -/+ its softest step
   // (DenseFit::softest_step: the model's corners moved by this many px
   // RMS), each fitted finely; a lower cost replaces the winner (0: no
-  // such steps). Off: on the continuous rendering 3 px gained 7 frames
-  // of the hard sets' seeds 1-4 and lost 6, for a third more time
+  // such steps). Off: on the continuous rendering 3 px gained 10 frames
+  // of the hard sets (2160 measured) and lost 16, for a third more time
   // (docs/vision.md, "The dense stage").
   double softest_step_px = 0.0;
   double min_corner_support = 0.5;   // a corner is reported when the image around it is the rendering's
