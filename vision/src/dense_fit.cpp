@@ -286,6 +286,18 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
   const solver::InstrumentGeometry& g = model.geometry();
   f->base_ring_mm_ = config.end_faces ? static_cast<float>(std::max(0.0, g.radius_mm - g.shaft_radius_mm)) : 0.0F;
   f->tip_ring_mm_ = config.end_faces ? static_cast<float>(std::max(0.0, g.radius_mm - g.grasper_radius_mm)) : 0.0F;
+  // In the surface coordinate (part_unroll_mm): each boundary where the
+  // part above it begins, the rings counted with the markers, so the
+  // base's crease in the shaft's coordinate and the grasper's in its own.
+  f->part_bounds_mm_[0] = -1e9F;
+  for (int j = 0; j < solver::kNumBoundaries; ++j) {
+    const std::uint8_t part = j == 0 ? 0U : static_cast<std::uint8_t>(j + 1);
+    f->part_bounds_mm_[static_cast<std::size_t>(j) + 1U] =
+        static_cast<float>(g.boundaries_mm[static_cast<std::size_t>(j)]) + f->part_unroll_mm(part);
+  }
+  f->part_bounds_mm_[7] = 1e9F;
+  f->rings_mm_ = {{{f->part_bounds_mm_[1], f->part_bounds_mm_[1] + f->base_ring_mm_},
+                   {f->part_bounds_mm_[6] - f->tip_ring_mm_, f->part_bounds_mm_[6]}}};
   f->width_ = camera.width();
   f->height_ = camera.height();
   // Rays of every second pixel (the undistortion is smooth: bilinear
@@ -806,19 +818,7 @@ void DenseFit::compute_coverage() noexcept {
   }
   // Coverage from the signed distance over its gradient (a pixel's width),
   // and the parts along s mixed over the arc length's gradient likewise.
-  const solver::InstrumentGeometry& g = model_.geometry();
-  float bounds[8];
-  bounds[0] = -1e9F;
-  // In the surface coordinate (part_unroll_mm): each boundary where the
-  // part above it begins, the rings counted with the markers, so the
-  // base's crease in the shaft's coordinate and the grasper's in its own.
-  for (int j = 0; j < solver::kNumBoundaries; ++j) {
-    const std::uint8_t part = j == 0 ? 0U : static_cast<std::uint8_t>(j + 1);
-    bounds[j + 1] = static_cast<float>(g.boundaries_mm[static_cast<std::size_t>(j)]) + part_unroll_mm(part);
-  }
-  bounds[7] = 1e9F;
-  // The faces' rings in the surface coordinate (empty without faces).
-  const float rings[2][2] = {{bounds[1], bounds[1] + base_ring_mm_}, {bounds[6] - tip_ring_mm_, bounds[6]}};
+  const float* const bounds = part_bounds_mm_.data();
   // The part of each interval of s: the shaft, markers 1..5, the grasper.
   const std::uint8_t cls_of[7] = {1U, 2U, 3U, 4U, 5U, 6U, 7U};
   for (int y = 0; y < rh_; ++y) {
@@ -843,7 +843,7 @@ void DenseFit::compute_coverage() noexcept {
       // the side's (one cosine per pixel, so that the shading does not
       // jump where the hit passes from the side to the face).
       float on_face = 0.0F;
-      for (const auto& ring : rings) {
+      for (const auto& ring : rings_mm_) {
         const float lo = std::max(sv - 0.5F * gs, ring[0]);
         const float hi = std::min(sv + 0.5F * gs, ring[1]);
         on_face += hi > lo ? (hi - lo) / gs : 0.0F;

@@ -272,6 +272,11 @@ class DenseFit {
   // the markers' sides, the tip's ring (rim to crease), the grasper's.
   float base_ring_mm_ = 0.0F;
   float tip_ring_mm_ = 0.0F;
+  // The parts' intervals in the surface coordinate (the shaft, markers
+  // 1..5, the grasper: part k from [k] to [k + 1]) and the faces' rings
+  // in it (empty without faces); set by create.
+  std::array<float, 8> part_bounds_mm_{};
+  std::array<std::array<float, 2>, 2> rings_mm_{};
   // The region (full resolution) and the work image.
   int fx0_ = 0, fy0_ = 0, fw_ = 0, fh_ = 0;
   int scale_ = 1, rw_ = 0, rh_ = 0, smoothing_ = 0;
