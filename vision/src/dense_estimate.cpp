@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "tcpest/common/dmath.hpp"
+
 namespace tcpest {
 namespace vision {
 
@@ -181,6 +183,43 @@ int coarse_fits(DenseFit& fit, const PoseVector* starts, int n, const Vec2& stre
   return nc;
 }
 
+// The streak screen (DenseOptions::streak_screen_directions): a candidate
+// without a streak takes the cheapest streak of the grid at its pose,
+// when cheaper than none; its cost is then the screened one.
+void screen_streak(DenseFit& fit, const DenseOptions& options, Candidate& c) noexcept {
+  constexpr double kPi = 3.14159265358979323846;
+  if (options.streak_screen_directions <= 0 || c.streak.norm() > 1.0) {
+    return;
+  }
+  PoseVector r = c.r;
+  Vec2 none = Vec2::Zero();
+  const DenseFitSummary at_none = fit.fit(r, none, 0, false, true);
+  if (!at_none.ok) {
+    return;
+  }
+  double best_cost = at_none.cost;
+  Vec2 best = Vec2::Zero();
+  const int lengths = options.streak_screen_lengths;
+  for (int il = 0; il < lengths; ++il) {
+    const double length_px =
+        lengths > 1 ? options.streak_screen_min_px +
+                          (options.streak_screen_max_px - options.streak_screen_min_px) * il / (lengths - 1)
+                    : options.streak_screen_min_px;
+    for (int id = 0; id < options.streak_screen_directions; ++id) {
+      const double angle_rad = kPi * id / options.streak_screen_directions;
+      Vec2 streak(length_px * dmath::cos(angle_rad), length_px * dmath::sin(angle_rad));
+      r = c.r;
+      const DenseFitSummary s = fit.fit(r, streak, 0, false, true);
+      if (s.ok && s.cost < best_cost) {
+        best_cost = s.cost;
+        best = streak;
+      }
+    }
+  }
+  c.streak = best;
+  c.cost = best_cost;
+}
+
 // The softest steps: the fine stage's winner moved by -/+ its softest
 // step (DenseFit::softest_step), each fitted finely; a lower cost replaces
 // the winner. The failing frames' tubes are slid along themselves with
@@ -222,7 +261,11 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.screen_keep >= 0 && options.screen_keep <= kMaxDenseScreenKeep && options.screen_tilt_rad >= 0.0 &&
          options.screen_tilt_rad <= 0.3 && options.screen_channel_mm > 0.0 &&
          options.screen_channel_mm <= 5.0 && options.screen_lambda_mm > 0.0 && options.screen_lambda_mm <= 5.0 &&
-         options.softest_step_px >= 0.0 && options.softest_step_px <= 20.0;
+         options.softest_step_px >= 0.0 && options.softest_step_px <= 20.0 &&
+         options.streak_screen_directions >= 0 && options.streak_screen_directions <= 36 &&
+         options.streak_screen_lengths >= 1 && options.streak_screen_lengths <= 8 &&
+         options.streak_screen_min_px > 1.0 && options.streak_screen_max_px >= options.streak_screen_min_px &&
+         options.streak_screen_max_px <= 20.0;
 }
 
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
@@ -253,7 +296,10 @@ DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, con
   int nf = 0;
   const int keep =
       options.fine_candidates < kMaxDenseFineCandidates ? options.fine_candidates : kMaxDenseFineCandidates;
+  double region_streak_px = streak0.norm();
   for (int i = 0; i < nc && i < keep; ++i) {
+    screen_streak(fit, options, coarse[i]);
+    region_streak_px = std::max(region_streak_px, coarse[i].streak.norm());
     fine[nf++] = coarse[i];
   }
   // Fine: the best coarse results and the pipeline's own poses as they are.
@@ -266,7 +312,7 @@ DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, con
   for (int i = 0; i < nf; ++i) {
     region[i] = fine[i].r;
   }
-  if (nf == 0 || !fit.set_region(image, region, nf, streak0.norm(), options.fine_pixels, 0).ok()) {
+  if (nf == 0 || !fit.set_region(image, region, nf, region_streak_px, options.fine_pixels, 0).ok()) {
     return result;
   }
   bool have = false;

@@ -57,6 +57,20 @@ struct DenseOptions {
   // of the hard sets (2160 measured) and lost 16, for a third more time
   // (docs/vision.md, "The dense stage").
   double softest_step_px = 0.0;
+  // Where no streak comes in (the pipeline's image fit read none: it
+  // failed on a blurred frame, or the frame is sharp), the fit cannot
+  // start one (it frees the streak only from a length over 1 px). With
+  // the streak screen, each coarse result kept for the fine stage takes
+  // the cheapest of no streak and streak_screen_lengths lengths (from
+  // streak_screen_min_px to streak_screen_max_px) in
+  // streak_screen_directions directions over 180 deg, by the cost alone
+  // at its pose (0 directions: no screen). On the hard sets' blurred
+  // frames it gains frames, on the sharp ones it is even (docs/vision.md,
+  // "The dense stage").
+  int streak_screen_directions = 6;
+  int streak_screen_lengths = 3;
+  double streak_screen_min_px = 5.0;
+  double streak_screen_max_px = 13.0;
   double min_corner_support = 0.5;   // a corner is reported when the image around it is the rendering's
   // The pipeline's result is left alone where it measured more corners
   // than this on the image (read, not predicted at its pose): there it is
@@ -73,7 +87,8 @@ struct DenseOptions {
 // finite and positive (lambda up to 10 mm, bends up to 1 rad, the channel
 // up to 5 mm), the corner support within 0..1, max_measured_corners 0..12,
 // the screen's kept starts 0..kMaxDenseScreenKeep, its tilt 0..0.3 rad
-// and its steps up to 5 mm, the softest step 0..20 px.
+// and its steps up to 5 mm, the softest step 0..20 px, the streak screen's
+// directions 0..36 and lengths 1..8, from over 1 px to at most 20 px.
 bool dense_options_valid(const DenseOptions& options) noexcept;
 constexpr int kMaxDenseSeeds = 2;
 constexpr int kMaxDenseScreenKeep = 4;
