@@ -185,10 +185,11 @@ int coarse_fits(DenseFit& fit, const PoseVector* starts, int n, const Vec2& stre
 
 // The streak screen (DenseOptions::streak_screen_directions): a candidate
 // without a streak takes the cheapest streak of the grid at its pose,
-// when cheaper than none; its cost is then the screened one.
+// when cheaper than none; its cost is then the screened one. No streak
+// is evaluated the same way (no iteration) rather than taken from the
+// coarse fit's cost, so that the costs compare.
 void screen_streak(DenseFit& fit, const DenseOptions& options, Candidate& c) noexcept {
-  constexpr double kPi = 3.14159265358979323846;
-  if (options.streak_screen_directions <= 0 || c.streak.norm() > 1.0) {
+  if (options.streak_screen_directions <= 0 || c.streak.norm() > DenseFit::kMinStreakPx) {
     return;
   }
   PoseVector r = c.r;
@@ -206,7 +207,7 @@ void screen_streak(DenseFit& fit, const DenseOptions& options, Candidate& c) noe
                           (options.streak_screen_max_px - options.streak_screen_min_px) * il / (lengths - 1)
                     : options.streak_screen_min_px;
     for (int id = 0; id < options.streak_screen_directions; ++id) {
-      const double angle_rad = kPi * id / options.streak_screen_directions;
+      const double angle_rad = solver::kPi * id / options.streak_screen_directions;
       Vec2 streak(length_px * dmath::cos(angle_rad), length_px * dmath::sin(angle_rad));
       r = c.r;
       const DenseFitSummary s = fit.fit(r, streak, 0, false, true);
@@ -264,7 +265,8 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.softest_step_px >= 0.0 && options.softest_step_px <= 20.0 &&
          options.streak_screen_directions >= 0 && options.streak_screen_directions <= 36 &&
          options.streak_screen_lengths >= 1 && options.streak_screen_lengths <= 8 &&
-         options.streak_screen_min_px > 1.0 && options.streak_screen_max_px >= options.streak_screen_min_px &&
+         options.streak_screen_min_px > DenseFit::kMinStreakPx &&
+         options.streak_screen_max_px >= options.streak_screen_min_px &&
          options.streak_screen_max_px <= 20.0;
 }
 

@@ -1494,7 +1494,7 @@ Vec2 DenseFit::prepare_streak(const Vec2& streak_px) noexcept {
   if (streak.norm() > config_.max_streak_px) {
     streak *= config_.max_streak_px / streak.norm();
   }
-  const bool blur = streak.norm() > 1.0;
+  const bool blur = streak.norm() > kMinStreakPx;
   taps_ = blur ? std::min(kMaxStreakTaps, static_cast<int>(std::ceil((streak.norm() + 4.0) / scale_)) + 2) : 1;
   return streak;
 }

@@ -117,6 +117,9 @@ class DenseFit {
   // blue and the yellow markers' c and c^2 (4).
   static constexpr int kBasis = 3 * kBackgroundTerms + kNumMarkers + 4;
   static constexpr int kMaxStreakTaps = 48;
+  // A streak this long or shorter is no blur: neither modelled nor
+  // fitted (px, full length).
+  static constexpr double kMinStreakPx = 1.0;
   static constexpr int kChannels = 3;  // a*, b*, lightness_weight * L*
   // The fitted parameters: r (7) and the streak (2).
   using ParamVector = Eigen::Matrix<double, kParams, 1>;
