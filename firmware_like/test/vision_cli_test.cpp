@@ -488,36 +488,132 @@ TEST(VisionCommands, MeasuredCornersLeaveOutThePredictedOnes) {
   EXPECT_EQ(measured_corner_count(e, config), 0);
 }
 
-// The dense stage's rule: never on a valid estimate; on the others where
-// few corners were measured, or where the encoders contradict the estimate
-// (there it would end none) unless that is turned off.
-TEST(VisionCommands, DenseStageAppliesWhereFewCornersWereMeasuredOrTheEncodersDisagree) {
+// The dense stage's rule: on every frame where the pipeline's image fit
+// read a motion streak (unless turned off); otherwise never on a valid
+// estimate, and on the others where few corners were measured, or where
+// the encoders contradict the estimate (there it would end none) unless
+// that is turned off.
+TEST(VisionCommands, DenseStageAppliesWhereFewCornersWereMeasuredTheEncodersDisagreeOrAStreakWasRead) {
   using Q = solver::EstimateQuality;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
   vision::DenseOptions options;
   options.max_measured_corners = 2;
   ASSERT_TRUE(options.run_when_encoders_disagree);
-  EXPECT_FALSE(dense_stage_applies(Q::Valid, 0, true, options));
-  EXPECT_FALSE(dense_stage_applies(Q::Valid, 0, false, options));
-  for (const Q q : {Q::Degraded, Q::None}) {
-    EXPECT_TRUE(dense_stage_applies(q, 0, false, options));
-    EXPECT_TRUE(dense_stage_applies(q, 2, false, options));
-    EXPECT_FALSE(dense_stage_applies(q, 3, false, options));
-    EXPECT_TRUE(dense_stage_applies(q, 3, true, options));
-    EXPECT_TRUE(dense_stage_applies(q, 12, true, options));
+  ASSERT_TRUE(options.run_where_streak_read);
+  for (const double no_streak_px : {0.0, vision::DenseFit::kMinStreakPx, nan}) {
+    EXPECT_FALSE(dense_stage_applies(Q::Valid, 0, true, no_streak_px, options));
+    EXPECT_FALSE(dense_stage_applies(Q::Valid, 0, false, no_streak_px, options));
+    for (const Q q : {Q::Degraded, Q::None}) {
+      EXPECT_TRUE(dense_stage_applies(q, 0, false, no_streak_px, options));
+      EXPECT_TRUE(dense_stage_applies(q, 2, false, no_streak_px, options));
+      EXPECT_FALSE(dense_stage_applies(q, 3, false, no_streak_px, options));
+      EXPECT_TRUE(dense_stage_applies(q, 3, true, no_streak_px, options));
+      EXPECT_TRUE(dense_stage_applies(q, 12, true, no_streak_px, options));
+    }
   }
+  // A streak read: whatever the estimate and the corners measured.
+  for (const Q q : {Q::Valid, Q::Degraded, Q::None}) {
+    EXPECT_TRUE(dense_stage_applies(q, 12, false, 1.5, options));
+  }
+  options.run_where_streak_read = false;
+  EXPECT_FALSE(dense_stage_applies(Q::Valid, 12, false, 9.0, options));
+  EXPECT_FALSE(dense_stage_applies(Q::Degraded, 12, false, 9.0, options));
   options.run_when_encoders_disagree = false;
-  EXPECT_FALSE(dense_stage_applies(Q::Degraded, 3, true, options));
-  EXPECT_TRUE(dense_stage_applies(Q::Degraded, 2, true, options));
+  EXPECT_FALSE(dense_stage_applies(Q::Degraded, 3, true, 0.0, options));
+  EXPECT_TRUE(dense_stage_applies(Q::Degraded, 2, true, 0.0, options));
 }
 
-// --dense: the dense stage runs only on the frames the pipeline leaves
-// without a valid estimate (here on all of those; by default only where
-// it measured at most 2 corners or the encoders contradict the estimate),
-// and what it keeps is reported degraded at best (its estimates have no
-// validity rules of their own yet); frames the pipeline makes valid are
-// left as they are. Out-of-range options are refused; evaluate reports the
-// stage's frames.
-TEST(VisionCommands, DenseStageRunsOnlyOnFramesNotValidAndKeepsThemDegraded) {
+// What the dense stage keeps is degraded, except where it replaced a
+// valid estimate, its own solve is valid and the TCP moved within
+// max_valid_tcp_change_mm; a failed solve stays none.
+TEST(VisionCommands, DenseStageKeepsValidOnlyWhereItAgreesWithAValidEstimate) {
+  using Q = solver::EstimateQuality;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  vision::DenseOptions options;
+  ASSERT_EQ(options.max_valid_tcp_change_mm, 2.0);
+  EXPECT_EQ(dense_kept_quality(Q::Valid, Q::Valid, 0.0, options), Q::Valid);
+  EXPECT_EQ(dense_kept_quality(Q::Valid, Q::Valid, 2.0, options), Q::Valid);
+  EXPECT_EQ(dense_kept_quality(Q::Valid, Q::Valid, 2.01, options), Q::Degraded);
+  EXPECT_EQ(dense_kept_quality(Q::Valid, Q::Valid, nan, options), Q::Degraded);
+  EXPECT_EQ(dense_kept_quality(Q::Valid, Q::Degraded, 0.0, options), Q::Degraded);
+  EXPECT_EQ(dense_kept_quality(Q::Valid, Q::None, 0.0, options), Q::None);
+  for (const Q replaced : {Q::Degraded, Q::None}) {
+    EXPECT_EQ(dense_kept_quality(replaced, Q::Valid, 0.0, options), Q::Degraded);
+    EXPECT_EQ(dense_kept_quality(replaced, Q::Degraded, 0.0, options), Q::Degraded);
+    EXPECT_EQ(dense_kept_quality(replaced, Q::None, 0.0, options), Q::None);
+  }
+  options.max_valid_tcp_change_mm = 0.0;  // nothing the stage keeps is valid
+  EXPECT_EQ(dense_kept_quality(Q::Valid, Q::Valid, 0.0, options), Q::Degraded);
+}
+
+// A blurred frame the pipeline makes valid, its streak read: the dense
+// stage runs there too, and its estimate stays valid only where it agrees
+// with the pipeline's. The temporal track follows the pipeline's own
+// results: a sharp frame after it gives the same result with the stage
+// as without.
+TEST(VisionCommands, DenseStageRunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
+  ModelSetup setup;
+  ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
+  std::unique_ptr<EstimatePipeline> plain(new EstimatePipeline());
+  std::unique_ptr<EstimatePipeline> dense(new EstimatePipeline());
+  ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), false));
+  ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), false));
+  vision::DenseOptions options;
+  options.coarse_pixels = 3000;
+  options.fine_pixels = 8000;
+  options.coarse_iterations = 6;
+  options.fine_iterations = 8;
+  ASSERT_TRUE(options.run_where_streak_read);
+  ASSERT_TRUE(dense->enable_dense(options));
+  auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
+  ASSERT_TRUE(created.ok());
+  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
+  const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
+                             static_cast<std::size_t>(setup.camera.width()) * 3U};
+  // The first of a few blurred scenes the pipeline makes valid with its
+  // streak read (most are).
+  render::SceneSpec spec;
+  render::GroundTruth truth;
+  EstimateResult before;
+  bool found = false;
+  for (std::uint64_t seed = 21U; seed < 29U && !found; ++seed) {
+    spec.r = setup.instrument.geometry().nominal_pose(26.0, 0.3, 0.6);
+    spec.seed = seed;
+    spec.hard_cases = render::kHardMotionBlur;
+    ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
+    plain->reset_sequence();
+    before = plain->process(out.view(), nullptr);
+    found = before.status == EstimateStatus::Valid && before.streak_px.norm() > vision::DenseFit::kMinStreakPx;
+  }
+  ASSERT_TRUE(found);
+  const EstimateResult after = dense->process(out.view(), nullptr);
+  EXPECT_TRUE(after.dense_ran);
+  if (after.dense_kept) {
+    const bool agree = (after.tcp - before.tcp).norm() <= options.max_valid_tcp_change_mm;
+    EXPECT_TRUE(after.status == EstimateStatus::Degraded || (after.status == EstimateStatus::Valid && agree));
+  } else {
+    EXPECT_EQ(after.status, before.status);
+  }
+  // The next frame, sharp: the same priors in both, so the same result.
+  spec.r = setup.instrument.geometry().nominal_pose(26.5, 0.32, 0.62);
+  spec.seed = 22U;
+  spec.hard_cases = 0U;
+  ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
+  const EstimateResult next_plain = plain->process(out.view(), nullptr);
+  const EstimateResult next_dense = dense->process(out.view(), nullptr);
+  ASSERT_FALSE(next_dense.dense_ran);
+  EXPECT_EQ(next_dense.status, next_plain.status);
+  EXPECT_EQ((next_dense.r - next_plain.r).norm(), 0.0);
+}
+
+// --dense: the dense stage runs on the frames the pipeline leaves without
+// a valid estimate (here on all of those; by default only where it
+// measured at most 2 corners or the encoders contradict the estimate) and
+// on those where it read a motion streak; what it keeps is reported
+// degraded, or valid where it replaced a valid estimate and agrees with
+// it; the other frames are left as they are. Out-of-range options are
+// refused; evaluate reports the stage's frames.
+TEST(VisionCommands, DenseStageRunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
   ModelSetup setup;
   ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
   std::unique_ptr<EstimatePipeline> plain(new EstimatePipeline());
@@ -558,9 +654,11 @@ TEST(VisionCommands, DenseStageRunsOnlyOnFramesNotValidAndKeepsThemDegraded) {
     dense->reset_sequence();
     const EstimateResult before = plain->process(out.view(), joints);
     const EstimateResult after = dense->process(out.view(), joints);
-    EXPECT_EQ(after.dense_ran, before.status != EstimateStatus::Valid) << i;
-    if (after.dense_kept) {
-      EXPECT_NE(after.status, EstimateStatus::Valid) << i;
+    const bool streak_read = before.streak_px.norm() > vision::DenseFit::kMinStreakPx;
+    EXPECT_EQ(after.dense_ran, before.status != EstimateStatus::Valid || streak_read) << i;
+    if (after.dense_kept && after.status == EstimateStatus::Valid) {
+      EXPECT_EQ(before.status, EstimateStatus::Valid) << i;
+      EXPECT_LE((after.tcp - before.tcp).norm(), options.max_valid_tcp_change_mm) << i;
     }
     if (!after.dense_ran) {
       EXPECT_EQ(after.status, before.status) << i;

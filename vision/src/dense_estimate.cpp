@@ -267,7 +267,8 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.streak_screen_lengths >= 1 && options.streak_screen_lengths <= 8 &&
          options.streak_screen_min_px > DenseFit::kMinStreakPx &&
          options.streak_screen_max_px >= options.streak_screen_min_px &&
-         options.streak_screen_max_px <= 20.0;
+         options.streak_screen_max_px <= 20.0 && options.max_valid_tcp_change_mm >= 0.0 &&
+         options.max_valid_tcp_change_mm <= 10.0;
 }
 
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,

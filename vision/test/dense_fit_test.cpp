@@ -639,6 +639,13 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   EXPECT_FALSE(dense_options_valid(o));
   o.streak_screen_max_px = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(dense_options_valid(o));
+  for (const double change_mm : {-0.1, 10.5, std::numeric_limits<double>::quiet_NaN()}) {
+    o = DenseOptions{};
+    o.max_valid_tcp_change_mm = change_mm;
+    EXPECT_FALSE(dense_options_valid(o)) << change_mm;
+  }
+  o.max_valid_tcp_change_mm = 0.0;  // nothing the stage keeps is valid
+  EXPECT_TRUE(dense_options_valid(o));
 }
 
 // Linear light and L*a*b* convert into each other (the fit blurs in

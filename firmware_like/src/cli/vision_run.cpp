@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <new>
 
 #include "cli/args.hpp"
@@ -277,9 +278,11 @@ void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedR
   if (refined.quality == solver::EstimateQuality::None) {
     return;  // the pipeline's own result stays
   }
-  // The dense stage's estimates have no validity rules of their own yet:
-  // at best degraded (docs/vision.md, "The dense stage").
-  refined.quality = solver::EstimateQuality::Degraded;
+  const double tcp_change_mm =
+      estimate.quality == solver::EstimateQuality::None
+          ? std::numeric_limits<double>::quiet_NaN()
+          : (setup_.instrument.tcp(refined.r) - setup_.instrument.tcp(estimate.r)).norm();
+  refined.quality = dense_kept_quality(estimate.quality, refined.quality, tcp_change_mm, dense_options_);
   estimate = refined;
   vision::FeatureExtractor::CornerSnapshot snapshot;
   snapshot.corners = dense.corners;
@@ -340,9 +343,13 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   // before the dense stage, which also runs where they disagree.
   bool encoders_disagree =
       prior_joints != nullptr && solver::disagrees_with_encoders(estimate, start, encoder_check_);
+  // The temporal track follows the pipeline's own valid results, whether
+  // or not the dense stage runs (docs/vision.md, "The dense stage").
+  const bool pipeline_valid = estimate.quality == solver::EstimateQuality::Valid && !encoders_disagree;
+  const solver::PoseVector pipeline_r = estimate.r;
   if (dense_ != nullptr && dense_stage_applies(estimate.quality,
                                                measured_corner_count(fx.result(), extractor_->config()),
-                                               encoders_disagree, dense_options_)) {
+                                               encoders_disagree, guided.fit.streak_px.norm(), dense_options_)) {
     apply_dense(image, guided, start, mode, estimate, out);
     // The stage may have replaced the estimate: ask again.
     encoders_disagree = prior_joints != nullptr && solver::disagrees_with_encoders(estimate, start, encoder_check_);
@@ -369,8 +376,8 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   if (guided.rounds_kept > 0) {
     out.fit_tcp = setup_.instrument.tcp(guided.fitted_r);
   }
-  if (estimate.quality == solver::EstimateQuality::Valid) {
-    previous_r_ = estimate.r;
+  if (pipeline_valid) {
+    previous_r_ = solver::nearest_equivalent_joints(pipeline_r, start);
     have_previous_ = true;
     temporal_.add(e.interpretation);
   }
@@ -450,11 +457,27 @@ void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableI
 }
 
 bool dense_stage_applies(solver::EstimateQuality quality, int measured_corners, bool encoders_disagree,
-                         const vision::DenseOptions& options) noexcept {
+                         double streak_read_px, const vision::DenseOptions& options) noexcept {
+  // NaN compares false: no streak read.
+  if (options.run_where_streak_read && streak_read_px > vision::DenseFit::kMinStreakPx) {
+    return true;
+  }
   if (quality == solver::EstimateQuality::Valid) {
     return false;
   }
   return measured_corners <= options.max_measured_corners || (options.run_when_encoders_disagree && encoders_disagree);
+}
+
+solver::EstimateQuality dense_kept_quality(solver::EstimateQuality replaced, solver::EstimateQuality solved,
+                                           double tcp_change_mm, const vision::DenseOptions& options) noexcept {
+  if (solved == solver::EstimateQuality::None) {
+    return solver::EstimateQuality::None;
+  }
+  // NaN (no estimate replaced) compares false.
+  const bool agree = options.max_valid_tcp_change_mm > 0.0 && tcp_change_mm <= options.max_valid_tcp_change_mm;
+  return replaced == solver::EstimateQuality::Valid && solved == solver::EstimateQuality::Valid && agree
+             ? solver::EstimateQuality::Valid
+             : solver::EstimateQuality::Degraded;
 }
 
 int measured_corner_count(const vision::Extraction& e, const vision::ExtractorConfig& config) noexcept {

@@ -74,8 +74,8 @@ struct EstimateResult {
   // Valid -> Degraded: the solve's TCP lay farther from fit_tcp than
   // vision::GuidedOptions::max_valid_tcp_disagreement_mm.
   bool fit_disagrees = false;
-  // The dense stage ran on this frame (enabled and the pipeline's estimate
-  // not valid), and its result replaced the pipeline's (then degraded).
+  // The dense stage ran on this frame (enabled, and dense_stage_applies),
+  // and its result replaced the pipeline's (then dense_kept_quality).
   bool dense_ran = false;
   bool dense_kept = false;
   bool extraction_ok = false;
@@ -98,9 +98,10 @@ class EstimatePipeline {
   const ModelSetup& setup() const noexcept { return setup_; }
   // The model-guided rounds after the first solve (0: stage 4's corners only).
   vision::GuidedOptions& guided_options() noexcept { return guided_; }
-  // The dense stage on the frames the pipeline does not make valid (off
-  // until enabled; offline only: several seconds per frame). False: the
-  // options are out of range or its buffers could not be allocated.
+  // The dense stage on the frames the pipeline does not make valid or on
+  // which it read a motion streak (off until enabled; offline only:
+  // several seconds per frame). False: the options are out of range or its
+  // buffers could not be allocated.
   bool enable_dense(const vision::DenseOptions& options) noexcept;
   // Overlay of the last frame (extraction, model at the estimate, TCP) into `pixels`.
   void draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept;
@@ -150,11 +151,21 @@ bool corner_reported(const EstimateResult& result, const vision::Extraction& ext
 // fitted pose's predictions, ExtractorConfig::refine_predicted_confidence).
 // The dense stage runs where they are few (DenseOptions::max_measured_corners).
 int measured_corner_count(const vision::Extraction& extraction, const vision::ExtractorConfig& config) noexcept;
-// Whether the dense stage runs on a frame: the pipeline's estimate is not
-// valid, and it measured at most DenseOptions::max_measured_corners or the
-// encoders contradict its estimate (DenseOptions::run_when_encoders_disagree).
+// Whether the dense stage runs on a frame: the pipeline's image fit read a
+// motion streak of `streak_read_px` (DenseOptions::run_where_streak_read),
+// or its estimate is not valid and it measured at most
+// DenseOptions::max_measured_corners or the encoders contradict its
+// estimate (DenseOptions::run_when_encoders_disagree).
 bool dense_stage_applies(solver::EstimateQuality quality, int measured_corners, bool encoders_disagree,
-                         const vision::DenseOptions& options) noexcept;
+                         double streak_read_px, const vision::DenseOptions& options) noexcept;
+// The quality of an estimate the dense stage keeps (`solved`: the solve's
+// from its corners; None stays None): degraded, but valid where it
+// replaced a valid estimate, its solve is valid and its TCP moved at most
+// DenseOptions::max_valid_tcp_change_mm from the replaced one's
+// (`tcp_change_mm`; NaN: nothing replaced). The dense fit's corners have
+// no validity rules of their own; two readings that agree do.
+solver::EstimateQuality dense_kept_quality(solver::EstimateQuality replaced, solver::EstimateQuality solved,
+                                           double tcp_change_mm, const vision::DenseOptions& options) noexcept;
 
 // The JSON line of `tcpest estimate --json` (no newline).
 void format_estimate_json(const char* image, const EstimateResult& result, const vision::Extraction& extraction,

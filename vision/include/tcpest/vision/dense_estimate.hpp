@@ -81,6 +81,18 @@ struct DenseOptions {
   // (solver::disagrees_with_encoders; it would end none): then it is not
   // mostly right, and the dense stage runs whatever was measured.
   bool run_when_encoders_disagree = true;
+  // ... and where the pipeline's image fit read a motion streak (longer
+  // than DenseFit::kMinStreakPx), whatever its estimate, valid too: along
+  // a smeared border the pipeline's corners lie 1-3 px off on a fifth of
+  // the valid blurred frames, and the dense fit models the streak at every
+  // pixel. On the hard sets' 146 valid frames with a streak read it gained
+  // 16 frames and lost 4 (docs/vision.md, "The dense stage").
+  bool run_where_streak_read = true;
+  // A valid estimate the stage replaces stays valid when the solve from
+  // the stage's corners is valid and its TCP lies within this of the
+  // replaced one's (mm): two readings of the frame that agree. Farther, or
+  // 0, it is degraded, as everything else the stage keeps.
+  double max_valid_tcp_change_mm = 2.0;
 };
 // Ranges: work images of 256 to 2^20 pixels, 1 to 100 iterations, 0 to
 // kMaxDenseFineCandidates fine candidates, 0 to 8 smoothing passes, steps
@@ -88,7 +100,8 @@ struct DenseOptions {
 // up to 5 mm), the corner support within 0..1, max_measured_corners 0..12,
 // the screen's kept starts 0..kMaxDenseScreenKeep, its tilt 0..0.3 rad
 // and its steps up to 5 mm, the softest step 0..20 px, the streak screen's
-// directions 0..36 and lengths 1..8, from over 1 px to at most 20 px.
+// directions 0..36 and lengths 1..8, from over 1 px to at most 20 px, the
+// valid estimate's TCP change 0..10 mm.
 bool dense_options_valid(const DenseOptions& options) noexcept;
 constexpr int kMaxDenseSeeds = 2;
 constexpr int kMaxDenseScreenKeep = 4;
