@@ -546,23 +546,39 @@ TEST(VisionCommands, DenseStageKeepsValidOnlyWhereItAgreesWithAValidEstimate) {
   EXPECT_EQ(dense_kept_quality(Q::Valid, Q::Valid, 0.0, options), Q::Degraded);
 }
 
-// A blurred frame the pipeline makes valid, its streak read: the dense
-// stage runs there too, and its estimate stays valid only where it agrees
-// with the pipeline's. The temporal track follows the pipeline's own
-// results: a sharp frame after it gives the same result with the stage
-// as without.
-TEST(VisionCommands, DenseStageRunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
+// Two pipelines on the test setup, the second to get the dense stage.
+class DensePipelines : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
+    plain.reset(new EstimatePipeline());
+    dense.reset(new EstimatePipeline());
+    ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), false));
+    ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), false));
+  }
   ModelSetup setup;
-  ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
-  std::unique_ptr<EstimatePipeline> plain(new EstimatePipeline());
-  std::unique_ptr<EstimatePipeline> dense(new EstimatePipeline());
-  ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), false));
-  ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), false));
+  std::unique_ptr<EstimatePipeline> plain;
+  std::unique_ptr<EstimatePipeline> dense;
+};
+
+// The dense stage's defaults on small work images with few iterations:
+// seconds per frame rather than minutes.
+vision::DenseOptions quick_dense_options() {
   vision::DenseOptions options;
   options.coarse_pixels = 3000;
   options.fine_pixels = 8000;
   options.coarse_iterations = 6;
   options.fine_iterations = 8;
+  return options;
+}
+
+// A blurred frame the pipeline makes valid, its streak read: the dense
+// stage runs there too, and its estimate stays valid only where it agrees
+// with the pipeline's. The temporal track follows the pipeline's own
+// results: a sharp frame after it gives the same result with the stage
+// as without.
+TEST_F(DensePipelines, RunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
+  const vision::DenseOptions options = quick_dense_options();
   ASSERT_TRUE(options.run_where_streak_read);
   ASSERT_TRUE(dense->enable_dense(options));
   auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
@@ -613,21 +629,11 @@ TEST(VisionCommands, DenseStageRunsWhereAStreakWasReadAndLeavesTheTrackToThePipe
 // degraded, or valid where it replaced a valid estimate and agrees with
 // it; the other frames are left as they are. Out-of-range options are
 // refused; evaluate reports the stage's frames.
-TEST(VisionCommands, DenseStageRunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
-  ModelSetup setup;
-  ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
-  std::unique_ptr<EstimatePipeline> plain(new EstimatePipeline());
-  std::unique_ptr<EstimatePipeline> dense(new EstimatePipeline());
-  ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), false));
-  ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), false));
+TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
   vision::DenseOptions options;
   options.fine_pixels = 100;  // below the smallest work image
   EXPECT_FALSE(dense->enable_dense(options));
-  options = vision::DenseOptions{};
-  options.coarse_pixels = 3000;
-  options.fine_pixels = 8000;
-  options.coarse_iterations = 6;
-  options.fine_iterations = 8;
+  options = quick_dense_options();
   options.max_measured_corners = vision::kNumCorners;  // every frame not valid
   ASSERT_TRUE(dense->enable_dense(options));
   // Stage 4's corners alone on hard frames: most are not valid there.
