@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -620,6 +621,67 @@ TEST_F(DensePipelines, RunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
   ASSERT_FALSE(next_dense.dense_ran);
   EXPECT_EQ(next_dense.status, next_plain.status);
   EXPECT_EQ((next_dense.r - next_plain.r).norm(), 0.0);
+}
+
+// What the dense stage reports is its corners blended with the
+// pipeline's: each corner both report within the gate moves the weight's
+// share of the way to the pipeline's, and the others are the stage's own
+// (vision::blend_pipeline_corners, wired between the stage and its solve).
+TEST_F(DensePipelines, ReportsItsCornersBlendedWithThePipelines) {
+  vision::DenseOptions options = quick_dense_options();
+  ASSERT_GT(options.pipeline_corner_weight, 0.0);
+  ASSERT_TRUE(dense->enable_dense(options));
+  std::unique_ptr<EstimatePipeline> unblended(new EstimatePipeline());
+  ASSERT_TRUE(unblended->init("test", setup, vision::default_color_model(), false));
+  options.pipeline_corner_weight = 0.0;
+  ASSERT_TRUE(unblended->enable_dense(options));
+  auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
+  ASSERT_TRUE(created.ok());
+  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
+  const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
+                             static_cast<std::size_t>(setup.camera.width()) * 3U};
+  // A blurred frame the pipeline makes valid with its streak read (as in
+  // the test before): the stage runs there, and the pipeline reports
+  // corners to blend with.
+  render::SceneSpec spec;
+  render::GroundTruth truth;
+  EstimateResult before;
+  bool found = false;
+  for (std::uint64_t seed = 21U; seed < 29U && !found; ++seed) {
+    spec.r = setup.instrument.geometry().nominal_pose(26.0, 0.3, 0.6);
+    spec.seed = seed;
+    spec.hard_cases = render::kHardMotionBlur;
+    ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
+    plain->reset_sequence();
+    before = plain->process(out.view(), nullptr);
+    found = before.status == EstimateStatus::Valid && before.streak_px.norm() > vision::DenseFit::kMinStreakPx;
+  }
+  ASSERT_TRUE(found);
+  const EstimateResult after = dense->process(out.view(), nullptr);
+  const EstimateResult alone = unblended->process(out.view(), nullptr);
+  ASSERT_TRUE(after.dense_kept);
+  ASSERT_TRUE(alone.dense_kept);
+  const auto& pipeline_corners = plain->extractor().result().corners;
+  const auto& stage_corners = unblended->extractor().result().corners;
+  const auto& reported = dense->extractor().result().corners;
+  const double w = quick_dense_options().pipeline_corner_weight;
+  const double gate_px = quick_dense_options().pipeline_corner_gate_px;
+  int blended = 0;
+  for (std::size_t k = 0; k < reported.size(); ++k) {
+    ASSERT_EQ(reported[k].found, stage_corners[k].found) << k;
+    if (!reported[k].found) {
+      continue;
+    }
+    const vision::Point& d = stage_corners[k].pixel;
+    const vision::Point& p = pipeline_corners[k].pixel;
+    const bool within = pipeline_corners[k].found && std::hypot(p.x - d.x, p.y - d.y) < gate_px;
+    const double ex = within ? d.x + w * (p.x - d.x) : d.x;
+    const double ey = within ? d.y + w * (p.y - d.y) : d.y;
+    EXPECT_NEAR(reported[k].pixel.x, ex, 1e-9) << k;
+    EXPECT_NEAR(reported[k].pixel.y, ey, 1e-9) << k;
+    blended += within ? 1 : 0;
+  }
+  EXPECT_GE(blended, 1);
 }
 
 // --dense: the dense stage runs on the frames the pipeline leaves without

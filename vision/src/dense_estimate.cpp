@@ -268,7 +268,29 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.streak_screen_min_px > DenseFit::kMinStreakPx &&
          options.streak_screen_max_px >= options.streak_screen_min_px &&
          options.streak_screen_max_px <= 20.0 && options.max_valid_tcp_change_mm >= 0.0 &&
-         options.max_valid_tcp_change_mm <= 10.0;
+         options.max_valid_tcp_change_mm <= 10.0 && options.pipeline_corner_weight >= 0.0 &&
+         options.pipeline_corner_weight <= 1.0 && options.pipeline_corner_gate_px > 0.0 &&
+         options.pipeline_corner_gate_px <= 20.0;
+}
+
+void blend_pipeline_corners(std::array<Corner, kNumCorners>& dense, const std::array<Corner, kNumCorners>& pipeline,
+                            const DenseOptions& options) noexcept {
+  const double weight = options.pipeline_corner_weight;
+  const double gate_px = options.pipeline_corner_gate_px;
+  for (std::size_t k = 0; k < dense.size(); ++k) {
+    Corner& d = dense[k];
+    const Corner& p = pipeline[k];
+    if (!d.found || !p.found) {
+      continue;
+    }
+    const double du = p.pixel.x - d.pixel.x;
+    const double dv = p.pixel.y - d.pixel.y;
+    // NaN compares false: a non-finite pixel is never within the gate.
+    if (du * du + dv * dv < gate_px * gate_px) {
+      d.pixel.x += weight * du;
+      d.pixel.y += weight * dv;
+    }
+  }
 }
 
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -646,6 +647,59 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   }
   o.max_valid_tcp_change_mm = 0.0;  // nothing the stage keeps is valid
   EXPECT_TRUE(dense_options_valid(o));
+  for (const double weight : {-0.1, 1.1, std::numeric_limits<double>::quiet_NaN()}) {
+    o = DenseOptions{};
+    o.pipeline_corner_weight = weight;
+    EXPECT_FALSE(dense_options_valid(o)) << weight;
+  }
+  o.pipeline_corner_weight = 0.0;  // the stage's corners as they are
+  EXPECT_TRUE(dense_options_valid(o));
+  for (const double gate_px : {0.0, 20.5, std::numeric_limits<double>::infinity()}) {
+    o = DenseOptions{};
+    o.pipeline_corner_gate_px = gate_px;
+    EXPECT_FALSE(dense_options_valid(o)) << gate_px;
+  }
+}
+
+// The stage's corners move towards the pipeline's by the weight's share
+// where both report the corner within the gate; every other corner stays.
+TEST(DenseFit, CornersBlendWithThePipelinesOnlyWithinTheGate) {
+  DenseOptions o;
+  o.pipeline_corner_weight = 0.25;
+  o.pipeline_corner_gate_px = 3.0;
+  std::array<Corner, kNumCorners> dense{};
+  std::array<Corner, kNumCorners> pipeline{};
+  const auto corner = [](double x, double y) { return Corner{true, Point{x, y}, 0.5}; };
+  dense[0] = corner(100.0, 200.0);
+  pipeline[0] = corner(102.0, 200.0);  // 2 px: blended
+  dense[1] = corner(100.0, 200.0);
+  pipeline[1] = corner(100.0, 203.5);  // 3.5 px: one of them is wrong
+  dense[2] = corner(50.0, 60.0);       // the pipeline has none
+  pipeline[3] = corner(10.0, 10.0);    // the stage withheld it: it stays withheld
+  dense[4] = corner(10.0, 10.0);
+  pipeline[4] = corner(std::numeric_limits<double>::quiet_NaN(), 10.0);
+  dense[5] = corner(30.0, 40.0);
+  pipeline[5] = corner(31.2, 41.6);  // 2 px
+  dense[5].confidence = 0.7;
+  blend_pipeline_corners(dense, pipeline, o);
+  EXPECT_DOUBLE_EQ(dense[0].pixel.x, 100.5);
+  EXPECT_DOUBLE_EQ(dense[0].pixel.y, 200.0);
+  EXPECT_DOUBLE_EQ(dense[1].pixel.y, 200.0);
+  EXPECT_DOUBLE_EQ(dense[2].pixel.x, 50.0);
+  EXPECT_FALSE(dense[3].found);
+  EXPECT_DOUBLE_EQ(dense[4].pixel.x, 10.0);
+  EXPECT_NEAR(dense[5].pixel.x, 30.3, 1e-12);
+  EXPECT_NEAR(dense[5].pixel.y, 40.4, 1e-12);
+  EXPECT_DOUBLE_EQ(dense[5].confidence, 0.7);  // the stage's confidence is kept
+  // Weight 0: nothing moves.
+  std::array<Corner, kNumCorners> unchanged = dense;
+  o.pipeline_corner_weight = 0.0;
+  blend_pipeline_corners(unchanged, pipeline, o);
+  for (std::size_t k = 0; k < unchanged.size(); ++k) {
+    EXPECT_EQ(unchanged[k].found, dense[k].found) << k;
+    EXPECT_DOUBLE_EQ(unchanged[k].pixel.x, dense[k].pixel.x) << k;
+    EXPECT_DOUBLE_EQ(unchanged[k].pixel.y, dense[k].pixel.y) << k;
+  }
 }
 
 // Linear light and L*a*b* convert into each other (the fit blurs in

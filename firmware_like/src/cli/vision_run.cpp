@@ -267,10 +267,13 @@ void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedR
   if (!dense.ok) {
     return;
   }
+  // The extractor still holds the pipeline's own corners here.
+  std::array<vision::Corner, vision::kNumCorners> corners = dense.corners;
+  vision::blend_pipeline_corners(corners, extractor_->result().corners, dense_options_);
   solver::CornerObservation observation;
   for (std::size_t k = 0; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
-    if (dense.corners[k].found) {
-      observation.pixel[k] = solver::Vec2(dense.corners[k].pixel.x, dense.corners[k].pixel.y);
+    if (corners[k].found) {
+      observation.pixel[k] = solver::Vec2(corners[k].pixel.x, corners[k].pixel.y);
       observation.visible[k] = true;
     }
   }
@@ -285,7 +288,7 @@ void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedR
   refined.quality = dense_kept_quality(estimate.quality, refined.quality, tcp_change_mm, dense_options_);
   estimate = refined;
   vision::FeatureExtractor::CornerSnapshot snapshot;
-  snapshot.corners = dense.corners;
+  snapshot.corners = corners;
   snapshot.refined = true;
   extractor_->restore_snapshot(snapshot);
   out.dense_kept = true;

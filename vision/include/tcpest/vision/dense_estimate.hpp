@@ -93,6 +93,12 @@ struct DenseOptions {
   // replaced one's (mm): two readings of the frame that agree. Farther, or
   // 0, it is degraded, as everything else the stage keeps.
   double max_valid_tcp_change_mm = 2.0;
+  // The stage's corners blended with the pipeline's own where both report
+  // a corner (blend_pipeline_corners): within pipeline_corner_gate_px of
+  // each other (px), the stage's corner moves pipeline_corner_weight of
+  // the way to the pipeline's (0: the stage's corners as they are).
+  double pipeline_corner_weight = 0.3;
+  double pipeline_corner_gate_px = 3.0;
 };
 // Ranges: work images of 256 to 2^20 pixels, 1 to 100 iterations, 0 to
 // kMaxDenseFineCandidates fine candidates, 0 to 8 smoothing passes, steps
@@ -101,7 +107,8 @@ struct DenseOptions {
 // the screen's kept starts 0..kMaxDenseScreenKeep, its tilt 0..0.3 rad
 // and its steps up to 5 mm, the softest step 0..20 px, the streak screen's
 // directions 0..36 and lengths 1..8, from over 1 px to at most 20 px, the
-// valid estimate's TCP change 0..10 mm.
+// valid estimate's TCP change 0..10 mm, the pipeline corners' weight 0..1
+// and their gate over 0 and at most 20 px.
 bool dense_options_valid(const DenseOptions& options) noexcept;
 constexpr int kMaxDenseSeeds = 2;
 constexpr int kMaxDenseScreenKeep = 4;
@@ -117,6 +124,20 @@ struct DenseResult {
   std::array<Corner, kNumCorners> corners{};  // the model's at r, found where supported
   int corner_count = 0;
 };
+
+// The stage's corners (`dense`, in place) blended with the pipeline's
+// (`pipeline`: the corners it reports, measured on the image or predicted
+// at its image fit's pose): a corner both report, within the gate of each
+// other, moves the weight's share of the way to the pipeline's; any other
+// stays as it is. The two are readings of one frame by different fits
+// whose errors are only partly shared: on the hard sets' frames the stage
+// ran on, the two corners' errors correlate by about 0.6, and the mean
+// squared error of the blend is least at a weight of about 0.3 (0.29-0.31
+// on either half of the seeds). Farther apart than the gate, one of them
+// is wrong, and the stage's is the more often right (docs/vision.md, "The
+// dense stage"). Non-finite pixels are left alone.
+void blend_pipeline_corners(std::array<Corner, kNumCorners>& dense, const std::array<Corner, kNumCorners>& pipeline,
+                            const DenseOptions& options) noexcept;
 
 // `seeds`: the pipeline's poses (at most kMaxDenseSeeds; may be empty);
 // `start`: the encoders' or the track's; `streak_px`: the streak the
