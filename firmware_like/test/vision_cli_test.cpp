@@ -557,6 +557,27 @@ class DensePipelines : public ::testing::Test {
     ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), false));
     ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), false));
   }
+  // Renders into `out` the first of a few blurred scenes the plain
+  // pipeline makes valid with its streak read (most are), its result in
+  // `before`; false: none of them.
+  bool render_blurred_valid_frame(render::Renderer& renderer, const MutableImageView& out, render::SceneSpec& spec,
+                                  EstimateResult& before) {
+    render::GroundTruth truth;
+    for (std::uint64_t seed = 21U; seed < 29U; ++seed) {
+      spec.r = setup.instrument.geometry().nominal_pose(26.0, 0.3, 0.6);
+      spec.seed = seed;
+      spec.hard_cases = render::kHardMotionBlur;
+      if (!renderer.render(spec, out, truth).ok()) {
+        return false;
+      }
+      plain->reset_sequence();
+      before = plain->process(out.view(), nullptr);
+      if (before.status == EstimateStatus::Valid && before.streak_px.norm() > vision::DenseFit::kMinStreakPx) {
+        return true;
+      }
+    }
+    return false;
+  }
   ModelSetup setup;
   std::unique_ptr<EstimatePipeline> plain;
   std::unique_ptr<EstimatePipeline> dense;
@@ -587,22 +608,9 @@ TEST_F(DensePipelines, RunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
   std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
   const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
                              static_cast<std::size_t>(setup.camera.width()) * 3U};
-  // The first of a few blurred scenes the pipeline makes valid with its
-  // streak read (most are).
   render::SceneSpec spec;
-  render::GroundTruth truth;
   EstimateResult before;
-  bool found = false;
-  for (std::uint64_t seed = 21U; seed < 29U && !found; ++seed) {
-    spec.r = setup.instrument.geometry().nominal_pose(26.0, 0.3, 0.6);
-    spec.seed = seed;
-    spec.hard_cases = render::kHardMotionBlur;
-    ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
-    plain->reset_sequence();
-    before = plain->process(out.view(), nullptr);
-    found = before.status == EstimateStatus::Valid && before.streak_px.norm() > vision::DenseFit::kMinStreakPx;
-  }
-  ASSERT_TRUE(found);
+  ASSERT_TRUE(render_blurred_valid_frame(*created.value(), out, spec, before));
   const EstimateResult after = dense->process(out.view(), nullptr);
   EXPECT_TRUE(after.dense_ran);
   if (after.dense_kept) {
@@ -615,6 +623,7 @@ TEST_F(DensePipelines, RunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
   spec.r = setup.instrument.geometry().nominal_pose(26.5, 0.32, 0.62);
   spec.seed = 22U;
   spec.hard_cases = 0U;
+  render::GroundTruth truth;
   ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
   const EstimateResult next_plain = plain->process(out.view(), nullptr);
   const EstimateResult next_dense = dense->process(out.view(), nullptr);
@@ -640,23 +649,11 @@ TEST_F(DensePipelines, ReportsItsCornersBlendedWithThePipelines) {
   std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
   const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
                              static_cast<std::size_t>(setup.camera.width()) * 3U};
-  // A blurred frame the pipeline makes valid with its streak read (as in
-  // the test before): the stage runs there, and the pipeline reports
-  // corners to blend with.
+  // A blurred frame the pipeline makes valid with its streak read: the
+  // stage runs there, and the pipeline reports corners to blend with.
   render::SceneSpec spec;
-  render::GroundTruth truth;
   EstimateResult before;
-  bool found = false;
-  for (std::uint64_t seed = 21U; seed < 29U && !found; ++seed) {
-    spec.r = setup.instrument.geometry().nominal_pose(26.0, 0.3, 0.6);
-    spec.seed = seed;
-    spec.hard_cases = render::kHardMotionBlur;
-    ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
-    plain->reset_sequence();
-    before = plain->process(out.view(), nullptr);
-    found = before.status == EstimateStatus::Valid && before.streak_px.norm() > vision::DenseFit::kMinStreakPx;
-  }
-  ASSERT_TRUE(found);
+  ASSERT_TRUE(render_blurred_valid_frame(*created.value(), out, spec, before));
   const EstimateResult after = dense->process(out.view(), nullptr);
   const EstimateResult alone = unblended->process(out.view(), nullptr);
   ASSERT_TRUE(after.dense_kept);
