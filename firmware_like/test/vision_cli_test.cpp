@@ -556,18 +556,26 @@ class DensePipelines : public ::testing::Test {
     dense.reset(new EstimatePipeline());
     ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), false));
     ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), false));
+    auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
+    ASSERT_TRUE(created.ok());
+    renderer = std::move(created.value());
+    pixels.assign(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3), 0U);
+  }
+  // The frame the tests render into.
+  MutableImageView frame() {
+    return MutableImageView{pixels.data(), setup.camera.width(), setup.camera.height(),
+                            static_cast<std::size_t>(setup.camera.width()) * 3U};
   }
   // Renders into `out` the first of a few blurred scenes the plain
   // pipeline makes valid with its streak read (most are), its result in
   // `before`; false: none of them.
-  bool render_blurred_valid_frame(render::Renderer& renderer, const MutableImageView& out, render::SceneSpec& spec,
-                                  EstimateResult& before) {
+  bool render_blurred_valid_frame(const MutableImageView& out, render::SceneSpec& spec, EstimateResult& before) {
     render::GroundTruth truth;
     for (std::uint64_t seed = 21U; seed < 29U; ++seed) {
       spec.r = setup.instrument.geometry().nominal_pose(26.0, 0.3, 0.6);
       spec.seed = seed;
       spec.hard_cases = render::kHardMotionBlur;
-      if (!renderer.render(spec, out, truth).ok()) {
+      if (!renderer->render(spec, out, truth).ok()) {
         return false;
       }
       plain->reset_sequence();
@@ -581,6 +589,8 @@ class DensePipelines : public ::testing::Test {
   ModelSetup setup;
   std::unique_ptr<EstimatePipeline> plain;
   std::unique_ptr<EstimatePipeline> dense;
+  std::unique_ptr<render::Renderer> renderer;
+  std::vector<std::uint8_t> pixels;
 };
 
 // The dense stage's defaults on small work images with few iterations:
@@ -603,14 +613,10 @@ TEST_F(DensePipelines, RunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
   const vision::DenseOptions options = quick_dense_options();
   ASSERT_TRUE(options.run_where_streak_read);
   ASSERT_TRUE(dense->enable_dense(options));
-  auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
-  ASSERT_TRUE(created.ok());
-  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
-  const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
-                             static_cast<std::size_t>(setup.camera.width()) * 3U};
+  const MutableImageView out = frame();
   render::SceneSpec spec;
   EstimateResult before;
-  ASSERT_TRUE(render_blurred_valid_frame(*created.value(), out, spec, before));
+  ASSERT_TRUE(render_blurred_valid_frame(out, spec, before));
   const EstimateResult after = dense->process(out.view(), nullptr);
   EXPECT_TRUE(after.dense_ran);
   if (after.dense_kept) {
@@ -624,7 +630,7 @@ TEST_F(DensePipelines, RunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
   spec.seed = 22U;
   spec.hard_cases = 0U;
   render::GroundTruth truth;
-  ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
+  ASSERT_TRUE(renderer->render(spec, out, truth).ok());
   const EstimateResult next_plain = plain->process(out.view(), nullptr);
   const EstimateResult next_dense = dense->process(out.view(), nullptr);
   ASSERT_FALSE(next_dense.dense_ran);
@@ -644,16 +650,12 @@ TEST_F(DensePipelines, ReportsItsCornersBlendedWithThePipelines) {
   ASSERT_TRUE(unblended->init("test", setup, vision::default_color_model(), false));
   options.pipeline_corner_weight = 0.0;
   ASSERT_TRUE(unblended->enable_dense(options));
-  auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
-  ASSERT_TRUE(created.ok());
-  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
-  const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
-                             static_cast<std::size_t>(setup.camera.width()) * 3U};
+  const MutableImageView out = frame();
   // A blurred frame the pipeline makes valid with its streak read: the
   // stage runs there, and the pipeline reports corners to blend with.
   render::SceneSpec spec;
   EstimateResult before;
-  ASSERT_TRUE(render_blurred_valid_frame(*created.value(), out, spec, before));
+  ASSERT_TRUE(render_blurred_valid_frame(out, spec, before));
   const EstimateResult after = dense->process(out.view(), nullptr);
   const EstimateResult alone = unblended->process(out.view(), nullptr);
   ASSERT_TRUE(after.dense_kept);
@@ -700,11 +702,7 @@ TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
     p->guided_options().rounds = 0;
     p->guided_options().fallback_seeds = 0;
   }
-  auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
-  ASSERT_TRUE(created.ok());
-  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(setup.camera.width() * setup.camera.height() * 3));
-  const MutableImageView out{pixels.data(), setup.camera.width(), setup.camera.height(),
-                             static_cast<std::size_t>(setup.camera.width()) * 3U};
+  const MutableImageView out = frame();
   int ran = 0;
   int valid = 0;
   for (int i = 0; i < 4; ++i) {
@@ -714,7 +712,7 @@ TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
     spec.seed = static_cast<std::uint64_t>(11 + i);
     spec.hard_cases = i < 3 ? (render::kHardOccluder | render::kHardHaze | render::kHardMotionBlur) : 0U;
     render::GroundTruth truth;
-    ASSERT_TRUE(created.value()->render(spec, out, truth).ok());
+    ASSERT_TRUE(renderer->render(spec, out, truth).ok());
     plain->reset_sequence();
     dense->reset_sequence();
     const EstimateResult before = plain->process(out.view(), joints);
