@@ -490,17 +490,28 @@ TEST(VisionCommands, MeasuredCornersLeaveOutThePredictedOnes) {
 }
 
 // The dense stage's rule: on every frame where the pipeline's image fit
-// read a motion streak (unless turned off); otherwise never on a valid
-// estimate, and on the others where few corners were measured, or where
-// the encoders contradict the estimate (there it would end none) unless
-// that is turned off.
+// read a motion streak (unless turned off); otherwise on a valid estimate
+// where at most max_measured_corners_valid corners were measured, and on
+// the others where at most max_measured_corners were, or where the
+// encoders contradict the estimate (there it would end none) unless that
+// is turned off. By default: every frame not valid, and the valid ones
+// from 7 corners measured or fewer.
 TEST(VisionCommands, DenseStageAppliesWhereFewCornersWereMeasuredTheEncodersDisagreeOrAStreakWasRead) {
   using Q = solver::EstimateQuality;
   const double nan = std::numeric_limits<double>::quiet_NaN();
   vision::DenseOptions options;
-  options.max_measured_corners = 2;
   ASSERT_TRUE(options.run_when_encoders_disagree);
   ASSERT_TRUE(options.run_where_streak_read);
+  for (const double no_streak_px : {0.0, vision::DenseFit::kMinStreakPx, nan}) {
+    for (int measured = 0; measured <= vision::kNumCorners; ++measured) {
+      EXPECT_TRUE(dense_stage_applies(Q::Degraded, measured, false, no_streak_px, options)) << measured;
+      EXPECT_TRUE(dense_stage_applies(Q::None, measured, false, no_streak_px, options)) << measured;
+      EXPECT_EQ(dense_stage_applies(Q::Valid, measured, false, no_streak_px, options), measured <= 7) << measured;
+      EXPECT_EQ(dense_stage_applies(Q::Valid, measured, true, no_streak_px, options), measured <= 7) << measured;
+    }
+  }
+  options.max_measured_corners = 2;
+  options.max_measured_corners_valid = -1;
   for (const double no_streak_px : {0.0, vision::DenseFit::kMinStreakPx, nan}) {
     EXPECT_FALSE(dense_stage_applies(Q::Valid, 0, true, no_streak_px, options));
     EXPECT_FALSE(dense_stage_applies(Q::Valid, 0, false, no_streak_px, options));
@@ -522,6 +533,9 @@ TEST(VisionCommands, DenseStageAppliesWhereFewCornersWereMeasuredTheEncodersDisa
   options.run_when_encoders_disagree = false;
   EXPECT_FALSE(dense_stage_applies(Q::Degraded, 3, true, 0.0, options));
   EXPECT_TRUE(dense_stage_applies(Q::Degraded, 2, true, 0.0, options));
+  options.max_measured_corners_valid = 3;
+  EXPECT_TRUE(dense_stage_applies(Q::Valid, 3, false, 0.0, options));
+  EXPECT_FALSE(dense_stage_applies(Q::Valid, 4, false, 0.0, options));
 }
 
 // What the dense stage keeps is degraded, except where it replaced a
@@ -684,9 +698,8 @@ TEST_F(DensePipelines, ReportsItsCornersBlendedWithThePipelines) {
 }
 
 // --dense: the dense stage runs on the frames the pipeline leaves without
-// a valid estimate (here on all of those; by default only where it
-// measured at most 2 corners or the encoders contradict the estimate) and
-// on those where it read a motion streak; what it keeps is reported
+// a valid estimate, on the valid ones where it measured at most 7 corners
+// and on those where it read a motion streak; what it keeps is reported
 // degraded, or valid where it replaced a valid estimate and agrees with
 // it; the other frames are left as they are. Out-of-range options are
 // refused; evaluate reports the stage's frames.
@@ -695,7 +708,7 @@ TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
   options.fine_pixels = 100;  // below the smallest work image
   EXPECT_FALSE(dense->enable_dense(options));
   options = quick_dense_options();
-  options.max_measured_corners = vision::kNumCorners;  // every frame not valid
+  ASSERT_EQ(options.max_measured_corners, vision::kNumCorners);  // every frame not valid
   ASSERT_TRUE(dense->enable_dense(options));
   // Stage 4's corners alone on hard frames: most are not valid there.
   for (EstimatePipeline* p : {plain.get(), dense.get()}) {
@@ -718,7 +731,9 @@ TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
     const EstimateResult before = plain->process(out.view(), joints);
     const EstimateResult after = dense->process(out.view(), joints);
     const bool streak_read = before.streak_px.norm() > vision::DenseFit::kMinStreakPx;
-    EXPECT_EQ(after.dense_ran, before.status != EstimateStatus::Valid || streak_read) << i;
+    EXPECT_EQ(after.measured_corners, before.measured_corners) << i;
+    const bool few_measured = before.measured_corners <= options.max_measured_corners_valid;
+    EXPECT_EQ(after.dense_ran, before.status != EstimateStatus::Valid || streak_read || few_measured) << i;
     if (after.dense_kept && after.status == EstimateStatus::Valid) {
       EXPECT_EQ(before.status, EstimateStatus::Valid) << i;
       EXPECT_LE((after.tcp - before.tcp).norm(), options.max_valid_tcp_change_mm) << i;

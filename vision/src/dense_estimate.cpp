@@ -259,6 +259,7 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.bend_step_rad <= 1.0 && options.channel_step_mm > 0.0 && options.channel_step_mm <= 5.0 &&
          options.min_corner_support >= 0.0 && options.min_corner_support <= 1.0 &&
          options.max_measured_corners >= 0 && options.max_measured_corners <= kNumCorners &&
+         options.max_measured_corners_valid >= -1 && options.max_measured_corners_valid <= kNumCorners &&
          options.screen_keep >= 0 && options.screen_keep <= kMaxDenseScreenKeep && options.screen_tilt_rad >= 0.0 &&
          options.screen_tilt_rad <= 0.3 && options.screen_channel_mm > 0.0 &&
          options.screen_channel_mm <= 5.0 && options.screen_lambda_mm > 0.0 && options.screen_lambda_mm <= 5.0 &&

@@ -598,6 +598,13 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   o.max_measured_corners = -1;
   EXPECT_FALSE(dense_options_valid(o));
   o = DenseOptions{};
+  o.max_measured_corners_valid = kNumCorners + 1;
+  EXPECT_FALSE(dense_options_valid(o));
+  o.max_measured_corners_valid = -2;
+  EXPECT_FALSE(dense_options_valid(o));
+  o.max_measured_corners_valid = -1;  // never on a valid estimate
+  EXPECT_TRUE(dense_options_valid(o));
+  o = DenseOptions{};
   o.screen_keep = kMaxDenseScreenKeep + 1;
   EXPECT_FALSE(dense_options_valid(o));
   o = DenseOptions{};

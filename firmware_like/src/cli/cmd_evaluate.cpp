@@ -398,9 +398,8 @@ struct EvaluateTotals {
       std::printf("%s\n", case_line);
     }
     if (dense_ran > 0) {
-      std::printf("dense stage: ran on %d frames (not valid with few corners measured or the encoders "
-                  "contradicting, or a streak read), its estimate kept on %d, of which %d succeed; median solve "
-                  "time with it %.0f ms\n",
+      std::printf("dense stage: ran on %d frames (not valid, valid from few corners measured, or a streak read), "
+                  "its estimate kept on %d, of which %d succeed; median solve time with it %.0f ms\n",
                   dense_ran, dense_kept, dense_kept_success, 1e-3 * median_of(dense_solve_us));
     }
     if (streaks.blurred_frames > 0) {

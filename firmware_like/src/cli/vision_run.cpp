@@ -350,9 +350,9 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   // or not the dense stage runs (docs/vision.md, "The dense stage").
   const bool pipeline_valid = estimate.quality == solver::EstimateQuality::Valid && !encoders_disagree;
   const solver::PoseVector pipeline_r = estimate.r;
-  if (dense_ != nullptr && dense_stage_applies(estimate.quality,
-                                               measured_corner_count(fx.result(), extractor_->config()),
-                                               encoders_disagree, guided.fit.streak_px.norm(), dense_options_)) {
+  out.measured_corners = measured_corner_count(fx.result(), extractor_->config());
+  if (dense_ != nullptr && dense_stage_applies(estimate.quality, out.measured_corners, encoders_disagree,
+                                               guided.fit.streak_px.norm(), dense_options_)) {
     apply_dense(image, guided, start, mode, estimate, out);
     // The stage may have replaced the estimate: ask again.
     encoders_disagree = prior_joints != nullptr && solver::disagrees_with_encoders(estimate, start, encoder_check_);
@@ -466,7 +466,7 @@ bool dense_stage_applies(solver::EstimateQuality quality, int measured_corners, 
     return true;
   }
   if (quality == solver::EstimateQuality::Valid) {
-    return false;
+    return measured_corners <= options.max_measured_corners_valid;
   }
   return measured_corners <= options.max_measured_corners || (options.run_when_encoders_disagree && encoders_disagree);
 }

@@ -78,6 +78,9 @@ struct EstimateResult {
   // and its result replaced the pipeline's (then dense_kept_quality).
   bool dense_ran = false;
   bool dense_kept = false;
+  // The corners the pipeline measured on the image (measured_corner_count),
+  // which the dense stage's rule asks for.
+  int measured_corners = 0;
   bool extraction_ok = false;
   const char* extraction_error = "";
   // The motion-blur streak the kept image fit read (px, image; its sign is
@@ -149,13 +152,16 @@ bool corner_reported(const EstimateResult& result, const vision::Extraction& ext
 // The corners the extraction measured on the image: stage 4's, or after a
 // guided round those whose boundary arc was read (the others are the
 // fitted pose's predictions, ExtractorConfig::refine_predicted_confidence).
-// The dense stage runs where they are few (DenseOptions::max_measured_corners).
+// The dense stage's rule asks for them (DenseOptions::max_measured_corners,
+// max_measured_corners_valid).
 int measured_corner_count(const vision::Extraction& extraction, const vision::ExtractorConfig& config) noexcept;
 // Whether the dense stage runs on a frame: the pipeline's image fit read a
 // motion streak of `streak_read_px` (DenseOptions::run_where_streak_read),
 // or its estimate is not valid and it measured at most
-// DenseOptions::max_measured_corners or the encoders contradict its
-// estimate (DenseOptions::run_when_encoders_disagree).
+// DenseOptions::max_measured_corners (by default every such frame) or the
+// encoders contradict its estimate (DenseOptions::run_when_encoders_disagree),
+// or its estimate is valid and it measured at most
+// DenseOptions::max_measured_corners_valid.
 bool dense_stage_applies(solver::EstimateQuality quality, int measured_corners, bool encoders_disagree,
                          double streak_read_px, const vision::DenseOptions& options) noexcept;
 // The quality of an estimate the dense stage keeps (`solved`: the solve's

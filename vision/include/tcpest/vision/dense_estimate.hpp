@@ -72,15 +72,24 @@ struct DenseOptions {
   double streak_screen_min_px = 5.0;
   double streak_screen_max_px = 13.0;
   double min_corner_support = 0.5;   // a corner is reported when the image around it is the rendering's
-  // The pipeline's result is left alone where it measured more corners
-  // than this on the image (read, not predicted at its pose): there it is
-  // mostly right, and the dense fit's own minimum more often elsewhere
-  // (docs/vision.md, "The dense stage"). 12: every frame not valid.
-  int max_measured_corners = 2;
-  // ... unless the encoders contradict that result
-  // (solver::disagrees_with_encoders; it would end none): then it is not
-  // mostly right, and the dense stage runs whatever was measured.
+  // The stage runs on a result not valid where the pipeline measured at
+  // most this many corners on the image (read, not predicted at its
+  // pose); 12: on every frame not valid. With the corners blended with the
+  // pipeline's (pipeline_corner_weight), its result is the better one
+  // there too: on the 483 frames of the hard sets where the pipeline
+  // measured more than 2, 39 frames gained and 16 lost (before the blend,
+  // 2 was best: the stage's own minimum was more often elsewhere;
+  // docs/vision.md, "The dense stage").
+  int max_measured_corners = kNumCorners;
+  // ... and on one the encoders contradict
+  // (solver::disagrees_with_encoders; it would end none) whatever was
+  // measured: it is not mostly right.
   bool run_when_encoders_disagree = true;
+  // ... and on a valid result where the pipeline measured at most this
+  // many corners (-1: never on a valid one): on the hard sets' 229 such
+  // frames without a streak read, 17 gained and 2 lost; where it
+  // measured more (614 frames) it fails on 5.
+  int max_measured_corners_valid = 7;
   // ... and where the pipeline's image fit read a motion streak (longer
   // than DenseFit::kMinStreakPx), whatever its estimate, valid too: along
   // a smeared border the pipeline's corners lie 1-3 px off on a fifth of
@@ -103,7 +112,8 @@ struct DenseOptions {
 // Ranges: work images of 256 to 2^20 pixels, 1 to 100 iterations, 0 to
 // kMaxDenseFineCandidates fine candidates, 0 to 8 smoothing passes, steps
 // finite and positive (lambda up to 10 mm, bends up to 1 rad, the channel
-// up to 5 mm), the corner support within 0..1, max_measured_corners 0..12,
+// up to 5 mm), the corner support within 0..1, max_measured_corners 0..12
+// (max_measured_corners_valid -1..12),
 // the screen's kept starts 0..kMaxDenseScreenKeep, its tilt 0..0.3 rad
 // and its steps up to 5 mm, the softest step 0..20 px, the streak screen's
 // directions 0..36 and lengths 1..8, from over 1 px to at most 20 px, the
