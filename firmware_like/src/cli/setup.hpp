@@ -26,9 +26,10 @@ constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
 constexpr OptionSpec kDenseOption{"dense", nullptr,
                                   "the dense fit (every pixel around the instrument against a rendering of the "
                                   "model) on each frame not yet valid, on each valid one where at most 7 corners "
-                                  "were measured on the image, and on each where a motion streak was read; its corners, blended with the pipeline's where the two lie within 3 px, "
-                                  "are solved, and the estimate is reported degraded, or valid where it replaced a "
-                                  "valid one within 2 mm of its TCP; offline only: several seconds per such frame "
+                                  "were measured on the image, and on each where a motion streak was read; its "
+                                  "corners, blended with the pipeline's where the two lie within 3 px, are solved, "
+                                  "and the estimate is reported degraded, or valid where it replaced a valid one "
+                                  "within 2 mm of its TCP; offline only: several seconds per such frame "
                                   "(docs/vision.md)"};
 
 struct ModelSetup {
