@@ -652,6 +652,52 @@ TEST_F(DensePipelines, RunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
   EXPECT_EQ((next_dense.r - next_plain.r).norm(), 0.0);
 }
 
+// The encoders reach the dense stage: given them, its fits are held
+// within their box (DenseOptions::encoder_box_*), so that encoders wrong
+// by more than their accuracy (theta 0.45 rad off the frame's, the box
+// 0.2 rad) move what it reports; without them there is no box, and the
+// stage with the box and the one without report the same.
+TEST_F(DensePipelines, HoldsItsFitsWithinTheEncodersBoxWhenTheyAreGiven) {
+  vision::DenseOptions options = quick_dense_options();
+  ASSERT_GT(options.encoder_box_angle_rad, 0.0);
+  ASSERT_TRUE(dense->enable_dense(options));
+  std::unique_ptr<EstimatePipeline> unboxed(new EstimatePipeline());
+  ASSERT_TRUE(unboxed->init("test", setup, vision::default_color_model(), false));
+  options.encoder_box_lambda_mm = 0.0;
+  ASSERT_TRUE(unboxed->enable_dense(options));
+  const MutableImageView out = frame();
+  render::SceneSpec spec;
+  EstimateResult before;
+  ASSERT_TRUE(render_blurred_valid_frame(out, spec, before));  // the stage runs on it, the streak read
+  const auto largest_corner_change_px = [&]() {
+    const auto& a = dense->extractor().result().corners;
+    const auto& b = unboxed->extractor().result().corners;
+    double largest = 0.0;
+    for (std::size_t k = 0; k < a.size(); ++k) {
+      if (a[k].found != b[k].found) {
+        return std::numeric_limits<double>::infinity();
+      }
+      if (a[k].found) {
+        largest = std::max(largest, std::hypot(a[k].pixel.x - b[k].pixel.x, a[k].pixel.y - b[k].pixel.y));
+      }
+    }
+    return largest;
+  };
+  const EstimateResult boxed_free = dense->process(out.view(), nullptr);
+  const EstimateResult unboxed_free = unboxed->process(out.view(), nullptr);
+  ASSERT_TRUE(boxed_free.dense_ran);
+  ASSERT_TRUE(unboxed_free.dense_ran);
+  EXPECT_EQ(largest_corner_change_px(), 0.0);
+  const double wrong_encoders[3] = {26.0, 0.3, 0.6 - 0.45};
+  dense->reset_sequence();
+  unboxed->reset_sequence();
+  const EstimateResult boxed = dense->process(out.view(), wrong_encoders);
+  const EstimateResult free = unboxed->process(out.view(), wrong_encoders);
+  ASSERT_TRUE(boxed.dense_ran);
+  ASSERT_TRUE(free.dense_ran);
+  EXPECT_GT(largest_corner_change_px(), 1.0);
+}
+
 // What the dense stage reports is its corners blended with the
 // pipeline's: each corner both report within the gate moves the weight's
 // share of the way to the pipeline's, and the others are the stage's own

@@ -246,6 +246,16 @@ void softest_steps(DenseFit& fit, const DenseOptions& options, Candidate& best) 
   }
 }
 
+// Clears the fit's encoder box when the search ends.
+struct BoxCleared {
+  DenseFit& fit;
+  BoxCleared(const BoxCleared&) = delete;
+  BoxCleared& operator=(const BoxCleared&) = delete;
+  BoxCleared(BoxCleared&&) = delete;
+  BoxCleared& operator=(BoxCleared&&) = delete;
+  ~BoxCleared() { fit.set_encoder_box(EncoderBox{}); }
+};
+
 }  // namespace
 
 bool dense_options_valid(const DenseOptions& options) noexcept {
@@ -271,7 +281,9 @@ bool dense_options_valid(const DenseOptions& options) noexcept {
          options.streak_screen_max_px <= 20.0 && options.max_valid_tcp_change_mm >= 0.0 &&
          options.max_valid_tcp_change_mm <= 10.0 && options.pipeline_corner_weight >= 0.0 &&
          options.pipeline_corner_weight <= 1.0 && options.pipeline_corner_gate_px > 0.0 &&
-         options.pipeline_corner_gate_px <= 20.0;
+         options.pipeline_corner_gate_px <= 20.0 && options.encoder_box_lambda_mm >= 0.0 &&
+         options.encoder_box_lambda_mm <= 10.0 && options.encoder_box_angle_rad >= 0.0 &&
+         options.encoder_box_angle_rad <= 1.0;
 }
 
 void blend_pipeline_corners(std::array<Corner, kNumCorners>& dense, const std::array<Corner, kNumCorners>& pipeline,
@@ -296,8 +308,17 @@ void blend_pipeline_corners(std::array<Corner, kNumCorners>& dense, const std::a
 
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, const PoseVector* seeds, int seed_count, const PoseVector& start,
-                           const Vec2& streak_px, const DenseOptions& options) noexcept {
+                           const PoseVector* encoders, const Vec2& streak_px, const DenseOptions& options) noexcept {
   DenseResult result;
+  // Every fit below holds its pose within the encoders' box (none without them).
+  EncoderBox box;
+  if (encoders != nullptr) {
+    box.encoders = *encoders;
+    box.lambda_tolerance_mm = options.encoder_box_lambda_mm;
+    box.angle_tolerance_rad = options.encoder_box_angle_rad;
+  }
+  fit.set_encoder_box(box);
+  const BoxCleared cleared{fit};  // and none after, whichever way this returns
   const int nseeds = seed_count < 0 ? 0 : (seed_count > kMaxDenseSeeds ? kMaxDenseSeeds : seed_count);
   PoseVector starts[kMaxDenseStarts];
   int n = collect_starts(seeds, nseeds, start, options, starts);

@@ -1360,6 +1360,55 @@ Vec2 streak_of(const DenseFit::ParamVector& theta) noexcept {
 }
 }  // namespace
 
+bool encoder_box_active(const EncoderBox& box) noexcept {
+  return box.encoders.allFinite() && box.lambda_tolerance_mm > 0.0 && box.angle_tolerance_rad > 0.0 &&
+         std::isfinite(box.lambda_tolerance_mm) && std::isfinite(box.angle_tolerance_rad);
+}
+
+void hold_within_encoder_box(PoseVector& r, const EncoderBox& box) noexcept {
+  if (!encoder_box_active(box) || !r.allFinite()) {
+    return;
+  }
+  const PoseVector& e = box.encoders;
+  // phi's offset from the encoders' within (-pi, pi]: phi and the
+  // encoders' are each within a few turns (finite; bounded loops).
+  const double phi = r[solver::kPhi];
+  double dphi = phi - e[solver::kPhi];
+  bool rewrite = false;
+  for (int i = 0; i < 8 && dphi > solver::kPi; ++i) {
+    dphi -= 2.0 * solver::kPi;
+    rewrite = true;
+  }
+  for (int i = 0; i < 8 && dphi <= -solver::kPi; ++i) {
+    dphi += 2.0 * solver::kPi;
+    rewrite = true;
+  }
+  double theta = r[solver::kTheta];
+  if (std::fabs(dphi) > 0.5 * solver::kPi) {  // the same bend, written nearer the encoders' phi
+    dphi += dphi > 0.0 ? -solver::kPi : solver::kPi;
+    theta = -theta;
+    rewrite = true;
+  }
+  const double a = box.angle_tolerance_rad;
+  const double l = box.lambda_tolerance_mm;
+  const double held_dphi = std::min(std::max(dphi, -a), a);
+  // Written only where held or rewritten, so that a pose inside the box stays bit for bit.
+  if (rewrite || held_dphi != dphi) {
+    r[solver::kPhi] = e[solver::kPhi] + held_dphi;
+  }
+  r[solver::kTheta] = std::min(std::max(theta, e[solver::kTheta] - a), e[solver::kTheta] + a);
+  r[solver::kLambda] = std::min(std::max(r[solver::kLambda], e[solver::kLambda] - l), e[solver::kLambda] + l);
+}
+
+void DenseFit::hold_pose(ParamVector& theta) const noexcept {
+  if (!encoder_box_active(encoder_box_)) {
+    return;
+  }
+  PoseVector r = pose_of(theta);
+  hold_within_encoder_box(r, encoder_box_);
+  theta.head<solver::kNumParams>() = r;
+}
+
 double DenseFit::prior_cost(const ParamVector& theta) const noexcept {
   // The channel's pose (x, y, psi, mu) around its CAD values, in the
   // likelihood's units (times the rendering's variance).
@@ -1463,6 +1512,7 @@ bool DenseFit::damped_step(const ParamMatrix& H, const ParamVector& grad, const 
       return false;
     }
     ParamVector th = theta + delta;
+    hold_pose(th);
     render_prediction(pose_of(th), streak_of(th), app, trial_.get());
     double c_new = cost(trial_.get(), false) + prior_cost(th);
     if (!(c_new < c_cur)) {
@@ -1474,6 +1524,7 @@ bool DenseFit::damped_step(const ParamMatrix& H, const ParamVector& grad, const 
     // Longer steps along the accepted direction while they still lower the cost.
     for (int k = 0; k < config_.line_search_steps && tries == 0; ++k) {
       th = theta + delta;
+      hold_pose(th);
       render_prediction(pose_of(th), streak_of(th), app, trial_.get());
       const double c2 = cost(trial_.get(), false) + prior_cost(th);
       if (!(c2 < c_new)) {
@@ -1513,6 +1564,7 @@ DenseFitSummary DenseFit::fit(PoseVector& r, Vec2& streak_px, int max_iterations
   theta.head<solver::kNumParams>() = r;
   theta[7] = streak.x();
   theta[8] = streak.y();
+  hold_pose(theta);
   Appearance app;
   double c_cur = start_appearance(theta, constrained, app);
   summary.initial_cost = c_cur;

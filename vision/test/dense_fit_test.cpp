@@ -89,7 +89,8 @@ TEST(DenseFit, FindsThePoseAndTheCornersFromTheEncodersStart) {
   DenseResult result;
   {
     test::AllocationScope scope;
-    result = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, solver::Vec2::Zero(), options);
+    result =
+        dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, &start, solver::Vec2::Zero(), options);
     EXPECT_EQ(scope.count(), 0U);
   }
   ASSERT_TRUE(result.ok);
@@ -119,6 +120,92 @@ TEST(DenseFit, FindsThePoseAndTheCornersFromTheEncodersStart) {
   EXPECT_GE(found, (8 * visible + 9) / 10) << found << " of " << visible;
 }
 
+// The encoders' box (model.md's coarse prior): a pose inside stays bit for
+// bit, one outside is moved to the nearest point joint by joint, a bend
+// written the other way round ((phi + pi, -theta)) is written the
+// encoders' way before it is held, and the channel's pose is never
+// touched. Without an active box nothing changes.
+TEST(DenseFit, HoldsTheJointsWithinTheEncodersBox) {
+  EncoderBox box;
+  box.encoders << 0.0, 0.0, 0.0, 0.0, 25.0, 0.5, -1.0;
+  box.lambda_tolerance_mm = 3.0;
+  box.angle_tolerance_rad = 0.2;
+  ASSERT_TRUE(encoder_box_active(box));
+  solver::PoseVector inside;
+  inside << 0.7, -0.4, 0.02, -0.03, 27.1, 0.41, -0.83;
+  solver::PoseVector r = inside;
+  hold_within_encoder_box(r, box);
+  EXPECT_EQ(r, inside);
+
+  solver::PoseVector outside;
+  outside << 2.5, -1.5, 0.05, 0.04, 30.0, 0.1, -1.6;
+  r = outside;
+  hold_within_encoder_box(r, box);
+  EXPECT_DOUBLE_EQ(r[solver::kLambda], 28.0);
+  EXPECT_DOUBLE_EQ(r[solver::kPhi], 0.3);
+  EXPECT_DOUBLE_EQ(r[solver::kTheta], -1.2);
+  EXPECT_EQ(r.head<4>(), outside.head<4>());
+
+  solver::PoseVector flipped = inside;  // the same bend as `inside`, the other way round
+  flipped[solver::kPhi] = inside[solver::kPhi] - solver::kPi;
+  flipped[solver::kTheta] = -inside[solver::kTheta];
+  r = flipped;
+  hold_within_encoder_box(r, box);
+  EXPECT_NEAR(r[solver::kPhi], inside[solver::kPhi], 1e-12);
+  EXPECT_DOUBLE_EQ(r[solver::kTheta], inside[solver::kTheta]);
+  solver::PoseVector turned = inside;  // a full turn more
+  turned[solver::kPhi] += 2.0 * solver::kPi;
+  r = turned;
+  hold_within_encoder_box(r, box);
+  EXPECT_NEAR(r[solver::kPhi], inside[solver::kPhi], 1e-12);
+
+  EncoderBox none = box;
+  none.angle_tolerance_rad = 0.0;
+  EXPECT_FALSE(encoder_box_active(none));
+  r = outside;
+  hold_within_encoder_box(r, none);
+  EXPECT_EQ(r, outside);
+  none = box;
+  none.encoders[solver::kTheta] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(encoder_box_active(none));
+  r = outside;
+  hold_within_encoder_box(r, none);
+  EXPECT_EQ(r, outside);
+  solver::PoseVector not_finite = outside;
+  not_finite[solver::kPsi] = std::numeric_limits<double>::infinity();
+  r = not_finite;
+  hold_within_encoder_box(r, box);
+  EXPECT_EQ(r[solver::kLambda], not_finite[solver::kLambda]);
+}
+
+// Encoders that are wrong by more than their stated accuracy (theta 0.5
+// rad off the frame's, the box 0.2 rad): every fit stays within the box,
+// so the stage ends near its edge on the frame's side rather than at the
+// frame's own pose; without the encoders it finds that pose.
+TEST(DenseFit, TheSearchStaysWithinTheEncodersBox) {
+  DenseFixture f;
+  const ImageView image = f.render_frame();
+  const DenseOptions options = quick_options();
+  std::unique_ptr<DenseFit> fit = make_fit(f, options);
+  ASSERT_NE(fit, nullptr);
+  const solver::PoseVector encoders = f.model.geometry().nominal_pose(28.0 + 1.0, 0.7, 0.8 - 0.5);
+  const solver::PoseVector start = f.model.geometry().nominal_pose(28.0 + 1.0, 0.7, 0.8 - 0.1);
+  const DenseResult held =
+      dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, &encoders, solver::Vec2::Zero(), options);
+  ASSERT_TRUE(held.ok);
+  EXPECT_LE(std::fabs(held.r[solver::kLambda] - encoders[solver::kLambda]), options.encoder_box_lambda_mm + 1e-9);
+  EXPECT_LE(std::fabs(held.r[solver::kPhi] - encoders[solver::kPhi]), options.encoder_box_angle_rad + 1e-9);
+  // Within the box, at its side nearest the frame's bend (0.4996 rad as built).
+  EXPECT_LE(held.r[solver::kTheta], encoders[solver::kTheta] + options.encoder_box_angle_rad + 1e-9);
+  EXPECT_GT(held.r[solver::kTheta], encoders[solver::kTheta] + 0.75 * options.encoder_box_angle_rad)
+      << held.r.transpose();
+  const DenseResult free =
+      dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, nullptr, solver::Vec2::Zero(), options);
+  ASSERT_TRUE(free.ok);
+  EXPECT_NEAR(free.r[solver::kTheta], 0.8, 0.05) << free.r.transpose();
+  EXPECT_LT((f.model.tcp(free.r) - f.truth.instruments[0].tcp).norm(), 1.0) << free.r.transpose();
+}
+
 // The dense stage run twice on `image` from the encoders' start (2 mm
 // and 0.1 rad off the fixture's pose), with `off` and with `on`: each
 // run's TCP error (mm; infinite when the stage gave no pose) and the pose
@@ -144,7 +231,7 @@ ScreenRuns run_both_ways(const DenseFixture& f, const ImageView& image, const De
   const solver::PoseVector start = f.model.geometry().nominal_pose(28.0 - 2.0, 0.7, 0.8 - 0.1);
   const auto run = [&](const DenseOptions& options, double& tcp_error_mm, solver::PoseVector& end_r) {
     const DenseResult result =
-        dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, solver::Vec2::Zero(), options);
+        dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, nullptr, solver::Vec2::Zero(), options);
     if (result.ok) {
       tcp_error_mm = (f.model.tcp(result.r) - f.truth.instruments[0].tcp).norm();
       end_r = result.r;
@@ -286,11 +373,12 @@ TEST(DenseFit, TheStreakScreenFindsAStreakNoneCameInWith) {
   DenseResult with_screen;
   {
     test::AllocationScope scope;
-    with_screen = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, solver::Vec2::Zero(), screened);
+    with_screen =
+        dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, nullptr, solver::Vec2::Zero(), screened);
     EXPECT_EQ(scope.count(), 0U);
   }
   const DenseResult without =
-      dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, solver::Vec2::Zero(), unscreened);
+      dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, start, nullptr, solver::Vec2::Zero(), unscreened);
   ASSERT_TRUE(with_screen.ok);
   ASSERT_TRUE(without.ok);
   EXPECT_EQ(without.streak_px.norm(), 0.0);
@@ -340,11 +428,12 @@ TEST(DenseFit, TheSoftestStepsReplaceTheWinnerOnlyByALowerCost) {
   DenseResult stepped;
   {
     test::AllocationScope scope;
-    stepped = dense_estimate(*fit, f.camera, f.model, image, &slid, 1, none, solver::Vec2::Zero(), with_steps);
+    stepped =
+        dense_estimate(*fit, f.camera, f.model, image, &slid, 1, none, nullptr, solver::Vec2::Zero(), with_steps);
     EXPECT_EQ(scope.count(), 0U);
   }
   const DenseResult stayed =
-      dense_estimate(*fit, f.camera, f.model, image, &slid, 1, none, solver::Vec2::Zero(), without);
+      dense_estimate(*fit, f.camera, f.model, image, &slid, 1, none, nullptr, solver::Vec2::Zero(), without);
   ASSERT_TRUE(stepped.ok);
   ASSERT_TRUE(stayed.ok);
   // Both runs rank their candidates on the same work image (the fine
@@ -566,11 +655,11 @@ TEST(DenseFit, BadInputsAreErrorValues) {
   EXPECT_LE(streak.norm(), DenseFitConfig{}.max_streak_px + 1e-9);
 
   // The dense stage: nothing to start from, or a start showing nothing.
-  const DenseResult none = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, nan_pose, solver::Vec2::Zero(),
-                                          options);
+  const DenseResult none =
+      dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, nan_pose, nullptr, solver::Vec2::Zero(), options);
   EXPECT_FALSE(none.ok);
-  const DenseResult hidden = dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, behind, solver::Vec2::Zero(),
-                                            options);
+  const DenseResult hidden =
+      dense_estimate(*fit, f.camera, f.model, image, nullptr, 0, behind, nullptr, solver::Vec2::Zero(), options);
   EXPECT_FALSE(hidden.ok);
   EXPECT_EQ(hidden.corner_count, 0);
 }
@@ -592,6 +681,17 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   o = DenseOptions{};
   o.min_corner_support = 1.5;
   EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.encoder_box_lambda_mm = -1.0;
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.encoder_box_angle_rad = 1.5;
+  EXPECT_FALSE(dense_options_valid(o));
+  o.encoder_box_angle_rad = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(dense_options_valid(o));
+  o = DenseOptions{};
+  o.encoder_box_lambda_mm = 0.0;  // no box
+  EXPECT_TRUE(dense_options_valid(o));
   o = DenseOptions{};
   o.max_measured_corners = kNumCorners + 1;
   EXPECT_FALSE(dense_options_valid(o));

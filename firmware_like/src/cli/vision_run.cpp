@@ -250,8 +250,8 @@ bool EstimatePipeline::enable_dense(const vision::DenseOptions& options) noexcep
 }
 
 void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedResult& guided,
-                                   const solver::PoseVector& start, solver::SolveMode mode, solver::Estimate& estimate,
-                                   EstimateResult& out) noexcept {
+                                   const solver::PoseVector& start, bool encoders_given, solver::SolveMode mode,
+                                   solver::Estimate& estimate, EstimateResult& out) noexcept {
   // Seeds: the image fit's pose and the solve's, when the pipeline has them.
   solver::PoseVector seeds[vision::kMaxDenseSeeds];
   int seed_count = 0;
@@ -261,8 +261,9 @@ void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedR
   if (estimate.quality != solver::EstimateQuality::None) {
     seeds[seed_count++] = estimate.r;
   }
-  const vision::DenseResult dense = vision::dense_estimate(*dense_, setup_.camera, setup_.instrument, image, seeds,
-                                                           seed_count, start, guided.fit.streak_px, dense_options_);
+  const vision::DenseResult dense =
+      vision::dense_estimate(*dense_, setup_.camera, setup_.instrument, image, seeds, seed_count, start,
+                             encoders_given ? &start : nullptr, guided.fit.streak_px, dense_options_);
   out.dense_ran = true;
   if (!dense.ok) {
     return;
@@ -353,7 +354,7 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   out.measured_corners = measured_corner_count(fx.result(), extractor_->config());
   if (dense_ != nullptr && dense_stage_applies(estimate.quality, out.measured_corners, encoders_disagree,
                                                guided.fit.streak_px.norm(), dense_options_)) {
-    apply_dense(image, guided, start, mode, estimate, out);
+    apply_dense(image, guided, start, prior_joints != nullptr, mode, estimate, out);
     // The stage may have replaced the estimate: ask again.
     encoders_disagree = prior_joints != nullptr && solver::disagrees_with_encoders(estimate, start, encoder_check_);
   }

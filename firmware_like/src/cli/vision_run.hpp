@@ -117,8 +117,11 @@ class EstimatePipeline {
   vision::GuidedOptions guided_{};
   solver::EncoderCheck encoder_check_{};  // applied when a frame has the encoders' joints (docs/solver.md)
   bool fixed_model_ = false;
+  // `start` holds the encoders' joints when `encoders_given`: the stage's
+  // fits are then held within its box around them.
   void apply_dense(const ImageView& image, const vision::GuidedResult& guided, const solver::PoseVector& start,
-                   solver::SolveMode mode, solver::Estimate& estimate, EstimateResult& out) noexcept;
+                   bool encoders_given, solver::SolveMode mode, solver::Estimate& estimate,
+                   EstimateResult& out) noexcept;
   std::unique_ptr<vision::DenseFit> dense_;
   vision::DenseOptions dense_options_{};
   bool have_previous_ = false;

@@ -108,6 +108,15 @@ struct DenseOptions {
   // the way to the pipeline's (0: the stage's corners as they are).
   double pipeline_corner_weight = 0.3;
   double pipeline_corner_gate_px = 3.0;
+  // Where the robot's encoders are given, every fit holds the insertion
+  // and the bend within these of their joints (EncoderBox; model.md's
+  // coarse prior, the encoders' accuracy: the truth lies within it). On
+  // views where the image leaves the bend open (the tube bent away from
+  // the camera, its far stripes hidden behind its near ones; an occluder
+  // over the middle), the cost's minimum otherwise lies beyond what the
+  // encoders allow (docs/vision.md, "The dense stage"). 0: no box.
+  double encoder_box_lambda_mm = 3.0;
+  double encoder_box_angle_rad = 0.2;
 };
 // Ranges: work images of 256 to 2^20 pixels, 1 to 100 iterations, 0 to
 // kMaxDenseFineCandidates fine candidates, 0 to 8 smoothing passes, steps
@@ -118,7 +127,8 @@ struct DenseOptions {
 // and its steps up to 5 mm, the softest step 0..20 px, the streak screen's
 // directions 0..36 and lengths 1..8, from over 1 px to at most 20 px, the
 // valid estimate's TCP change 0..10 mm, the pipeline corners' weight 0..1
-// and their gate over 0 and at most 20 px.
+// and their gate over 0 and at most 20 px, the encoders' box 0..10 mm and
+// 0..1 rad.
 bool dense_options_valid(const DenseOptions& options) noexcept;
 constexpr int kMaxDenseSeeds = 2;
 constexpr int kMaxDenseScreenKeep = 4;
@@ -150,12 +160,14 @@ void blend_pipeline_corners(std::array<Corner, kNumCorners>& dense, const std::a
                             const DenseOptions& options) noexcept;
 
 // `seeds`: the pipeline's poses (at most kMaxDenseSeeds; may be empty);
-// `start`: the encoders' or the track's; `streak_px`: the streak the
+// `start`: the encoders' or the track's; `encoders`: the robot's encoders'
+// joints (kLambda, kPhi, kTheta), nullptr when not given: the fits are
+// then held within options' box around them; `streak_px`: the streak the
 // pipeline read (zero: none). Allocation-free; bounded by the options.
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, const solver::PoseVector* seeds, int seed_count,
-                           const solver::PoseVector& start, const solver::Vec2& streak_px,
-                           const DenseOptions& options) noexcept;
+                           const solver::PoseVector& start, const solver::PoseVector* encoders,
+                           const solver::Vec2& streak_px, const DenseOptions& options) noexcept;
 
 }  // namespace vision
 }  // namespace tcpest

@@ -95,6 +95,26 @@ struct DenseFitConfig {
   bool end_faces = true;
 };
 
+// The robot's encoders and their accuracy: a pose's insertion and bend
+// are held within the tolerances of the encoders' joints (model.md's
+// coarse prior, "as a robot's encoders would give": lambda +/- 3 mm, phi
+// and theta +/- 0.2 rad). docs/vision.md, "The dense stage".
+struct EncoderBox {
+  solver::PoseVector encoders = solver::PoseVector::Zero();  // their joints at kLambda, kPhi, kTheta
+  double lambda_tolerance_mm = 0.0;                           // 0: no box
+  double angle_tolerance_rad = 0.0;                           // phi and theta each; 0: no box
+};
+
+// True when both tolerances are positive and everything is finite.
+bool encoder_box_active(const EncoderBox& box) noexcept;
+
+// r's insertion, phi and theta moved to the nearest point of the box,
+// (phi, theta) first written as (phi +/- pi, -theta), the same bend,
+// where that phi lies nearer the encoders'. The channel's pose is not the
+// encoders' and stays. Unchanged without an active box or for a
+// non-finite r.
+void hold_within_encoder_box(solver::PoseVector& r, const EncoderBox& box) noexcept;
+
 struct DenseFitSummary {
   bool ok = false;
   int iterations = 0;
@@ -163,6 +183,9 @@ class DenseFit {
   // non-finite input or matrix, or a factorisation failed.
   bool softest_step(const solver::PoseVector& r, const solver::Vec2& streak_px, double rms_px,
                     solver::PoseVector& step) noexcept;
+  // Every fit() from now on holds the pose within the box (its start and
+  // each step: hold_within_encoder_box); an inactive box holds nothing.
+  void set_encoder_box(const EncoderBox& box) noexcept { encoder_box_ = box; }
   int block_size() const noexcept { return scale_; }
   int work_pixels() const noexcept { return rw_ * rh_; }
 
@@ -240,6 +263,8 @@ class DenseFit {
   void solve_appearance(bool constrained, Appearance& appearance) noexcept;
   void solve_lightness(bool constrained, Appearance& appearance) noexcept;
   double cost(const float* pred, bool update_weights) noexcept;
+  // The pose part of theta held within encoder_box_ (when active).
+  void hold_pose(ParamVector& theta) const noexcept;
   // The channel's prior, in the cost's units.
   double prior_cost(const ParamVector& theta) const noexcept;
   // The appearance at theta from the default; returns the cost there.
@@ -304,6 +329,7 @@ class DenseFit {
   bool blur_streak_ = false;
   int taps_ = 1;
   double sigma_ = 10.0;
+  EncoderBox encoder_box_{};
   double tissue_[kBackgroundTerms][kChannels] = {};
   double chroma_scale_ = 1.0;
 };
