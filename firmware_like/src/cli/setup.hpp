@@ -27,6 +27,7 @@ constexpr OptionSpec kDenseOption{"dense", nullptr,
                                   "the dense fit (every pixel around the instrument against a rendering of the "
                                   "model) on each frame not yet valid, on each valid one where at most 7 corners "
                                   "were measured on the image, and on each where a motion streak was read; its "
+                                  "fits held within 3 mm and 0.2 rad of the encoders' joints when given; its "
                                   "corners, blended with the pipeline's where the two lie within 3 px, are solved, "
                                   "and the estimate is reported degraded, or valid where it replaced a valid one "
                                   "within 2 mm of its TCP; offline only: several seconds per such frame "

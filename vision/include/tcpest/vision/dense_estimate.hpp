@@ -6,7 +6,9 @@
 // and the cheapest few of a screen of the start's channel moved and
 // tilted and its insertion moved on a grid (the cost alone: the channel's
 // play, which the encoders do not see, moves the tube by more than a fit's
-// basin is wide; a tilt moves the bend's far end the most).
+// basin is wide; a tilt moves the bend's far end the most). Where the
+// robot's encoders are given, every fit is held within their accuracy
+// around their joints (EncoderBox).
 // Each start is first fitted coarsely on a small work image; the best of
 // those, and the pipeline's own poses as they are, are fitted finely on a
 // larger one, and the lowest cost wins; optionally (off by default) the
