@@ -163,9 +163,9 @@ void blend_pipeline_corners(std::array<Corner, kNumCorners>& dense, const std::a
 
 // `seeds`: the pipeline's poses (at most kMaxDenseSeeds; may be empty);
 // `start`: the encoders' or the track's; `encoders`: the robot's encoders'
-// joints (kLambda, kPhi, kTheta), nullptr when not given: the fits are
-// then held within options' box around them; `streak_px`: the streak the
-// pipeline read (zero: none). Allocation-free; bounded by the options.
+// joints (kLambda, kPhi, kTheta), or nullptr when not given (given, every
+// fit is held within options' box around them); `streak_px`: the streak
+// the pipeline read (zero: none). Allocation-free; bounded by the options.
 DenseResult dense_estimate(DenseFit& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, const solver::PoseVector* seeds, int seed_count,
                            const solver::PoseVector& start, const solver::PoseVector* encoders,
