@@ -1370,33 +1370,16 @@ void hold_within_encoder_box(PoseVector& r, const EncoderBox& box) noexcept {
     return;
   }
   const PoseVector& e = box.encoders;
-  // phi's offset from the encoders' within (-pi, pi]: phi and the
-  // encoders' are each within a few turns (finite; bounded loops).
-  const double phi = r[solver::kPhi];
-  double dphi = phi - e[solver::kPhi];
-  bool rewrite = false;
-  for (int i = 0; i < 8 && dphi > solver::kPi; ++i) {
-    dphi -= 2.0 * solver::kPi;
-    rewrite = true;
-  }
-  for (int i = 0; i < 8 && dphi <= -solver::kPi; ++i) {
-    dphi += 2.0 * solver::kPi;
-    rewrite = true;
-  }
-  double theta = r[solver::kTheta];
-  if (std::fabs(dphi) > 0.5 * solver::kPi) {  // the same bend, written nearer the encoders' phi
-    dphi += dphi > 0.0 ? -solver::kPi : solver::kPi;
-    theta = -theta;
-    rewrite = true;
-  }
   const double a = box.angle_tolerance_rad;
   const double l = box.lambda_tolerance_mm;
-  const double held_dphi = std::min(std::max(dphi, -a), a);
-  // Written only where held or rewritten, so that a pose inside the box stays bit for bit.
-  if (rewrite || held_dphi != dphi) {
-    r[solver::kPhi] = e[solver::kPhi] + held_dphi;
+  // A phi outside the box may be the same bend written another way (a turn
+  // more, or (phi + pi, -theta)): written the encoders' way first. Only
+  // there, so that a pose inside the box stays bit for bit.
+  if (std::fabs(r[solver::kPhi] - e[solver::kPhi]) > a) {
+    r = solver::nearest_equivalent_joints(r, e);
   }
-  r[solver::kTheta] = std::min(std::max(theta, e[solver::kTheta] - a), e[solver::kTheta] + a);
+  r[solver::kPhi] = std::min(std::max(r[solver::kPhi], e[solver::kPhi] - a), e[solver::kPhi] + a);
+  r[solver::kTheta] = std::min(std::max(r[solver::kTheta], e[solver::kTheta] - a), e[solver::kTheta] + a);
   r[solver::kLambda] = std::min(std::max(r[solver::kLambda], e[solver::kLambda] - l), e[solver::kLambda] + l);
 }
 

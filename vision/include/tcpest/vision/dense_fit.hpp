@@ -108,11 +108,11 @@ struct EncoderBox {
 // True when both tolerances are positive and everything is finite.
 bool encoder_box_active(const EncoderBox& box) noexcept;
 
-// r's insertion, phi and theta moved to the nearest point of the box,
-// (phi, theta) first written as (phi +/- pi, -theta), the same bend,
-// where that phi lies nearer the encoders'. The channel's pose is not the
-// encoders' and stays. Unchanged without an active box or for a
-// non-finite r.
+// r's insertion, phi and theta moved to the nearest point of the box. A phi
+// outside it is first written as the same bend nearest the encoders'
+// (solver::nearest_equivalent_joints: a turn, or (phi + pi, -theta)). The
+// channel's pose is not the encoders' and stays. Unchanged without an
+// active box or for a non-finite r.
 void hold_within_encoder_box(solver::PoseVector& r, const EncoderBox& box) noexcept;
 
 struct DenseFitSummary {
