@@ -1383,6 +1383,23 @@ void hold_within_encoder_box(PoseVector& r, const EncoderBox& box) noexcept {
   r[solver::kLambda] = std::min(std::max(r[solver::kLambda], e[solver::kLambda] - l), e[solver::kLambda] + l);
 }
 
+std::array<bool, solver::kNumParams> joints_held_at_encoder_box(const PoseVector& r, const PoseVector& descent,
+                                                               const EncoderBox& box) noexcept {
+  std::array<bool, solver::kNumParams> held{};
+  if (!encoder_box_active(box)) {
+    return held;
+  }
+  const PoseVector& e = box.encoders;
+  const int joints[3] = {solver::kLambda, solver::kPhi, solver::kTheta};
+  for (const int p : joints) {
+    const double tol = p == solver::kLambda ? box.lambda_tolerance_mm : box.angle_tolerance_rad;
+    // hold_within_encoder_box writes an edge as exactly e +/- tol.
+    held[static_cast<std::size_t>(p)] =
+        (r[p] >= e[p] + tol && descent[p] > 0.0) || (r[p] <= e[p] - tol && descent[p] < 0.0);
+  }
+  return held;
+}
+
 void DenseFit::hold_pose(ParamVector& theta) const noexcept {
   if (!encoder_box_active(encoder_box_)) {
     return;
@@ -1557,6 +1574,17 @@ DenseFitSummary DenseFit::fit(PoseVector& r, Vec2& streak_px, int max_iterations
     ParamMatrix H;
     ParamVector grad;
     normal_equations(theta, app, nparams, H, grad);
+    // Joints pressed against the encoders' box leave the step, as the streak does when held.
+    const std::array<bool, solver::kNumParams> held =
+        joints_held_at_encoder_box(pose_of(theta), grad.head<solver::kNumParams>(), encoder_box_);
+    for (int p = 0; p < solver::kNumParams; ++p) {
+      if (held[static_cast<std::size_t>(p)]) {
+        H.row(p).setZero();
+        H.col(p).setZero();
+        H(p, p) = 1.0;
+        grad[p] = 0.0;
+      }
+    }
     if (!damped_step(H, grad, app, c_cur, mu, theta)) {
       break;
     }

@@ -178,6 +178,45 @@ TEST(DenseFit, HoldsTheJointsWithinTheEncodersBox) {
   EXPECT_EQ(r[solver::kLambda], not_finite[solver::kLambda]);
 }
 
+// A joint on the box's edge leaves the step only while the cost falls
+// outward there; inside the box, or pulled back in, it moves.
+TEST(DenseFit, HoldsOutOfTheStepOnlyTheJointsPressedAgainstTheBox) {
+  EncoderBox box;
+  box.encoders << 0.0, 0.0, 0.0, 0.0, 25.0, 0.5, -1.0;
+  box.lambda_tolerance_mm = 3.0;
+  box.angle_tolerance_rad = 0.2;
+  solver::PoseVector r;
+  r << 2.5, -1.5, 0.05, 0.04, 30.0, 0.1, -1.6;
+  hold_within_encoder_box(r, box);  // lambda on its upper edge, phi and theta on their lower ones
+  solver::PoseVector descent;
+  descent << 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, -1.0;  // every joint pushed outward
+  std::array<bool, solver::kNumParams> held = joints_held_at_encoder_box(r, descent, box);
+  EXPECT_TRUE(held[solver::kLambda]);
+  EXPECT_TRUE(held[solver::kPhi]);
+  EXPECT_TRUE(held[solver::kTheta]);
+  for (int p = 0; p < 4; ++p) {
+    EXPECT_FALSE(held[static_cast<std::size_t>(p)]) << "the channel's pose is not the encoders'";
+  }
+  descent[solver::kLambda] = -1.0;  // pulled back in
+  descent[solver::kTheta] = 1.0;
+  held = joints_held_at_encoder_box(r, descent, box);
+  EXPECT_FALSE(held[solver::kLambda]);
+  EXPECT_TRUE(held[solver::kPhi]);
+  EXPECT_FALSE(held[solver::kTheta]);
+
+  solver::PoseVector inside;
+  inside << 0.7, -0.4, 0.02, -0.03, 27.1, 0.41, -0.83;
+  descent << 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0;
+  held = joints_held_at_encoder_box(inside, descent, box);
+  EXPECT_FALSE(held[solver::kLambda] || held[solver::kPhi] || held[solver::kTheta]);
+
+  EncoderBox none = box;
+  none.lambda_tolerance_mm = 0.0;
+  descent << 1.0, -1.0, 1.0, -1.0, 1.0, -1.0, -1.0;
+  held = joints_held_at_encoder_box(r, descent, none);
+  EXPECT_FALSE(held[solver::kLambda] || held[solver::kPhi] || held[solver::kTheta]);
+}
+
 // Encoders that are wrong by more than their stated accuracy (theta 0.5
 // rad off the frame's, the box 0.2 rad): every fit stays within the box,
 // so the stage ends near its edge on the frame's side rather than at the

@@ -115,6 +115,15 @@ bool encoder_box_active(const EncoderBox& box) noexcept;
 // active box or for a non-finite r.
 void hold_within_encoder_box(solver::PoseVector& r, const EncoderBox& box) noexcept;
 
+// The joints (kLambda, kPhi, kTheta) of r that lie on an edge of the box
+// with `descent` (the fit's right-hand side J^T W (obs - pred), the way
+// the cost falls) pointing out of it: a step along them would only be cut
+// back to the edge, so the fit holds them out of its step (an active set)
+// and the other parameters move freely. None without an active box.
+std::array<bool, solver::kNumParams> joints_held_at_encoder_box(const solver::PoseVector& r,
+                                                               const solver::PoseVector& descent,
+                                                               const EncoderBox& box) noexcept;
+
 struct DenseFitSummary {
   bool ok = false;
   int iterations = 0;
@@ -184,7 +193,9 @@ class DenseFit {
   bool softest_step(const solver::PoseVector& r, const solver::Vec2& streak_px, double rms_px,
                     solver::PoseVector& step) noexcept;
   // Every fit() from now on holds the pose within the box (its start and
-  // each step: hold_within_encoder_box); an inactive box holds nothing.
+  // each step: hold_within_encoder_box), and leaves out of each step the
+  // joints pressed against its edges (joints_held_at_encoder_box); an
+  // inactive box holds nothing.
   void set_encoder_box(const EncoderBox& box) noexcept { encoder_box_ = box; }
   int block_size() const noexcept { return scale_; }
   int work_pixels() const noexcept { return rw_ * rh_; }
