@@ -172,11 +172,15 @@ void add_weighted_row(const int* index, const double* value, int n, double w, do
 }
 
 // The appearance's normal equations (solve_appearance's unknowns) over the
-// work pixels, each weighted by its responsibility; returns the weights' sum.
+// work pixels, each weighted by its responsibility (and, where a stripe is
+// drawn, by how much its colour is a stripe's); returns the
+// responsibilities' sum.
 struct AppearanceInputs {
-  const float* basis = nullptr;    // DenseFit::kBasis planes
-  const float* weights = nullptr;  // responsibilities
-  const float* obs = nullptr;      // a*, b* planes
+  const float* basis = nullptr;     // DenseFit::kBasis planes
+  const float* weights = nullptr;   // responsibilities
+  const float* obs = nullptr;       // a*, b* planes
+  const float* occluder = nullptr;  // the occluder's likelihood; null: not used
+  double occluder_weight = 1.0;     // that likelihood's largest value
   std::size_t pixels = 0U;
   bool constrained = false;
   bool blue_marker[kNumMarkers] = {};
@@ -245,8 +249,15 @@ double accumulate_appearance(const AppearanceInputs& in, AppearanceMatrix& M, Ap
     }
     const double oa = static_cast<double>(in.obs[i]);
     const double ob = static_cast<double>(in.obs[np + i]);
-    add_weighted_row(ia, va, na, w, oa, M, rhs);
-    add_weighted_row(ib, vb, nb, w, ob, M, rhs);
+    // A pixel drawn as a stripe whose colour is no stripe's (an occluder's,
+    // by its likelihood) does not set the stripe's colour.
+    double w_solve = w;
+    if (in.occluder != nullptr) {
+      const double not_stripe = std::min(1.0, static_cast<double>(in.occluder[i]) / in.occluder_weight);
+      w_solve = w * (1.0 - not_stripe * std::min(1.0, blue_sum + yellow_sum));
+    }
+    add_weighted_row(ia, va, na, w_solve, oa, M, rhs);
+    add_weighted_row(ib, vb, nb, w_solve, ob, M, rhs);
     wsum += w;
   }
   return wsum;
@@ -1170,6 +1181,10 @@ void DenseFit::solve_appearance(bool constrained, Appearance& app) noexcept {
   in.basis = basis_.get();
   in.weights = weights_.get();
   in.obs = obs_.get();
+  if (config_.stripes_from_stripe_colours && config_.occluder_weight > 0.0) {
+    in.occluder = occluder_.get();
+    in.occluder_weight = config_.occluder_weight;
+  }
   in.pixels = np;
   in.constrained = constrained;
   for (int m = 0; m < kNumMarkers; ++m) {

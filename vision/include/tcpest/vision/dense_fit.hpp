@@ -73,6 +73,15 @@ struct DenseFitConfig {
   // scale plus deviations, regularised with this share of the weights.
   double stripe_deviation_reg = 0.1;
   double stripe_shading_reg = 0.002;
+  // The stripes' appearance solved from the pixels that show a stripe's
+  // colour: a pixel the rendering gives to a stripe weighs in that solve
+  // by its responsibility times 1 - (its occluder likelihood over
+  // occluder_weight) x (its stripes' coverage). Without it an occluder over
+  // a stripe is explained as that stripe faded (its chroma scale near 0),
+  // and the stripe's own visible pixels become outliers, their corners
+  // unreported (docs/vision-measurements.md). false: every pixel by its
+  // responsibility alone.
+  bool stripes_from_stripe_colours = true;
   // Longer steps tried along an accepted direction (doubling).
   int line_search_steps = 3;
   // Weak Gaussian prior of the channel's pose around its CAD values.
