@@ -811,14 +811,15 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   }
 }
 
-// An occluder (a tissue flap) over the middle of the tube, its corners
-// beside it visible. The stripes' colours are solved from the pixels that
-// show a stripe's colour: otherwise the occluder's pixels, drawn as the
-// stripes it hides, set those stripes' chroma near 0 (a faded stripe
-// explains the flap), and the stripes' own visible pixels become outliers,
-// their corners unreported (hard5/0058, docs/vision-measurements.md). The
-// scene's seed 21 puts the flap there; with every pixel by its
-// responsibility alone one of its 4 visible corners is found.
+// An occluder (a tissue flap or a blood drop) over the middle of the tube,
+// corners beside it visible. The stripes' colours are solved from the
+// pixels that show a stripe's colour: otherwise the occluder's pixels,
+// drawn as the stripes it hides, set those stripes' chroma near 0 (a faded
+// stripe explains the occluder), and the stripes' own visible pixels become
+// outliers, their corners unreported (hard5/0058,
+// docs/vision-measurements.md). The scene's seed 21 puts the occluder
+// there; with every pixel by its responsibility alone one of its 4 visible
+// corners is found.
 TEST(DenseFit, AnOccluderIsNotTakenForFadedStripes) {
   DenseFixture f;
   auto created = render::Renderer::create(f.camera, f.model, render::RenderSettings{});
