@@ -32,7 +32,7 @@ struct DenseFixture {
   // A frame of the default scene (noise, blur, vignetting) at a bent pose
   // whose channel has moved (and tilted) by some play.
   ImageView render_frame(std::uint32_t hard_cases = 0U, double play_x_mm = 0.6, double play_y_mm = -0.4,
-                         double play_psi_rad = 0.0, double play_mu_rad = 0.0) {
+                         double play_psi_rad = 0.0, double play_mu_rad = 0.0, std::uint32_t scene_seed = 5U) {
     auto created = render::Renderer::create(camera, model, render::RenderSettings{});
     EXPECT_TRUE(created.ok());
     pixels.assign(static_cast<std::size_t>(camera.width()) * static_cast<std::size_t>(camera.height()) * 3U, 0U);
@@ -45,7 +45,7 @@ struct DenseFixture {
     truth_r[solver::kMu] += play_mu_rad;
     render::SceneSpec spec;
     spec.r = truth_r;
-    spec.seed = 5U;
+    spec.seed = scene_seed;
     spec.hard_cases = hard_cases;
     if (created.ok()) {
       EXPECT_TRUE(created.value()->render(spec, out, truth).ok());
@@ -822,18 +822,7 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
 // corners is found.
 TEST(DenseFit, AnOccluderIsNotTakenForFadedStripes) {
   DenseFixture f;
-  auto created = render::Renderer::create(f.camera, f.model, render::RenderSettings{});
-  ASSERT_TRUE(created.ok());
-  f.pixels.assign(static_cast<std::size_t>(f.camera.width()) * static_cast<std::size_t>(f.camera.height()) * 3U, 0U);
-  const MutableImageView out{f.pixels.data(), f.camera.width(), f.camera.height(),
-                             static_cast<std::size_t>(f.camera.width()) * 3U};
-  f.truth_r = f.model.geometry().nominal_pose(28.0, 0.7, 0.8);
-  render::SceneSpec spec;
-  spec.r = f.truth_r;
-  spec.seed = 21U;
-  spec.hard_cases = render::kHardOccluder;
-  ASSERT_TRUE(created.value()->render(spec, out, f.truth).ok());
-  const ImageView image = out.view();
+  const ImageView image = f.render_frame(render::kHardOccluder, 0.0, 0.0, 0.0, 0.0, 21U);
   const render::InstrumentTruth& truth = f.truth.instruments[0];
   const DenseOptions options = quick_options();
   const solver::PoseVector start = f.model.geometry().nominal_pose(28.0 + 1.0, 0.7, 0.8 - 0.05);
