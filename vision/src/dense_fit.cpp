@@ -283,7 +283,8 @@ Result<std::unique_ptr<DenseFit>, VisionError> DenseFit::create(const solver::Ca
       !(config.stripe_deviation_reg >= 0.0) || config.line_search_steps < 0 || config.line_search_steps > 8 ||
       !(config.channel_prior_mm > 0.0) || !(config.channel_prior_rad > 0.0) || !(config.max_streak_px >= 0.0) ||
       !(config.lightness_weight > 0.0 && config.lightness_weight <= 4.0) ||
-      config.optical_blur_passes < 0 || config.optical_blur_passes > 4 || !colors.valid()) {
+      config.optical_blur_passes < 0 || config.optical_blur_passes > 4 || config.chroma_blur_passes < 0 ||
+      config.chroma_blur_passes > 4 || !colors.valid()) {
     return R::failure(VisionError::BadParameter);
   }
   std::unique_ptr<DenseFit> f(new (std::nothrow) DenseFit());
@@ -1059,18 +1060,33 @@ void DenseFit::blur_in_linear_light(float* pred) noexcept {
   }
 }
 
+void DenseFit::blur_chroma(float* pred) noexcept {
+  // The camera's chroma is coarser than its lightness (4:2:0 subsampling:
+  // DenseFitConfig::chroma_blur_passes). Coarser blocks average it away.
+  if (scale_ != 1) {
+    return;
+  }
+  const std::size_t np = static_cast<std::size_t>(rw_) * static_cast<std::size_t>(rh_);
+  for (int k = 0; k < config_.chroma_blur_passes; ++k) {
+    binomial_pass(pred, tmp_.get(), rw_, rh_);       // a*
+    binomial_pass(pred + np, tmp_.get(), rw_, rh_);  // b*
+  }
+}
+
 void DenseFit::render_prediction(const PoseVector& r, const Vec2& streak_px, const Appearance& app,
                                  float* pred) noexcept {
   render_geometry(r);
   build_streak_kernel(streak_px);
   predict_sharp(app, pred);
   blur_in_linear_light(pred);
+  blur_chroma(pred);
 }
 
 void DenseFit::blur_prediction(const Appearance& app) noexcept {
   // The prediction from the geometry already rendered (render_basis).
   predict_sharp(app, pred_.get());
   blur_in_linear_light(pred_.get());
+  blur_chroma(pred_.get());
 }
 
 void DenseFit::render_basis(const PoseVector& r, const Vec2& streak_px) noexcept {

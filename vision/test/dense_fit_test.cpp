@@ -12,6 +12,8 @@
 #include <ostream>
 #include <vector>
 
+#include "tcpest/hal/camera/jpeg_decoder.hpp"
+#include "tcpest/render/image_io.hpp"
 #include "tcpest/render/renderer.hpp"
 #include "tcpest/test/alloc_counter.hpp"
 #include "tcpest/vision/color_model.hpp"
@@ -567,6 +569,48 @@ TEST(DenseFit, TheEndFacesExplainTheFrameBetterAtTheTruth) {
   EXPECT_LT(cost[1], cost[0]);
 }
 
+// The camera's chroma is coarser than its lightness: a JPEG (4:2:0, as the
+// datasets and the camera's stream are written) averages it over 2 x 2
+// pixels. At the truth, the chroma's own blur explains such a frame better
+// than without it, and it does not explain the same frame before its
+// compression better: it models the compression, not any smoothing.
+TEST(DenseFit, TheChromaBlurModelsTheCamerasSubsampledChroma) {
+  DenseFixture f;
+  const ImageView raw = f.render_frame();
+  auto encoder = render::JpegEncoder::create(f.camera.width(), f.camera.height());
+  ASSERT_TRUE(encoder.ok());
+  ASSERT_TRUE(encoder.value()->encode(raw, 92).ok());
+  hal::JpegDecoder decoder;
+  ASSERT_TRUE(decoder.init(f.camera.width(), f.camera.height()).ok());
+  std::vector<std::uint8_t> decoded(f.pixels.size(), 0U);
+  const MutableImageView out{decoded.data(), f.camera.width(), f.camera.height(),
+                             static_cast<std::size_t>(f.camera.width()) * 3U};
+  ASSERT_TRUE(decoder.decode(encoder.value()->data(), encoder.value()->size(), out).ok());
+  const ImageView images[2] = {raw, out.view()};
+  const int passes[2] = {0, DenseFitConfig{}.chroma_blur_passes};
+  ASSERT_GT(passes[1], 0);
+  double cost[2][2] = {};  // [raw, JPEG][without, with the chroma's blur]
+  for (int image = 0; image < 2; ++image) {
+    for (int with_blur = 0; with_blur < 2; ++with_blur) {
+      DenseFitConfig config;
+      config.chroma_blur_passes = passes[with_blur];
+      auto created = DenseFit::create(f.camera, f.model, default_color_model(), config);
+      ASSERT_TRUE(created.ok());
+      DenseFit& fit = *created.value();
+      const solver::PoseVector region[1] = {f.truth_r};
+      ASSERT_TRUE(fit.set_region(images[image], region, 1, 0.0, config.max_work_pixels, 0).ok());
+      ASSERT_EQ(fit.block_size(), 1);
+      solver::PoseVector r = f.truth_r;
+      solver::Vec2 streak = solver::Vec2::Zero();
+      const DenseFitSummary held = fit.fit(r, streak, 0, false, false);
+      ASSERT_TRUE(held.ok);
+      cost[image][with_blur] = held.cost;
+    }
+  }
+  EXPECT_LT(cost[1][1], cost[1][0]) << "JPEG: " << cost[1][1] << " with, " << cost[1][0] << " without";
+  EXPECT_LT(cost[0][0], cost[0][1]) << "uncompressed: " << cost[0][0] << " without, " << cost[0][1] << " with";
+}
+
 // The edge emphasis weighs each pixel's share of the cost by a factor the
 // image alone sets (1 + emphasis x the colour's change along the
 // blue-to-yellow axis), and leaves the appearance's solve alone: held at a
@@ -658,6 +702,11 @@ TEST(DenseFit, BadInputsAreErrorValues) {
   bad = DenseFitConfig{};
   bad.max_width = 320;  // smaller than the camera's image
   EXPECT_FALSE(DenseFit::create(f.camera, f.model, default_color_model(), bad).ok());
+  for (const int passes : {-1, 5}) {
+    bad = DenseFitConfig{};
+    bad.chroma_blur_passes = passes;
+    EXPECT_FALSE(DenseFit::create(f.camera, f.model, default_color_model(), bad).ok()) << passes;
+  }
   for (const double emphasis : {-1.0, 1e3, std::numeric_limits<double>::quiet_NaN()}) {
     bad = DenseFitConfig{};
     bad.edge_emphasis = emphasis;

@@ -91,6 +91,15 @@ struct DenseFitConfig {
   double max_streak_px = 20.0;
   // Binomial passes of the sensor's blur at block size 1.
   int optical_blur_passes = 1;
+  // Binomial passes of a* and b* alone at block size 1, after the blur in
+  // linear light: the camera's chroma is coarser than its lightness. JPEG's
+  // 4:2:0 subsampling averages it over 2 x 2 pixels and the decoder's
+  // interpolation (libjpeg's "fancy" upsampling) spreads it further: per
+  // axis, weights 1/8, 1/8, 3/8, 3/8 about the pixel, a variance of 1 px^2,
+  // which two passes (0.5 px^2 each) match. Without them the fit reads the
+  // chroma's wider edges as the stripes' (docs/vision-measurements.md).
+  // 0: the chroma as sharp as the lightness (an uncompressed camera).
+  int chroma_blur_passes = 2;
   // L* is compared beside a* and b*, scaled by this (it carries the
   // shading, and the shaft's and grasper's edges that chroma lacks).
   double lightness_weight = 0.5;
@@ -280,6 +289,8 @@ class DenseFit {
   void render_basis(const solver::PoseVector& r, const solver::Vec2& streak_px) noexcept;
   void blur_prediction(const Appearance& appearance) noexcept;
   void blur_in_linear_light(float* pred) noexcept;
+  // The chroma planes of a prediction blurred (chroma_blur_passes).
+  void blur_chroma(float* pred) noexcept;
   void solve_appearance(bool constrained, Appearance& appearance) noexcept;
   void solve_lightness(bool constrained, Appearance& appearance) noexcept;
   double cost(const float* pred, bool update_weights) noexcept;
