@@ -199,15 +199,6 @@ double grow_hypothesis(const RegionList& regions, const ExtractorConfig& config,
 
 }  // namespace
 
-const char* to_string(PriorSource s) noexcept {
-  switch (s) {
-    case PriorSource::Generic: return "generic";
-    case PriorSource::Model: return "model";
-    case PriorSource::Temporal: return "temporal";
-  }
-  return "unknown";
-}
-
 Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noexcept {
   Interpretation& out = result_.interpretation;
   out = Interpretation{};
@@ -383,7 +374,6 @@ MarkerPriors generic_priors(const solver::CameraModel& camera, const solver::Ins
     m.parent_distance_sd = 1e3;  // the relative distance term does the work
     m.in_image = true;
   }
-  p.source = PriorSource::Generic;
   p.relative_only = true;
   return p;
 }
@@ -394,7 +384,6 @@ MarkerPriors model_priors(const solver::CameraModel& camera, const solver::Instr
   // within 30 %, positions within ~ 12 % of the image diagonal.
   const double diagonal = dmath::hypot(static_cast<double>(camera.width()), static_cast<double>(camera.height()));
   MarkerPriors p = predict(camera, model, r, 0.3, 2.0, 0.12 * diagonal);
-  p.source = PriorSource::Model;
   p.relative_only = false;
   return p;
 }
@@ -416,7 +405,6 @@ bool TemporalPriors::priors(MarkerPriors& out) const noexcept {
     return false;
   }
   MarkerPriors p;
-  p.source = PriorSource::Temporal;
   p.relative_only = false;
   for (std::size_t m = 0U; m < static_cast<std::size_t>(kNumMarkers); ++m) {
     double n = 0.0, s_major = 0.0, s_minor = 0.0, s_d = 0.0, s_x = 0.0, s_y = 0.0;

@@ -185,7 +185,6 @@ TEST(TemporalPriors, NeedTwoFramesAndKeepTheLastFive) {
   EXPECT_FALSE(temporal.priors(p));
   temporal.add(chain_with_base_size(20.0));
   ASSERT_TRUE(temporal.priors(p));
-  EXPECT_EQ(p.source, PriorSource::Temporal);
   EXPECT_NEAR(p.marker[0].half_major, 15.0, 1e-12);
   for (const double size : {30.0, 40.0, 50.0, 60.0, 70.0}) {
     temporal.add(chain_with_base_size(size));
@@ -229,7 +228,6 @@ TEST(ModelPriors, FollowTheModelAndSayNothingOfAMarkerBehindTheCamera) {
   ASSERT_TRUE(camera.ok() && model.ok());
   const solver::PoseVector ahead = model.value().geometry().nominal_pose(25.0, 0.3, 0.6);
   const MarkerPriors p = model_priors(camera.value(), model.value(), ahead);
-  EXPECT_EQ(p.source, PriorSource::Model);
   for (std::size_t m = 0U; m < static_cast<std::size_t>(kNumMarkers); ++m) {
     const MarkerPrior& mp = p.marker[m];
     EXPECT_TRUE(mp.in_image) << "marker " << m;

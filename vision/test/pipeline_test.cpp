@@ -23,6 +23,18 @@ namespace tcpest {
 namespace vision {
 namespace {
 
+// Every fallback seed and check on (the shipped configuration tries one
+// seed and leaves the checks off: EstimatorConfig), so that each mechanism
+// is tested whatever the shipped choice.
+GuidedOptions every_seed_options() {
+  GuidedOptions options;
+  options.fallback_seeds = kMaxFallbackSeeds;
+  options.shaft_recheck = true;
+  options.alias_check = true;
+  options.valid_start_check = true;
+  return options;
+}
+
 struct Fixture {
   solver::CameraModel camera = solver::CameraModel::create(solver::default_pal_camera()).value();
   solver::InstrumentModel model = solver::InstrumentModel::create(solver::InstrumentGeometry{}).value();
@@ -120,7 +132,7 @@ GuidedResult rounds_from_truth(FeatureExtractor& fx, solver::PoseEstimator& esti
   solver::Estimate first;
   first.r = true_r;
   first.quality = solver::EstimateQuality::Valid;
-  GuidedOptions options;
+  GuidedOptions options = every_seed_options();
   options.fallback_seeds = 0;
   options.shaft_recheck = false;
   options.alias_check = false;
@@ -340,7 +352,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
       // Every fifth frame as if stage 4 had failed: the fallback seeds, the
       // start pose moved onto the class image (default options) or, every
       // tenth, the regions' rough pose alone.
-      GuidedOptions options;
+      GuidedOptions options = every_seed_options();
       options.start_seed = i % 10 != 0;
       const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, i % 5 != 0,
                                                   solver::SolveMode::Adaptive, r, options);
@@ -369,7 +381,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
                                static_cast<std::size_t>(f.camera.width()) * 3U};
         const bool stage4_ok = fx->extract(behind, model_priors(f.camera, f.model, end_on_encoders)).ok();
         const GuidedResult from_rim = guided_estimate(*fx, estimator, f.camera, f.model, behind, stage4_ok,
-                                                      solver::SolveMode::Adaptive, end_on_encoders, GuidedOptions{});
+                                                      solver::SolveMode::Adaptive, end_on_encoders, every_seed_options());
         rim_seeded += from_rim.from_base_rim ? 1 : 0;
       }
     }
@@ -440,7 +452,7 @@ TEST(Pipeline, AFramesEstimateDoesNotDependOnTheFramesBeforeIt) {
     Outcome out;
     out.extracted = fx.extract(image, model_priors(f.camera, f.model, start)).ok();
     out.estimate = guided_estimate(fx, estimator, f.camera, f.model, image, out.extracted,
-                                   solver::SolveMode::Adaptive, start, GuidedOptions{})
+                                   solver::SolveMode::Adaptive, start, every_seed_options())
                        .estimate;
     out.corners = fx.result().corners;
     return out;
@@ -495,7 +507,7 @@ TEST(Pipeline, GuidedCornersLieOnTheTrueCorners) {
                                                                      solver::deg_to_rad(p[2]) - 0.05);
     ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
     const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, true,
-                                                solver::SolveMode::Adaptive, prior, GuidedOptions{});
+                                                solver::SolveMode::Adaptive, prior, every_seed_options());
     EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid) << "pose " << p[0] << " " << p[1] << " " << p[2];
     EXPECT_GE(guided.rounds_kept, 1);
     EXPECT_TRUE(fx->result().refined);
@@ -529,7 +541,7 @@ TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
   solver::PoseVector rough = prior;
   ASSERT_TRUE(fx->pose_from_regions(f.camera, f.model, rough).ok());
   EXPECT_LT(std::fabs(rough[solver::kTheta] - truth[solver::kTheta]), std::fabs(prior[solver::kTheta] - truth[solver::kTheta]));
-  GuidedOptions regions_only;
+  GuidedOptions regions_only = every_seed_options();
   regions_only.start_seed = false;  // the start seed (tried first by default) would serve too
   const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, false,
                                               solver::SolveMode::Adaptive, prior, regions_only);
@@ -537,7 +549,7 @@ TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
   ASSERT_NE(guided.estimate.quality, solver::EstimateQuality::None);
   EXPECT_LT((f.model.tcp(guided.estimate.r) - f.model.tcp(truth)).norm(), 2.0);
   // Off: no estimate (nor the base-rim seed's, which needs no seed).
-  GuidedOptions off;
+  GuidedOptions off = every_seed_options();
   off.from_regions = false;
   off.start_seed = false;
   off.base_rim_seed = false;
@@ -785,7 +797,7 @@ TEST(Pipeline, TheGuidedResultKeepsThePoseItsCornersWereReadAt) {
                                                                      solver::deg_to_rad(q[2]) - 0.05);
     ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
     const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, true,
-                                                solver::SolveMode::Adaptive, prior, GuidedOptions{});
+                                                solver::SolveMode::Adaptive, prior, every_seed_options());
     ASSERT_GE(guided.rounds_kept, 1) << "pose " << q[0] << " " << q[1] << " " << q[2];
     ASSERT_TRUE(guided.fitted_r.allFinite());
     const solver::Vec3 true_tcp = f.model.tcp(true_r);
@@ -942,7 +954,7 @@ TEST(Pipeline, ShaftRecheckMovesTheChannelTowardsTheShaft) {
   double base_error[2] = {0.0, 0.0};
   for (int with_check = 0; with_check < 2; ++with_check) {
     ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
-    GuidedOptions options;
+    GuidedOptions options = every_seed_options();
     options.shaft_recheck = with_check == 1;
     const GuidedResult guided =
         guided_estimate(*fx, estimator, f.camera, f.model, image, true, solver::SolveMode::Adaptive, prior, options);
@@ -1070,7 +1082,7 @@ TEST(Pipeline, AFitThatReadsTwoBoundariesGivesItsCornersAndADegradedEstimate) {
   // same, with the default on silhouette points (12 for a valid estimate).
   for (int rule = 0; rule < 4; ++rule) {
     ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
-    GuidedOptions options;
+    GuidedOptions options = every_seed_options();
     if (rule != 3) {
       options.min_valid_fit_silhouette_readings = 8;
     }
@@ -1168,7 +1180,7 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
   for (const HardScene& scene : scenes) {
     const ImageView image = f.render_r(pose_of(scene.r), scene.hard_cases, scene.seed);
     const solver::PoseVector prior = encoders_start(f, scene);
-    GuidedOptions options;
+    GuidedOptions options = every_seed_options();
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
     ASSERT_TRUE(options.start_unmoved);
     options.insertion_seed_step_mm = 0.0;  // the seeds before the insertion seeds (tested below)
@@ -1213,7 +1225,7 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
   };
   const std::uint64_t kNoPoseWithout = 8437888975762272235ULL;  // hard frame 60
   for (const HardScene& scene : scenes) {
-    GuidedOptions options;
+    GuidedOptions options = every_seed_options();
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
     ASSERT_DOUBLE_EQ(options.insertion_seed_step_mm, 2.0);
     options.bend_seed_step_rad = 0.0;  // the seeds before the bend seeds (tested below)
@@ -1264,7 +1276,7 @@ TEST(Pipeline, TheStartWithItsBendMovedServesAFrameTheOtherSeedsMiss) {
   };
   const ExtractorConfig config;
   for (const HardScene& scene : scenes) {
-    const GuidedOptions options;
+    const GuidedOptions options = every_seed_options();
     ASSERT_EQ(options.fallback_seeds, kMaxFallbackSeeds);
     ASSERT_DOUBLE_EQ(options.bend_seed_step_rad, 0.2);
     const WithAndWithout runs = expect_success_only_with_rule(
@@ -1306,7 +1318,7 @@ TEST(Pipeline, AValidResultIsCheckedAgainstTheStart) {
   };
   for (const HardScene& scene : scenes) {
     const WithAndWithout runs = expect_success_only_with_rule(
-        f, estimator, scene, GuidedOptions{}, ExtractorConfig{}, 8,
+        f, estimator, scene, every_seed_options(), ExtractorConfig{}, 8,
         [](GuidedOptions& o, ExtractorConfig&) { o.valid_start_check = false; });
     const GuidedRun& with = runs.with;
     const GuidedRun& without = runs.without;
@@ -1352,10 +1364,10 @@ TEST(Pipeline, AValidSolveThatItsImageFitContradictsIsDegraded) {
     const ImageView image = render_as_in_set(f, scene);
     const solver::PoseVector prior = encoders_start(f, scene);
     const solver::Vec3 true_tcp = f.model.tcp(pose_of(scene.r));
-    const GuidedOptions options;
+    const GuidedOptions options = every_seed_options();
     ASSERT_DOUBLE_EQ(options.max_valid_tcp_disagreement_mm, 2.0);
     const GuidedRun checked = guided_run(f, estimator, image, prior, options);
-    GuidedOptions unchecked_options;
+    GuidedOptions unchecked_options = every_seed_options();
     unchecked_options.max_valid_tcp_disagreement_mm = 0.0;
     const GuidedRun unchecked = guided_run(f, estimator, image, prior, unchecked_options);
     ASSERT_GT(checked.guided.rounds_kept, 0) << "seed " << scene.seed;
@@ -1386,7 +1398,7 @@ TEST(Pipeline, AValidSolveThatAgreesWithItsImageFitStaysValid) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
-  const GuidedRun run = guided_run(f, estimator, image, f.truth.instruments[0].r, GuidedOptions{});
+  const GuidedRun run = guided_run(f, estimator, image, f.truth.instruments[0].r, every_seed_options());
   ASSERT_GT(run.guided.rounds_kept, 0);
   EXPECT_EQ(run.guided.estimate.quality, solver::EstimateQuality::Valid);
   EXPECT_FALSE(run.guided.disagreement_demoted);
@@ -1423,7 +1435,7 @@ TEST(Pipeline, TheTipArcUnderASmearIsReadAtTheBoundaryItself) {
   config.refine_streak_edge_model = false;
   for (const HardScene& scene : scenes) {
     static_cast<void>(expect_success_only_with_rule(  // its checks are the whole test
-        f, estimator, scene, GuidedOptions{}, config, 4,
+        f, estimator, scene, every_seed_options(), config, 4,
         [](GuidedOptions&, ExtractorConfig& c) { c.refine_smear_tip_bias = 0.0; }));
   }
 }
@@ -1453,7 +1465,7 @@ TEST(Pipeline, UnderAStreakTheSilhouetteIsReadByTheBlurredEdgesModel) {
   };
   for (const HardScene& scene : scenes) {
     const WithAndWithout runs = expect_success_only_with_rule(
-        f, estimator, scene, GuidedOptions{}, ExtractorConfig{}, 11,
+        f, estimator, scene, every_seed_options(), ExtractorConfig{}, 11,
         [](GuidedOptions&, ExtractorConfig& c) { c.refine_streak_edge_model = false; });
     EXPECT_GT(runs.with.guided.fit.streak_px.norm(), 0.0) << scene.seed;  // the streak was read, the model used
   }
@@ -1485,7 +1497,7 @@ TEST(Pipeline, UnderAStreakAlongTheTubeTheArcsAreReadAgainWidened) {
   };
   for (const HardScene& scene : scenes) {
     const WithAndWithout runs = expect_success_only_with_rule(
-        f, estimator, scene, GuidedOptions{}, ExtractorConfig{}, 12,
+        f, estimator, scene, every_seed_options(), ExtractorConfig{}, 12,
         [](GuidedOptions&, ExtractorConfig& c) { c.refine_streak_arc_retry = false; });
     EXPECT_GT(runs.with.guided.fit.streak_px.norm(), 0.0) << scene.seed;  // read, and the arcs widened under it
     EXPECT_NE(runs.with.guided.estimate.quality, solver::EstimateQuality::None) << scene.seed;
@@ -1515,7 +1527,7 @@ TEST(Pipeline, AFitWhoseBoundariesHaveAGapGivesADegradedEstimate) {
                              static_cast<std::size_t>(f.camera.width()) * 3U};
   ASSERT_TRUE(f.renderer->render(spec, out, f.truth).ok());
   const solver::PoseVector encoders = f.model.geometry().nominal_pose(29.7291279411, -0.120185710321, -0.84969101824);
-  const GuidedRun run = guided_run(f, estimator, out.view(), encoders, GuidedOptions{}, without_grasper());
+  const GuidedRun run = guided_run(f, estimator, out.view(), encoders, every_seed_options(), without_grasper());
   ASSERT_GT(run.guided.rounds_kept, 0);
   EXPECT_GE(run.guided.fit.boundaries, 3);    // enough for the old count
   EXPECT_LT(run.guided.fit.boundary_run, 3);  // not for the run
@@ -1596,7 +1608,7 @@ TEST(Pipeline, ImageFitReadsTheArcsOfASmearedFrame) {
     ASSERT_TRUE(fitted);
     EXPECT_TRUE(summary.smeared);
     EXPECT_GE(summary.boundaries, 4);
-    EXPECT_LE(summary.rms_px, GuidedOptions{}.max_fit_rms_px);
+    EXPECT_LE(summary.rms_px, every_seed_options().max_fit_rms_px);
     EXPECT_LT((f.model.tcp(r) - f.model.tcp(scene_r)).norm(), 0.5);
   }
   const solver::PoseVector sharp_r = f.model.geometry().nominal_pose(25.0, 0.5, 0.8);
@@ -1720,7 +1732,7 @@ TEST(Pipeline, UnderAStreakTheImageFitReadsTheSilhouetteAtItsOuterEnd) {
     EXPECT_LT(streak_angle_deg(guided.fit.streak_px, f.truth), 5.0);
     EXPECT_GE(found, 9);
     EXPECT_GT(guided.fit.silhouette_readings, guided.fit.plain_silhouette_readings);
-    EXPECT_LT(guided.fit.plain_silhouette_readings, GuidedOptions{}.min_valid_fit_silhouette_readings);
+    EXPECT_LT(guided.fit.plain_silhouette_readings, every_seed_options().min_valid_fit_silhouette_readings);
     EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Degraded);
   }
 }
@@ -1756,7 +1768,7 @@ TEST(Pipeline, AResultTheImageFitConfirmsReplacesAValidOneItDoesNot) {
     auto fx = default_extractor();
     ASSERT_NE(fx, nullptr);
     ASSERT_TRUE(fx->extract(scene.image, model_priors(f.camera, f.model, first.r)).ok());
-    GuidedOptions options;
+    GuidedOptions options = every_seed_options();
     options.prefer_fit_confirmed = rule == 1;
     options.prefer_fit_rms_ratio = 0.0;
     options.fallback_seeds = 0;
@@ -1791,8 +1803,8 @@ TEST(Pipeline, AMuchBetterImageFitReplacesAValidResult) {
     auto fx = default_extractor();
     ASSERT_NE(fx, nullptr);
     ASSERT_TRUE(fx->extract(scene.image, model_priors(f.camera, f.model, prior)).ok());
-    GuidedOptions options;
-    options.prefer_fit_rms_ratio = rule == 0 ? 0.0 : GuidedOptions{}.prefer_fit_rms_ratio;
+    GuidedOptions options = every_seed_options();
+    options.prefer_fit_rms_ratio = rule == 0 ? 0.0 : every_seed_options().prefer_fit_rms_ratio;
     const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, scene.image, true,
                                                 solver::SolveMode::Adaptive, prior, options);
     ASSERT_GT(guided.rounds_kept, 0);
@@ -1839,7 +1851,7 @@ TEST(Pipeline, AResultTwoStripesFromTheEncodersIsTriedAgainTwoStripesBack) {
   Fixture& f = scene.f;
   solver::PoseEstimator estimator(f.camera, f.model);
   for (int rule = 0; rule < 2; ++rule) {
-    GuidedOptions options;
+    GuidedOptions options = every_seed_options();
     options.alias_check = rule == 1;
     options.longer_run_rms_ratio = 0.0;  // which keeps the first rounds' result here: no alias to check
     const GuidedRun run = guided_run(f, estimator, scene.image, scene.prior, options, without_grasper());
@@ -1871,8 +1883,8 @@ TEST(Pipeline, AtTheSameQualityTheFitThatReadTheLongerRunIsKept) {
   Fixture& f = scene.f;
   solver::PoseEstimator estimator(f.camera, f.model);
   for (int rule = 0; rule < 2; ++rule) {
-    GuidedOptions options;
-    options.longer_run_rms_ratio = rule == 0 ? 0.0 : GuidedOptions{}.longer_run_rms_ratio;
+    GuidedOptions options = every_seed_options();
+    options.longer_run_rms_ratio = rule == 0 ? 0.0 : every_seed_options().longer_run_rms_ratio;
     const GuidedRun run = guided_run(f, estimator, scene.image, scene.prior, options);
     ASSERT_GT(run.guided.rounds_kept, 0) << "rule " << rule;
     const double off_mm = run.guided.estimate.r[solver::kLambda] - scene.scene_r[solver::kLambda];
@@ -1904,7 +1916,7 @@ TEST(Pipeline, TheAliasSeedIsTriedFromAFineStartFirst) {
   const ImageView image = f.jpeg_round_trip(92);
   const solver::PoseVector prior = f.model.geometry().nominal_pose(11.9832485889, 0.400301562059, 0.338810010605);
   for (int rule = 0; rule < 2; ++rule) {
-    GuidedOptions options;
+    GuidedOptions options = every_seed_options();
     options.alias_fine_start = rule == 1;
     options.longer_run_rms_ratio = 0.0;  // which keeps the first rounds' result here: no alias to check
     const GuidedRun run = guided_run(f, estimator, image, prior, options, without_grasper());
@@ -1940,7 +1952,7 @@ TEST(Pipeline, TheBaseCornersAreReadOnTheRimOfTheFirstStripesEndFace) {
   for (int rule = 0; rule < 2; ++rule) {
     ExtractorConfig config = without_grasper();
     config.refine_base_rim = rule == 1;
-    const GuidedRun run = guided_run(f, estimator, image, prior, GuidedOptions{}, config);
+    const GuidedRun run = guided_run(f, estimator, image, prior, every_seed_options(), config);
     ASSERT_GT(run.guided.rounds_kept, 0);
     const Extraction& e = run.fx->result();
     EXPECT_EQ(e.boundary_measured[0], rule == 1);
@@ -1979,7 +1991,7 @@ TEST(Pipeline, TheBaseRimServesATubeSeenEndOnBehindTheShaft) {
   };
   for (const HardScene& scene : scenes) {
     const WithAndWithout runs = expect_success_only_with_rule(
-        f, estimator, scene, GuidedOptions{}, ExtractorConfig{}, 2,
+        f, estimator, scene, every_seed_options(), ExtractorConfig{}, 2,
         [](GuidedOptions& o, ExtractorConfig&) { o.base_rim_seed = false; });
     const GuidedRun& with = runs.with;
     const GuidedRun& without = runs.without;
@@ -2046,7 +2058,7 @@ TEST(Pipeline, StartSeedOnTheClassImageGivesTheEstimateWhenStage4GivesNoPose) {
                                                                    solver::deg_to_rad(-90.0) - 0.15);
   ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
   const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, false,
-                                              solver::SolveMode::Adaptive, prior, GuidedOptions{});
+                                              solver::SolveMode::Adaptive, prior, every_seed_options());
   EXPECT_TRUE(guided.from_start);
   ASSERT_NE(guided.estimate.quality, solver::EstimateQuality::None);
   EXPECT_LT((f.model.tcp(guided.estimate.r) - f.model.tcp(truth)).norm(), 2.0);
@@ -2061,7 +2073,7 @@ TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
   const solver::PoseVector prior = f.truth.instruments[0].r;
   ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
   const std::array<Corner, kNumCorners> stage4 = fx->result().corners;
-  GuidedOptions off;
+  GuidedOptions off = every_seed_options();
   off.rounds = 0;
   const GuidedResult guided =
       guided_estimate(*fx, estimator, f.camera, f.model, image, true, solver::SolveMode::Adaptive, prior, off);
@@ -2070,7 +2082,7 @@ TEST(Pipeline, GuidedRoundsOffGiveStage4Corners) {
     EXPECT_EQ(fx->result().corners[k].found, stage4[k].found);
   }
   // A failed extraction gives no estimate, whatever corners an older frame left.
-  GuidedOptions no_regions;
+  GuidedOptions no_regions = every_seed_options();
   no_regions.from_regions = false;
   no_regions.start_seed = false;
   no_regions.base_rim_seed = false;  // it needs no corners of stage 4: tested on its own

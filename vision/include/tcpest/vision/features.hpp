@@ -84,12 +84,8 @@ struct MarkerPrior {
   bool in_image = true;      // the marker is expected in the image
 };
 
-enum class PriorSource : std::uint8_t { Generic, Model, Temporal };
-const char* to_string(PriorSource s) noexcept;
-
 struct MarkerPriors {
   std::array<MarkerPrior, kNumMarkers> marker{};
-  PriorSource source = PriorSource::Generic;
   bool relative_only = true;  // generic prior: shape/distance judged relative to neighbours
 };
 

@@ -68,7 +68,7 @@ struct GuidedOptions {
   double longer_run_rms_ratio = 0.7;
   bool start_seed = true;
   bool from_regions = true;
-  int fallback_seeds = 9;
+  int fallback_seeds = 1;
   // Each fallback seed's channel pose is first fitted to the shaft's
   // silhouette (`shaft_fit`: FeatureExtractor::fit_channel_to_shaft), then
   // the seed is moved onto the class image (`class_fit`:
@@ -120,7 +120,7 @@ struct GuidedOptions {
   // tried again from that channel pose (coarse start) and the better result
   // kept (the rule above). One shaft fit per valid frame, and at most one
   // more set of rounds.
-  bool shaft_recheck = true;
+  bool shaft_recheck = false;
   double shaft_recheck_min_mm = 0.3;
   // A valid result is also checked against the start: the rounds are tried
   // from the start seed (the channel from the shaft, then moved onto the
@@ -133,7 +133,7 @@ struct GuidedOptions {
   // that close to the image is rarely beside the tube, and checking every
   // valid frame more than doubled lab's solve time for one frame more. One
   // shaft fit, one class fit and one more set of rounds per frame checked.
-  bool valid_start_check = true;
+  bool valid_start_check = false;
   double valid_start_check_min_rms_px = 0.2;
   // Two stripes along the tube the colours repeat: a fit-confirmed result
   // whose insertion lies more than `alias_lambda_tolerance_mm` from the
@@ -141,7 +141,7 @@ struct GuidedOptions {
   // from the pose two stripes (7.4 mm) back towards the start, and that
   // result kept when better (the rule above) and nearer to the start. At
   // most two more sets of rounds per frame (docs/vision.md).
-  bool alias_check = true;
+  bool alias_check = false;
   double alias_lambda_tolerance_mm = 3.0;
   // The alias seed keeps the result's shape, so it is tried first from a
   // fine start, whose narrow windows hold the stripes where the period

@@ -1,0 +1,217 @@
+// The frame estimator and the track: what they guarantee on constructed
+// inputs (a rendered frame with its exact truth, hand-made estimates),
+// not which path a frame took.
+#include "tcpest/vision/frame_estimator.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "tcpest/render/renderer.hpp"
+#include "tcpest/test/alloc_counter.hpp"
+#include "tcpest/vision/color_model.hpp"
+
+namespace tcpest {
+namespace vision {
+namespace {
+
+struct Models {
+  solver::CameraModel camera = solver::CameraModel::create(solver::default_pal_camera()).value();
+  solver::InstrumentModel model = solver::InstrumentModel::create(solver::InstrumentGeometry{}).value();
+};
+
+// Records the order in which the steps end.
+class StepLog final : public StepObserver {
+ public:
+  void step_done(EstimationStep step) noexcept override {
+    if (count < static_cast<int>(steps.size())) {
+      steps[static_cast<std::size_t>(count)] = step;
+    }
+    ++count;
+  }
+  std::array<EstimationStep, 16> steps{};
+  int count = 0;
+};
+
+TEST(EstimatorConfig, TheDefaultsAreValidAndOutOfRangeFieldsAreRefused) {
+  EXPECT_TRUE(config_valid(EstimatorConfig{}));
+  EstimatorConfig c;
+  c.encoder_check.bend_tolerance_rad = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(config_valid(c));
+  c = EstimatorConfig{};
+  c.guided.fallback_seeds = kMaxFallbackSeeds + 1;
+  EXPECT_FALSE(config_valid(c));
+  c = EstimatorConfig{};
+  c.guided.rounds = -1;
+  EXPECT_FALSE(config_valid(c));
+  c = EstimatorConfig{};
+  c.classify_step = 3;
+  EXPECT_FALSE(config_valid(c));
+  c = EstimatorConfig{};
+  c.solve.min_corners_valid = 2;
+  EXPECT_FALSE(config_valid(c));
+  const Models m;
+  EXPECT_EQ(FrameEstimator::create(m.camera, m.model, default_color_model(), c).error(), VisionError::BadParameter);
+}
+
+class FrameEstimatorOnARenderedFrame : public testing::Test {
+ protected:
+  void SetUp() override {
+    auto renderer = render::Renderer::create(m.camera, m.model, render::RenderSettings{});
+    ASSERT_TRUE(renderer.ok());
+    pixels.resize(static_cast<std::size_t>(m.camera.width() * m.camera.height() * 3));
+    render::SceneSpec spec;
+    spec.r = m.model.geometry().nominal_pose(26.0, 0.3, 0.5);
+    spec.seed = 5U;
+    const MutableImageView out{pixels.data(), m.camera.width(), m.camera.height(),
+                               static_cast<std::size_t>(m.camera.width()) * 3U};
+    ASSERT_TRUE(renderer.value()->render(spec, out, truth).ok());
+    image = out.view();
+    auto created = FrameEstimator::create(m.camera, m.model, default_color_model(), EstimatorConfig{});
+    ASSERT_TRUE(created.ok());
+    estimator = std::move(created.value());
+  }
+  FramePrior encoders_prior() const {
+    FramePrior prior;
+    prior.source = PriorSource::kEncoder;
+    prior.r = m.model.geometry().nominal_pose(26.0 + 2.0, 0.3 - 0.1, 0.5 + 0.1);  // within the encoders' accuracy
+    return prior;
+  }
+  Models m;
+  std::vector<std::uint8_t> pixels;
+  render::GroundTruth truth;
+  ImageView image{};
+  std::unique_ptr<FrameEstimator> estimator;
+};
+
+TEST_F(FrameEstimatorOnARenderedFrame, GivesAValidEstimateNearTheTruthWithEveryStepReportedInOrder) {
+  StepLog log;
+  const FrameEstimate e = estimator->estimate(image, encoders_prior(), &log);
+  ASSERT_EQ(e.estimate.quality, solver::EstimateQuality::Valid);
+  EXPECT_TRUE(e.extraction_ok);
+  EXPECT_EQ(e.prior, PriorSource::kEncoder);
+  EXPECT_FALSE(e.encoder_disagrees);
+  EXPECT_LT((e.tcp_mm - truth.instruments[0].tcp).norm(), 1.5);
+  EXPECT_LT((e.tcp_mm - m.model.tcp(e.estimate.r)).norm(), 1e-12);
+  ASSERT_EQ(log.count, kNumEstimationSteps);
+  for (int i = 0; i < kNumEstimationSteps; ++i) {
+    EXPECT_EQ(log.steps[static_cast<std::size_t>(i)], static_cast<EstimationStep>(i));
+  }
+  int reported = 0;
+  for (const EstimatedCorner& c : e.corners) {
+    if (c.source != CornerSource::kNone) {
+      ++reported;
+      EXPECT_GT(c.confidence, 0.0);
+      EXPECT_LE(c.confidence, 1.0);
+    }
+  }
+  EXPECT_GE(reported, 8);
+  EXPECT_EQ(e.corners_detected > 0, true);
+}
+
+// Same frames, same priors, same estimator: the same bits (the loop's and
+// the offline commands' results can be compared byte for byte), and no
+// heap after start-up.
+TEST_F(FrameEstimatorOnARenderedFrame, IsDeterministicAndAllocationFree) {
+  const FrameEstimate a = estimator->estimate(image, encoders_prior(), nullptr);
+  estimator->drop_track();
+  FrameEstimate b;
+  {
+    test::AllocationScope scope;
+    b = estimator->estimate(image, encoders_prior(), nullptr);
+    EXPECT_EQ(scope.count(), 0U);
+  }
+  ASSERT_EQ(a.estimate.quality, b.estimate.quality);
+  for (int i = 0; i < solver::kNumParams; ++i) {
+    EXPECT_EQ(a.estimate.r[i], b.estimate.r[i]) << i;
+  }
+}
+
+// An image with no instrument: no pose, the failed step named, no corner reported.
+TEST_F(FrameEstimatorOnARenderedFrame, AnEmptyImageGivesNoEstimateAndNamesTheFailedStep) {
+  std::vector<std::uint8_t> grey(pixels.size(), 128U);
+  const ImageView blank{grey.data(), m.camera.width(), m.camera.height(),
+                        static_cast<std::size_t>(m.camera.width()) * 3U};
+  FramePrior generic;
+  generic.r = m.model.geometry().nominal_pose(kGenericLambdaMm, 0.0, 0.0);
+  const FrameEstimate e = estimator->estimate(blank, generic, nullptr);
+  EXPECT_FALSE(e.solved());
+  EXPECT_FALSE(e.extraction_ok);
+  EXPECT_LE(e.failed_step, EstimationStep::kCorners);
+  for (const EstimatedCorner& c : e.corners) {
+    EXPECT_EQ(c.source, CornerSource::kNone);
+  }
+}
+
+// Encoders far from what the image shows: the estimate loses one level.
+TEST_F(FrameEstimatorOnARenderedFrame, EncodersBeyondTheirAccuracyDemoteTheEstimate) {
+  FramePrior far = encoders_prior();
+  far.r[solver::kLambda] += 9.0;
+  const FrameEstimate e = estimator->estimate(image, far, nullptr);
+  ASSERT_TRUE(e.solved());
+  EXPECT_TRUE(e.encoder_disagrees);
+  EXPECT_EQ(e.estimate.quality, solver::EstimateQuality::Degraded);
+}
+
+FrameEstimate solved_at(const solver::PoseVector& r) {
+  FrameEstimate e;
+  e.estimate.quality = solver::EstimateQuality::Valid;
+  e.estimate.r = r;
+  return e;
+}
+
+TEST(Track, ChoosesEncodersThenTheTrackThenTheGenericPrior) {
+  const Models m;
+  Track track(m.model, 3);
+  const solver::PoseVector generic = m.model.geometry().nominal_pose(kGenericLambdaMm, 0.0, 0.0);
+  FramePrior p = track.choose(nullptr);
+  EXPECT_EQ(p.source, PriorSource::kGeneric);
+  EXPECT_EQ(p.r, generic);
+  solver::PoseVector seen = m.model.geometry().nominal_pose(30.0, 0.2, 0.4);
+  seen[solver::kXch] += 0.5;
+  EXPECT_FALSE(track.update(solved_at(seen)));
+  EXPECT_TRUE(track.alive());
+  p = track.choose(nullptr);
+  EXPECT_EQ(p.source, PriorSource::kTemporal);
+  EXPECT_EQ(p.r, seen);
+  // The encoders' joints on the track's channel pose.
+  const double joints[3] = {31.0, 0.25, 0.45};
+  p = track.choose(joints);
+  EXPECT_EQ(p.source, PriorSource::kEncoder);
+  EXPECT_EQ(p.r[solver::kXch], seen[solver::kXch]);
+  EXPECT_EQ(p.r[solver::kLambda], 31.0);
+  EXPECT_EQ(p.r[solver::kPhi], 0.25);
+  EXPECT_EQ(p.r[solver::kTheta], 0.45);
+}
+
+TEST(Track, IsDroppedAfterTheConfiguredFailuresAndKeepsItsLastPoseForAHeldFrame) {
+  const Models m;
+  Track track(m.model, 3);
+  const solver::PoseVector seen = m.model.geometry().nominal_pose(30.0, 0.2, 0.4);
+  ASSERT_FALSE(track.update(solved_at(seen)));
+  EXPECT_FALSE(track.update(FrameEstimate{}));  // no pose
+  EXPECT_FALSE(track.frame_failed());           // a dropped frame
+  EXPECT_TRUE(track.update(FrameEstimate{}));   // the third: dropped now, once
+  EXPECT_FALSE(track.alive());
+  EXPECT_FALSE(track.update(FrameEstimate{}));
+  EXPECT_TRUE(track.has_estimate());
+  EXPECT_EQ(track.last_r(), seen);
+  EXPECT_EQ(track.choose(nullptr).source, PriorSource::kGeneric);
+  // A success in between starts the count again.
+  ASSERT_FALSE(track.update(solved_at(seen)));
+  EXPECT_FALSE(track.update(FrameEstimate{}));
+  EXPECT_FALSE(track.update(solved_at(seen)));
+  EXPECT_FALSE(track.update(FrameEstimate{}));
+  EXPECT_FALSE(track.update(FrameEstimate{}));
+  EXPECT_TRUE(track.alive());
+  track.reset();
+  EXPECT_FALSE(track.alive());
+  EXPECT_FALSE(track.has_estimate());
+}
+
+}  // namespace
+}  // namespace vision
+}  // namespace tcpest
