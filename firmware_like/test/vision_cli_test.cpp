@@ -380,7 +380,7 @@ TEST(VisionCommands, EstimateReportsTheJointsInThePriorsRepresentation) {
   ModelSetup setup;
   ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
   EstimatePipeline pipeline;
-  ASSERT_TRUE(pipeline.init("test", setup, vision::default_color_model(), false));
+  ASSERT_TRUE(pipeline.init("test", setup, vision::default_color_model(), loop::LoopConfig{}));
   ImageReader reader;
   ASSERT_TRUE(reader.init(setup.camera.width(), setup.camera.height()));
   std::vector<std::uint8_t> pixels;
@@ -395,7 +395,7 @@ TEST(VisionCommands, EstimateReportsTheJointsInThePriorsRepresentation) {
   for (int i = 0; i < 3; ++i) {
     pipeline.reset_sequence();
     const EstimateResult result = pipeline.process(view, priors[i]);
-    ASSERT_NE(result.status, EstimateStatus::None) << i;
+    ASSERT_NE(result.status, solver::EstimateQuality::None) << i;
     EXPECT_NEAR(result.r[solver::kPhi], priors[i][1], 0.3) << i;
     EXPECT_NEAR(result.r[solver::kTheta], priors[i][2], 0.3) << i;
     if (i == 0) {
@@ -568,8 +568,8 @@ class DensePipelines : public ::testing::Test {
     ASSERT_TRUE(load_model_setup("test", nullptr, nullptr, setup));
     plain.reset(new EstimatePipeline());
     dense.reset(new EstimatePipeline());
-    ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), false));
-    ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), false));
+    ASSERT_TRUE(plain->init("test", setup, vision::default_color_model(), loop::LoopConfig{}));
+    ASSERT_TRUE(dense->init("test", setup, vision::default_color_model(), loop::LoopConfig{}));
     auto created = render::Renderer::create(setup.camera, setup.instrument, render::RenderSettings{});
     ASSERT_TRUE(created.ok());
     renderer = std::move(created.value());
@@ -594,7 +594,7 @@ class DensePipelines : public ::testing::Test {
       }
       plain->reset_sequence();
       before = plain->process(out.view(), nullptr);
-      if (before.status == EstimateStatus::Valid && before.streak_px.norm() > vision::DenseFit::kMinStreakPx) {
+      if (before.status == solver::EstimateQuality::Valid && before.streak_px.norm() > vision::DenseFit::kMinStreakPx) {
         return true;
       }
     }
@@ -635,7 +635,7 @@ TEST_F(DensePipelines, RunsWhereAStreakWasReadAndLeavesTheTrackToThePipeline) {
   EXPECT_TRUE(after.dense_ran);
   if (after.dense_kept) {
     const bool agree = (after.tcp - before.tcp).norm() <= options.max_valid_tcp_change_mm;
-    EXPECT_TRUE(after.status == EstimateStatus::Degraded || (after.status == EstimateStatus::Valid && agree));
+    EXPECT_TRUE(after.status == solver::EstimateQuality::Degraded || (after.status == solver::EstimateQuality::Valid && agree));
   } else {
     EXPECT_EQ(after.status, before.status);
   }
@@ -662,7 +662,7 @@ TEST_F(DensePipelines, HoldsItsFitsWithinTheEncodersBoxWhenTheyAreGiven) {
   ASSERT_GT(options.encoder_box_angle_rad, 0.0);
   ASSERT_TRUE(dense->enable_dense(options));
   std::unique_ptr<EstimatePipeline> unboxed(new EstimatePipeline());
-  ASSERT_TRUE(unboxed->init("test", setup, vision::default_color_model(), false));
+  ASSERT_TRUE(unboxed->init("test", setup, vision::default_color_model(), loop::LoopConfig{}));
   options.encoder_box_lambda_mm = 0.0;
   ASSERT_TRUE(unboxed->enable_dense(options));
   const MutableImageView out = frame();
@@ -707,7 +707,7 @@ TEST_F(DensePipelines, ReportsItsCornersBlendedWithThePipelines) {
   ASSERT_GT(options.pipeline_corner_weight, 0.0);
   ASSERT_TRUE(dense->enable_dense(options));
   std::unique_ptr<EstimatePipeline> unblended(new EstimatePipeline());
-  ASSERT_TRUE(unblended->init("test", setup, vision::default_color_model(), false));
+  ASSERT_TRUE(unblended->init("test", setup, vision::default_color_model(), loop::LoopConfig{}));
   options.pipeline_corner_weight = 0.0;
   ASSERT_TRUE(unblended->enable_dense(options));
   const MutableImageView out = frame();
@@ -753,14 +753,16 @@ TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
   vision::DenseOptions options;
   options.fine_pixels = 100;  // below the smallest work image
   EXPECT_FALSE(dense->enable_dense(options));
+  // Stage 4's corners alone on hard frames: most are not valid there.
+  loop::LoopConfig stage4_only;
+  stage4_only.loop.estimator.guided.rounds = 0;
+  stage4_only.loop.estimator.guided.fallback_seeds = 0;
+  for (EstimatePipeline* p : {plain.get(), dense.get()}) {
+    ASSERT_TRUE(p->init("test", setup, vision::default_color_model(), stage4_only));
+  }
   options = quick_dense_options();
   ASSERT_EQ(options.max_measured_corners, vision::kNumCorners);  // every frame not valid
   ASSERT_TRUE(dense->enable_dense(options));
-  // Stage 4's corners alone on hard frames: most are not valid there.
-  for (EstimatePipeline* p : {plain.get(), dense.get()}) {
-    p->guided_options().rounds = 0;
-    p->guided_options().fallback_seeds = 0;
-  }
   const MutableImageView out = frame();
   int ran = 0;
   int valid = 0;
@@ -779,9 +781,9 @@ TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
     const bool streak_read = before.streak_px.norm() > vision::DenseFit::kMinStreakPx;
     EXPECT_EQ(after.measured_corners, before.measured_corners) << i;
     const bool few_measured = before.measured_corners <= options.max_measured_corners_valid;
-    EXPECT_EQ(after.dense_ran, before.status != EstimateStatus::Valid || streak_read || few_measured) << i;
-    if (after.dense_kept && after.status == EstimateStatus::Valid) {
-      EXPECT_EQ(before.status, EstimateStatus::Valid) << i;
+    EXPECT_EQ(after.dense_ran, before.status != solver::EstimateQuality::Valid || streak_read || few_measured) << i;
+    if (after.dense_kept && after.status == solver::EstimateQuality::Valid) {
+      EXPECT_EQ(before.status, solver::EstimateQuality::Valid) << i;
       EXPECT_LE((after.tcp - before.tcp).norm(), options.max_valid_tcp_change_mm) << i;
     }
     if (!after.dense_ran) {

@@ -16,39 +16,9 @@ constexpr std::int64_t kSyncPollSliceNs = hal::kNsPerMs;  // the wait's step whe
 
 std::int64_t to_us(std::int64_t ns) noexcept { return ns / hal::kNsPerUs; }
 
-can::Fault to_can_fault(Fault fault) noexcept {
-  switch (fault) {
-    case Fault::kCameraLost:
-      return can::Fault::kCameraTimeout;
-    case Fault::kBusLost:
-      return can::Fault::kCanTxDropped;
-    case Fault::kCycleOverrun:
-      return can::Fault::kCycleOverrun;
-    case Fault::kFrameErrors:
-      return can::Fault::kImageCorrupt;
-    case Fault::kTrackingLost:
-      return can::Fault::kTrackingLost;
-  }
-  return can::Fault::kInternalError;
-}
-
 bool bus_gone(hal::CanBusError e) noexcept {
   return e == hal::CanBusError::kInterfaceDown || e == hal::CanBusError::kNoSuchInterface ||
          e == hal::CanBusError::kNotOpen || e == hal::CanBusError::kBusOff;
-}
-
-can::EstimateStatus to_can_status(EstimateStatus status) noexcept {
-  switch (status) {
-    case EstimateStatus::kValid:
-      return can::EstimateStatus::kValid;
-    case EstimateStatus::kDegraded:
-      return can::EstimateStatus::kDegraded;
-    case EstimateStatus::kHeld:
-      return can::EstimateStatus::kHeld;
-    case EstimateStatus::kInvalid:
-      return can::EstimateStatus::kInvalid;
-  }
-  return can::EstimateStatus::kInvalid;
 }
 
 }  // namespace
@@ -197,7 +167,7 @@ Status<PortError> CanNodePort::publish(const Publication& p, std::int64_t& laten
   const std::int64_t now = clock_.now_ns();
   latency_ns = now - p.frame_timestamp_ns;
   can::Estimate e;
-  e.status = to_can_status(p.status);
+  e.status = p.status;
   e.tcp_x_mm = p.tcp_mm[0];
   e.tcp_y_mm = p.tcp_mm[1];
   e.tcp_z_mm = p.tcp_mm[2];
@@ -248,8 +218,8 @@ Status<PortError> CanNodePort::flush(std::int64_t now_ns) noexcept {
 }
 
 void CanNodePort::set_fault(Fault fault, bool active, std::uint32_t detail) noexcept {
-  // Only kInvalidArgument can come back, for an id outside the table: to_can_fault maps into it.
-  static_cast<void>(node_.set_fault(to_can_fault(fault), active, detail));
+  // Only kInvalidArgument can come back, for an id outside the table: the loop raises table entries only.
+  static_cast<void>(node_.set_fault(fault, active, detail));
 }
 
 Status<PortError> CanNodePort::recover() noexcept {

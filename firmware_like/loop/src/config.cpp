@@ -102,6 +102,7 @@ const char* to_string(Trigger trigger) noexcept {
 
 Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) noexcept {
   LoopSettings& l = out.loop;
+  vision::EstimatorConfig& e = l.estimator;
   if (doc.has("loop.trigger")) {
     char text[16] = {};
     TCPEST_TRY(doc.text("loop.trigger", text, sizeof text));
@@ -125,9 +126,9 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
     char text[16] = {};
     TCPEST_TRY(doc.text("loop.solve_mode", text, sizeof text));
     if (std::strcmp(text, "adaptive") == 0) {
-      l.solve_mode = SolveModeSetting::kAdaptive;
+      e.solve_mode = solver::SolveMode::Adaptive;
     } else if (std::strcmp(text, "fixed") == 0) {
-      l.solve_mode = SolveModeSetting::kFixedModel;
+      e.solve_mode = solver::SolveMode::FixedModel;
     } else {
       return S::failure(doc.error_at(doc.find("loop.solve_mode"), "loop.solve_mode", "expected adaptive or fixed"));
     }
@@ -136,28 +137,29 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
     char text[8] = {};
     TCPEST_TRY(doc.text("loop.classify_step", text, sizeof text));
     if (std::strcmp(text, "auto") == 0) {
-      l.classify_step = 0;
+      e.classify_step = 0;
     } else if (std::strcmp(text, "1") == 0) {
-      l.classify_step = 1;
+      e.classify_step = 1;
     } else if (std::strcmp(text, "2") == 0) {
-      l.classify_step = 2;
+      e.classify_step = 2;
     } else {
       return S::failure(doc.error_at(doc.find("loop.classify_step"), "loop.classify_step", "expected auto, 1 or 2"));
     }
   }
   TCPEST_TRY(read_int_as(doc, "loop.track_drop_after", 1, 1000, l.track_drop_after));
-  TCPEST_TRY(read_int_as(doc, "loop.min_corners_valid", 4, 12, l.min_corners_valid));
-  TCPEST_TRY(read_double(doc, "loop.max_rms_valid_px", 0.0, 1000.0, l.max_rms_valid_px));
-  TCPEST_TRY(read_double(doc, "loop.encoder_check_lambda_mm", 0.0, 100.0, l.encoder_check_lambda_mm));
-  TCPEST_TRY(read_double(doc, "loop.encoder_check_bend_rad", 0.0, 4.0, l.encoder_check_bend_rad));
-  TCPEST_TRY(read_int_as(doc, "loop.outlier_rounds", 0, solver::kMaxOutlierRounds, l.outlier_rounds));
-  TCPEST_TRY(read_int_as(doc, "loop.guided_rounds", 0, vision::kMaxGuidedRounds, l.guided_rounds));
-  TCPEST_TRY(read_int_as(doc, "loop.fallback_seeds", 0, vision::kMaxFallbackSeeds, l.fallback_seeds));
-  TCPEST_TRY(read_bool(doc, "loop.shaft_recheck", l.shaft_recheck));
-  TCPEST_TRY(read_bool(doc, "loop.alias_check", l.alias_check));
-  TCPEST_TRY(read_bool(doc, "loop.valid_start_check", l.valid_start_check));
-  TCPEST_TRY(read_bool(doc, "loop.base_rim_seed", l.base_rim_seed));
-  TCPEST_TRY(read_double(doc, "loop.max_valid_tcp_disagreement_mm", 0.0, 100.0, l.max_valid_tcp_disagreement_mm));
+  TCPEST_TRY(read_int_as(doc, "loop.min_corners_valid", 4, 12, e.solve.min_corners_valid));
+  TCPEST_TRY(read_double(doc, "loop.max_rms_valid_px", 0.0, 1000.0, e.solve.max_rms_valid_px));
+  TCPEST_TRY(read_double(doc, "loop.encoder_check_lambda_mm", 0.0, 100.0, e.encoder_check.lambda_tolerance_mm));
+  TCPEST_TRY(read_double(doc, "loop.encoder_check_bend_rad", 0.0, 4.0, e.encoder_check.bend_tolerance_rad));
+  TCPEST_TRY(read_int_as(doc, "loop.outlier_rounds", 0, solver::kMaxOutlierRounds, e.solve.outlier_rounds));
+  vision::GuidedOptions& g = e.guided;
+  TCPEST_TRY(read_int_as(doc, "loop.guided_rounds", 0, vision::kMaxGuidedRounds, g.rounds));
+  TCPEST_TRY(read_int_as(doc, "loop.fallback_seeds", 0, vision::kMaxFallbackSeeds, g.fallback_seeds));
+  TCPEST_TRY(read_bool(doc, "loop.shaft_recheck", g.shaft_recheck));
+  TCPEST_TRY(read_bool(doc, "loop.alias_check", g.alias_check));
+  TCPEST_TRY(read_bool(doc, "loop.valid_start_check", g.valid_start_check));
+  TCPEST_TRY(read_bool(doc, "loop.base_rim_seed", g.base_rim_seed));
+  TCPEST_TRY(read_double(doc, "loop.max_valid_tcp_disagreement_mm", 0.0, 100.0, g.max_valid_tcp_disagreement_mm));
   TCPEST_TRY(read_int_as(doc, "loop.camera_timeout_ms", 1, 60000, l.camera_timeout_ms));
   TCPEST_TRY(read_int_as(doc, "loop.camera_lost_after", 1, 10000, l.camera_lost_after));
   TCPEST_TRY(read_int_as(doc, "loop.retry_ms", 10, 600000, l.retry_ms));

@@ -9,8 +9,6 @@ namespace loop {
 
 namespace {
 
-constexpr double kGenericLambdaMm = 25.0;  // the generic prior's start (vision's generic prior uses the same)
-
 std::int64_t ms_to_ns(std::int64_t ms) noexcept { return ms * hal::kNsPerMs; }
 
 bool is_device_failure(hal::CameraError e) noexcept {
@@ -31,18 +29,6 @@ const char* to_string(LoopError error) noexcept {
   return "?";
 }
 
-const char* to_string(PriorSource source) noexcept {
-  switch (source) {
-    case PriorSource::kGeneric:
-      return "generic";
-    case PriorSource::kTemporal:
-      return "temporal";
-    case PriorSource::kEncoder:
-      return "encoder";
-  }
-  return "?";
-}
-
 const char* to_string(NodeMode mode) noexcept {
   switch (mode) {
     case NodeMode::kBootUp:
@@ -53,36 +39,6 @@ const char* to_string(NodeMode mode) noexcept {
       return "operational";
     case NodeMode::kStopped:
       return "stopped";
-  }
-  return "?";
-}
-
-const char* to_string(EstimateStatus status) noexcept {
-  switch (status) {
-    case EstimateStatus::kValid:
-      return "valid";
-    case EstimateStatus::kDegraded:
-      return "degraded";
-    case EstimateStatus::kHeld:
-      return "held";
-    case EstimateStatus::kInvalid:
-      return "invalid";
-  }
-  return "?";
-}
-
-const char* to_string(Fault fault) noexcept {
-  switch (fault) {
-    case Fault::kCameraLost:
-      return "camera lost";
-    case Fault::kBusLost:
-      return "bus lost";
-    case Fault::kCycleOverrun:
-      return "cycle overrun";
-    case Fault::kFrameErrors:
-      return "frame errors";
-    case Fault::kTrackingLost:
-      return "tracking lost";
   }
   return "?";
 }
@@ -106,7 +62,7 @@ const char* to_string(PortError error) noexcept {
 }
 
 Executive::Executive(const LoopConfig& config, const LoopParts& parts) noexcept
-    : config_(config), parts_(parts), timer_(*parts.clock, 0) {}
+    : config_(config), parts_(parts), timer_(*parts.clock, 0), track_(*parts.instrument, config.loop.track_drop_after) {}
 
 Executive::~Executive() = default;
 
@@ -130,26 +86,11 @@ Result<std::unique_ptr<Executive>, LoopError> Executive::create(const LoopConfig
   const std::size_t bytes = stride * static_cast<std::size_t>(height);
   loop->frame_buffer_.reset(new (std::nothrow) std::uint8_t[bytes]);
   loop->stats_.reset(new (std::nothrow) LoopStats());
-  solver::EstimateOptions estimate_options;
-  estimate_options.min_corners_valid = config.loop.min_corners_valid;
-  estimate_options.max_rms_valid_px = config.loop.max_rms_valid_px;
-  estimate_options.outlier_rounds = config.loop.outlier_rounds;
-  if (!solver::options_valid(estimate_options)) {
-    return R::failure(LoopError::kBadConfig);
-  }
-  loop->encoder_check_ = solver::EncoderCheck{config.loop.encoder_check_lambda_mm, config.loop.encoder_check_bend_rad};
-  if (!solver::encoder_check_valid(loop->encoder_check_)) {
-    return R::failure(LoopError::kBadConfig);
-  }
-  loop->estimator_.reset(new (std::nothrow) solver::PoseEstimator(*parts.camera, *parts.instrument, estimate_options));
-  if (!loop->frame_buffer_ || !loop->stats_ || !loop->estimator_) {
+  if (!loop->frame_buffer_ || !loop->stats_) {
     return R::failure(LoopError::kOutOfMemory);
   }
   std::memset(loop->frame_buffer_.get(), 0, bytes);  // pre-fault the pages before the first cycle
   loop->frame_view_ = MutableImageView{loop->frame_buffer_.get(), width, height, stride};
-  loop->generic_r_ = parts.instrument->geometry().nominal_pose(kGenericLambdaMm, 0.0, 0.0);
-  loop->prior_r_ = loop->generic_r_;
-  loop->last_r_ = loop->generic_r_;
 
   // The trigger's time base.
   std::int64_t period_ns = 0;
@@ -258,8 +199,7 @@ CycleOutcome Executive::run_cycle() noexcept {
   const bool have_frame = step_acquire();
   lap(Step::kAcquire);
   if (have_frame) {
-    run_pipeline();  // times its own stages
-    t = clock.now_ns();
+    t = run_pipeline();  // times its own steps
   }
   make_publication();
   if (!publish_first_) {
@@ -356,7 +296,7 @@ void Executive::step_publish(std::int64_t trigger_ns) noexcept {
     if (sent.error() == PortError::kBusDown && !bus_lost_) {
       bus_lost_ = true;
       ++stats_->bus_lost_events;
-      node.set_fault(Fault::kBusLost, true, 0U);
+      node.set_fault(Fault::kCanTxDropped, true, 0U);
     }
     return;
   }
@@ -377,19 +317,21 @@ bool Executive::step_acquire() noexcept {
   if (!received.ok() && received.error() == PortError::kBusDown && !bus_lost_) {
     bus_lost_ = true;
     ++stats_->bus_lost_events;
-    node.set_fault(Fault::kBusLost, true, 1U);
+    node.set_fault(Fault::kCanTxDropped, true, 1U);
   }
   if (node.take_reset()) {
     ++stats_->resets;
-    reset_track();
-    have_estimate_ = false;
+    if (track_.alive()) {
+      on_track_dropped();
+    }
+    track_.reset();
     have_pending_ = false;
     // A reset node forgot its faults: say again those that still hold.
     if (camera_lost_) {
-      node.set_fault(Fault::kCameraLost, true, 0U);
+      node.set_fault(Fault::kCameraTimeout, true, 0U);
     }
     if (bus_lost_) {
-      node.set_fault(Fault::kBusLost, true, 0U);
+      node.set_fault(Fault::kCanTxDropped, true, 0U);
     }
     overrun_reported_ = false;
     frame_error_reported_ = false;
@@ -408,7 +350,7 @@ bool Executive::step_acquire() noexcept {
     record_.frame_timestamp_ns = parts_.source->live() ? info_.timestamp_ns : record_.trigger_ns;
     record_.truth = info_.truth;
     if (frame_error_reported_) {
-      node.set_fault(Fault::kFrameErrors, false, 0U);
+      node.set_fault(Fault::kImageCorrupt, false, 0U);
       frame_error_reported_ = false;
     }
     return true;
@@ -427,15 +369,17 @@ bool Executive::step_acquire() noexcept {
   } else {
     // A corrupt, truncated or wrongly sized frame: one dropped frame.
     ++stats_->frame_errors;
-    ++failed_frames_;
+    if (track_.frame_failed()) {
+      on_track_dropped();
+    }
     if (!frame_error_reported_) {
-      node.set_fault(Fault::kFrameErrors, true, static_cast<std::uint32_t>(e));
+      node.set_fault(Fault::kImageCorrupt, true, static_cast<std::uint32_t>(e));
       frame_error_reported_ = true;
     }
   }
   if (camera_lost_) {
     ++stats_->camera_lost_events;
-    node.set_fault(Fault::kCameraLost, true, static_cast<std::uint32_t>(e));
+    node.set_fault(Fault::kCameraTimeout, true, static_cast<std::uint32_t>(e));
     next_retry_ns_ = clock.now_ns() + ms_to_ns(config_.loop.retry_ms);
   }
   return false;
@@ -443,123 +387,60 @@ bool Executive::step_acquire() noexcept {
 
 void Executive::choose_prior(std::int64_t now_ns) noexcept {
   JointPrior joints{};
-  if (parts_.node->encoder_prior(now_ns, joints)) {
-    record_.prior = PriorSource::kEncoder;
-    prior_r_ = track_alive_ ? last_r_ : generic_r_;
-    prior_r_[solver::kLambda] = joints.lambda_mm;
-    prior_r_[solver::kPhi] = joints.phi_rad;
-    prior_r_[solver::kTheta] = joints.theta_rad;
-  } else if (track_alive_) {
-    record_.prior = PriorSource::kTemporal;
-    prior_r_ = last_r_;
-  } else {
-    record_.prior = PriorSource::kGeneric;
-    prior_r_ = generic_r_;
-  }
+  const bool fresh = parts_.node->encoder_prior(now_ns, joints);
+  const double encoder_joints[3] = {joints.lambda_mm, joints.phi_rad, joints.theta_rad};
+  prior_ = track_.choose(fresh ? encoder_joints : nullptr);
+  record_.prior = prior_.source;
   ++stats_->prior[static_cast<std::size_t>(record_.prior)];
 }
 
-void Executive::run_pipeline() noexcept {
-  hal::Clock& clock = *parts_.clock;
+namespace {
+// Laps the estimator's steps into the cycle record on the loop's clock.
+class StepLaps final : public vision::StepObserver {
+ public:
+  StepLaps(hal::Clock& clock, CycleRecord& record) noexcept : clock_(clock), record_(record), t_(clock.now_ns()) {}
+  void step_done(vision::EstimationStep step) noexcept override {
+    const std::int64_t now = clock_.now_ns();
+    record_.step_ns[static_cast<std::size_t>(index_of(step_of(step)))] += now - t_;
+    t_ = now;
+  }
+  std::int64_t last_ns() const noexcept { return t_; }
+
+ private:
+  hal::Clock& clock_;
+  CycleRecord& record_;
+  std::int64_t t_;
+};
+}  // namespace
+
+std::int64_t Executive::run_pipeline() noexcept {
   FeaturePipeline& pipeline = *parts_.pipeline;
-  const ImageView image = frame_view_.view();
-  std::int64_t t = clock.now_ns();
-  auto lap = [&](Step step) noexcept {
-    const std::int64_t now = clock.now_ns();
-    record_.step_ns[static_cast<std::size_t>(index_of(step))] += now - t;
-    t = now;
-  };
-  choose_prior(t);
+  choose_prior(parts_.clock->now_ns());
   pipeline.begin_frame(info_);
-  corners_ = solver::CornerObservation{};
-  Status<StageError> stage = pipeline.classify(image);
-  lap(Step::kClassify);
-  if (stage.ok()) {
-    stage = pipeline.interpret(record_.prior, prior_r_);
-    lap(Step::kInterpret);
-    if (stage.ok()) {
-      stage = pipeline.borders(image);
-      lap(Step::kBorders);
-      if (stage.ok()) {
-        stage = pipeline.corners(image, corners_);
-        lap(Step::kCorners);
-        if (!stage.ok()) {
-          record_.failed_stage = index_of(Step::kCorners);
-        }
-      } else {
-        record_.failed_stage = index_of(Step::kBorders);
-      }
-    } else {
-      record_.failed_stage = index_of(Step::kInterpret);
-    }
-  } else {
-    record_.failed_stage = index_of(Step::kClassify);
+  StepLaps laps(*parts_.clock, record_);
+  const vision::FrameEstimate e = pipeline.estimate(frame_view_.view(), prior_, laps);
+  if (!e.extraction_ok) {
+    record_.failed_stage = index_of(step_of(e.failed_step));
+    record_.stage_error = static_cast<std::uint8_t>(e.stage_error);
   }
-  if (!stage.ok()) {
-    record_.stage_error = stage.error().code;
+  record_.publication.corners_detected = static_cast<std::uint8_t>(e.corners_detected);
+  record_.refined = e.guided.rounds_kept > 0;
+  record_.fit_disagrees = record_.refined && e.guided.disagreement_demoted;
+  record_.encoder_disagrees = e.encoder_disagrees;
+  record_.solve_status = e.estimate.summary.status;
+  record_.quality = e.estimate.quality;
+  record_.corners_rejected = e.estimate.corners_rejected;
+  record_.publication.corners_used = static_cast<std::uint8_t>(e.estimate.summary.corners_used);
+  record_.publication.rms_px = e.estimate.summary.rms_px;
+  record_.solved = e.solved();
+  if (track_.update(e)) {
+    on_track_dropped();
   }
-  record_.publication.corners_detected = static_cast<std::uint8_t>(corners_.count_visible());
-  // After a failed stage there are no corners (no pose from the solve), but
-  // the model-guided step may still confirm a pose seeded from the labelled
-  // regions or the prior (vision::guided_rounds), as estimate/evaluate do.
-  step_solve();
-  lap(Step::kSolve);
-  step_refine(image);
-  lap(Step::kRefine);
-  if (record_.solved) {
-    last_r_ = estimate_.r;  // the track's pose, and what a held frame repeats
+  if (record_.solved && tracking_lost_reported_) {
+    parts_.node->set_fault(Fault::kTrackingLost, false, 0U);
+    tracking_lost_reported_ = false;
   }
-  pipeline.end_frame(record_.solved);
-  if (record_.solved) {
-    track_alive_ = true;
-    have_estimate_ = true;
-    failed_frames_ = 0;
-    if (tracking_lost_reported_) {
-      parts_.node->set_fault(Fault::kTrackingLost, false, 0U);
-      tracking_lost_reported_ = false;
-    }
-  } else {
-    ++failed_frames_;
-  }
-}
-
-void Executive::step_solve() noexcept {
-  const solver::SolveMode mode = config_.loop.solve_mode == SolveModeSetting::kFixedModel
-                                     ? solver::SolveMode::FixedModel
-                                     : solver::SolveMode::Adaptive;
-  estimate_ = estimator_->estimate(corners_, mode, prior_r_);
-  take_estimate();
-}
-
-void Executive::step_refine(const ImageView& image) noexcept {
-  const solver::SolveMode mode = config_.loop.solve_mode == SolveModeSetting::kFixedModel
-                                     ? solver::SolveMode::FixedModel
-                                     : solver::SolveMode::Adaptive;
-  if (parts_.pipeline->refine(image, *estimator_, mode, prior_r_, estimate_)) {
-    record_.refined = true;
-    record_.fit_disagrees = parts_.pipeline->refine_degraded_by_fit();
-    take_estimate();
-  }
-}
-
-void Executive::take_estimate() noexcept {
-  // The encoders' joints, when they are this frame's prior, bound what the
-  // image may claim (solver::check_against_encoders).
-  record_.encoder_disagrees = false;
-  if (record_.prior == PriorSource::kEncoder) {
-    record_.encoder_disagrees = solver::check_against_encoders(estimate_, prior_r_, encoder_check_);
-  }
-  // The joints the robot is sent (JOINTS) and the next frame starts from:
-  // the prior's turn of phi and sign of theta, not whichever the solve ended on.
-  estimate_.r = solver::nearest_equivalent_joints(estimate_.r, prior_r_);
-  record_.solve_status = estimate_.summary.status;
-  record_.quality = estimate_.quality;
-  record_.corners_rejected = estimate_.corners_rejected;
-  record_.publication.corners_used = static_cast<std::uint8_t>(estimate_.summary.corners_used);
-  record_.publication.rms_px = estimate_.summary.rms_px;
-  // Solved as this estimate says: the refined one replaces the first
-  // solve's, and the encoders' check may leave it without a pose.
-  record_.solved = estimate_.quality != solver::EstimateQuality::None;
+  return laps.last_ns();
 }
 
 bool Executive::camera_cycle() const noexcept {
@@ -567,36 +448,29 @@ bool Executive::camera_cycle() const noexcept {
          (record_.frame_error != hal::CameraError::kNone && record_.frame_error != hal::CameraError::kEndOfStream);
 }
 
-void Executive::reset_track() noexcept {
-  if (track_alive_) {
-    ++stats_->track_drops;
-    if (!tracking_lost_reported_) {
-      parts_.node->set_fault(Fault::kTrackingLost, true, static_cast<std::uint32_t>(failed_frames_));
-      tracking_lost_reported_ = true;
-    }
+void Executive::on_track_dropped() noexcept {
+  ++stats_->track_drops;
+  if (!tracking_lost_reported_) {
+    parts_.node->set_fault(Fault::kTrackingLost, true, static_cast<std::uint32_t>(config_.loop.track_drop_after));
+    tracking_lost_reported_ = true;
   }
-  track_alive_ = false;
-  failed_frames_ = 0;
   parts_.pipeline->drop_track();
 }
 
 void Executive::make_publication() noexcept {
   Publication& p = record_.publication;
-  if (!record_.solved && track_alive_ && failed_frames_ >= config_.loop.track_drop_after) {
-    reset_track();
-  }
   p.frame_timestamp_ns = record_.have_frame ? record_.frame_timestamp_ns : record_.trigger_ns;
   p.frame_counter = frame_counter_;
   if (record_.solved) {
     p.status = record_.quality == solver::EstimateQuality::Valid ? EstimateStatus::kValid : EstimateStatus::kDegraded;
-  } else if (!camera_lost_ && have_estimate_ && track_alive_) {
+  } else if (!camera_lost_ && track_.has_estimate() && track_.alive()) {
     p.status = EstimateStatus::kHeld;
   } else {
     p.status = EstimateStatus::kInvalid;
   }
-  if (have_estimate_) {
-    p.r = last_r_;
-    const solver::Vec3 tcp = parts_.instrument->tcp(last_r_);
+  if (track_.has_estimate()) {
+    p.r = track_.last_r();
+    const solver::Vec3 tcp = parts_.instrument->tcp(track_.last_r());
     p.tcp_mm[0] = tcp.x();
     p.tcp_mm[1] = tcp.y();
     p.tcp_mm[2] = tcp.z();
@@ -615,7 +489,7 @@ void Executive::flush_node(std::int64_t now_ns, std::uint32_t where) noexcept {
   if (!kept.ok() && kept.error() == PortError::kBusDown && !bus_lost_) {
     bus_lost_ = true;
     ++stats_->bus_lost_events;
-    node.set_fault(Fault::kBusLost, true, where);
+    node.set_fault(Fault::kCanTxDropped, true, where);
   }
 }
 
@@ -630,12 +504,12 @@ void Executive::step_housekeeping() noexcept {
       camera_lost_ = false;
       not_ready_run_ = 0;
       ++stats_->camera_recoveries;
-      node.set_fault(Fault::kCameraLost, false, 0U);
+      node.set_fault(Fault::kCameraTimeout, false, 0U);
     }
     if (bus_lost_ && node.recover().ok()) {
       bus_lost_ = false;
       ++stats_->bus_recoveries;
-      node.set_fault(Fault::kBusLost, false, 0U);
+      node.set_fault(Fault::kCanTxDropped, false, 0U);
     }
   }
 }

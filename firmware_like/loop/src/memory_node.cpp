@@ -86,11 +86,11 @@ Status<PortError> MemoryNode::housekeeping(std::int64_t now_ns) noexcept {
 
 void MemoryNode::set_fault(Fault fault, bool active, std::uint32_t detail) noexcept {
   static_cast<void>(detail);
-  const auto bit = static_cast<std::uint8_t>(1U << static_cast<unsigned>(fault));
+  const std::uint32_t bit = 1U << static_cast<unsigned>(fault);
   const bool was = (faults_ & bit) != 0U;
   if (was != active) {
     ++emcy_;
-    faults_ = static_cast<std::uint8_t>(active ? (faults_ | bit) : (faults_ & ~bit));
+    faults_ = active ? (faults_ | bit) : (faults_ & ~bit);
   }
 }
 

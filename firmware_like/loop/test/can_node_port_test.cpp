@@ -13,7 +13,7 @@
 #include "tcpest/loop/can_node_port.hpp"
 #include "tcpest/loop/executive.hpp"
 #include "tcpest/loop/motion.hpp"
-#include "tcpest/loop/oracle_pipeline.hpp"
+#include "oracle_pipeline.hpp"
 
 namespace tcpest {
 namespace loop {
@@ -121,7 +121,7 @@ TEST(CanNodePort, ABusOffIsOneLossAndTheLoopRecoversWhenItEnds) {
   motion.frames = 250U;
   ModelScene scene(camera.value(), model.value(), motion);
   hal::SimCamera source(scene, 25.0, false);
-  OraclePipeline pipeline;
+  OraclePipeline pipeline(camera.value(), model.value());
   PortRig rig;
   LoopParts parts{&source, &rig.clock, &pipeline, &rig.port, &camera.value(), &model.value()};
   auto created = Executive::create(rig.config, parts);

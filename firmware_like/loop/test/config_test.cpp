@@ -58,21 +58,21 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_FALSE(config.loop.pacing);
   EXPECT_EQ(config.loop.frames, 100U);
   EXPECT_STREQ(config.loop.source, "/dev/video0");
-  EXPECT_EQ(config.loop.solve_mode, SolveModeSetting::kFixedModel);
-  EXPECT_EQ(config.loop.classify_step, 1);
+  EXPECT_EQ(config.loop.estimator.solve_mode, solver::SolveMode::FixedModel);
+  EXPECT_EQ(config.loop.estimator.classify_step, 1);
   EXPECT_EQ(config.loop.track_drop_after, 3);
-  EXPECT_EQ(config.loop.min_corners_valid, 8);
-  EXPECT_DOUBLE_EQ(config.loop.max_rms_valid_px, 1.5);
-  EXPECT_EQ(config.loop.outlier_rounds, 0);
-  EXPECT_EQ(config.loop.guided_rounds, 0);
-  EXPECT_EQ(config.loop.fallback_seeds, 2);
-  EXPECT_TRUE(config.loop.shaft_recheck);
-  EXPECT_TRUE(config.loop.alias_check);
-  EXPECT_TRUE(config.loop.valid_start_check);
-  EXPECT_FALSE(config.loop.base_rim_seed);
-  EXPECT_DOUBLE_EQ(config.loop.max_valid_tcp_disagreement_mm, 3.5);
-  EXPECT_DOUBLE_EQ(config.loop.encoder_check_lambda_mm, 4.5);
-  EXPECT_DOUBLE_EQ(config.loop.encoder_check_bend_rad, 0.0);
+  EXPECT_EQ(config.loop.estimator.solve.min_corners_valid, 8);
+  EXPECT_DOUBLE_EQ(config.loop.estimator.solve.max_rms_valid_px, 1.5);
+  EXPECT_EQ(config.loop.estimator.solve.outlier_rounds, 0);
+  EXPECT_EQ(config.loop.estimator.guided.rounds, 0);
+  EXPECT_EQ(config.loop.estimator.guided.fallback_seeds, 2);
+  EXPECT_TRUE(config.loop.estimator.guided.shaft_recheck);
+  EXPECT_TRUE(config.loop.estimator.guided.alias_check);
+  EXPECT_TRUE(config.loop.estimator.guided.valid_start_check);
+  EXPECT_FALSE(config.loop.estimator.guided.base_rim_seed);
+  EXPECT_DOUBLE_EQ(config.loop.estimator.guided.max_valid_tcp_disagreement_mm, 3.5);
+  EXPECT_DOUBLE_EQ(config.loop.estimator.encoder_check.lambda_tolerance_mm, 4.5);
+  EXPECT_DOUBLE_EQ(config.loop.estimator.encoder_check.bend_tolerance_rad, 0.0);
   EXPECT_STREQ(config.can.bus, "vcan0");
   EXPECT_EQ(config.can.node_id, 33U);
   EXPECT_FALSE(config.can.autostart);
@@ -114,7 +114,7 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
     EXPECT_STREQ(s.error().field, b.field);
   }
   ASSERT_TRUE(parse("loop:\n  classify_step: auto\n", config).ok());
-  EXPECT_EQ(config.loop.classify_step, 0);
+  EXPECT_EQ(config.loop.estimator.classify_step, 0);
 }
 
 }  // namespace

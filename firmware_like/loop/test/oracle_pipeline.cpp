@@ -1,4 +1,4 @@
-#include "tcpest/loop/oracle_pipeline.hpp"
+#include "oracle_pipeline.hpp"
 
 #include "tcpest/common/splitmix64.hpp"
 
@@ -6,8 +6,6 @@ namespace tcpest {
 namespace loop {
 
 namespace {
-constexpr std::uint8_t kNoTruth = 1U;
-
 // A small deterministic hash to [-1, 1] (splitmix64).
 double unit_noise(std::uint64_t key) noexcept {
   return static_cast<double>(splitmix64(key) >> 11U) * (2.0 / 9007199254740992.0) - 1.0;
@@ -19,42 +17,40 @@ void OraclePipeline::begin_frame(const hal::FrameInfo& info) noexcept {
   sequence_ = info.sequence;
 }
 
-Status<StageError> OraclePipeline::classify(const ImageView& image) noexcept {
+vision::FrameEstimate OraclePipeline::estimate(const ImageView& image, const vision::FramePrior& prior,
+                                               vision::StepObserver& observer) noexcept {
   static_cast<void>(image);
-  return truth_.valid ? ok_status<StageError>() : Status<StageError>::failure(StageError{kNoTruth});
-}
-
-Status<StageError> OraclePipeline::interpret(PriorSource source, const solver::PoseVector& prior_r) noexcept {
-  static_cast<void>(source);
-  static_cast<void>(prior_r);
-  return ok_status<StageError>();
-}
-
-Status<StageError> OraclePipeline::borders(const ImageView& image) noexcept {
-  static_cast<void>(image);
-  return ok_status<StageError>();
-}
-
-Status<StageError> OraclePipeline::corners(const ImageView& image, solver::CornerObservation& out) noexcept {
-  static_cast<void>(image);
-  for (int k = 0; k < solver::kNumCorners; ++k) {
-    const auto i = static_cast<std::size_t>(k);
-    out.visible[i] = truth_.corner_visible[i];
-    const std::uint64_t key = (static_cast<std::uint64_t>(sequence_) << 8U) + static_cast<std::uint64_t>(2 * k);
-    out.pixel[i] = solver::Vec2(truth_.corners_px[i][0] + noise_px_ * unit_noise(key),
-                                truth_.corners_px[i][1] + noise_px_ * unit_noise(key + 1U));
+  vision::FrameEstimate out;
+  out.prior = prior.source;
+  solver::CornerObservation corners;
+  if (truth_.valid) {
+    for (int k = 0; k < solver::kNumCorners; ++k) {
+      const auto i = static_cast<std::size_t>(k);
+      corners.visible[i] = truth_.corner_visible[i];
+      const std::uint64_t key = (static_cast<std::uint64_t>(sequence_) << 8U) + static_cast<std::uint64_t>(2 * k);
+      corners.pixel[i] = solver::Vec2(truth_.corners_px[i][0] + noise_px_ * unit_noise(key),
+                                      truth_.corners_px[i][1] + noise_px_ * unit_noise(key + 1U));
+    }
+    out.extraction_ok = true;
+    out.corners_detected = corners.count_visible();
+  } else {
+    out.failed_step = vision::EstimationStep::kClassify;
+    out.stage_error = vision::VisionError::NoInstrument;
   }
-  return ok_status<StageError>();
-}
-
-void OraclePipeline::end_frame(bool success) noexcept {
-  if (success) {
-    ++successes_;
+  observer.step_done(vision::EstimationStep::kClassify);
+  observer.step_done(vision::EstimationStep::kInterpret);
+  observer.step_done(vision::EstimationStep::kBorders);
+  observer.step_done(vision::EstimationStep::kCorners);
+  out.estimate = solver_.estimate(corners, solver::SolveMode::Adaptive, prior.r);
+  out.encoder_disagrees = prior.source == vision::PriorSource::kEncoder &&
+                          solver::check_against_encoders(out.estimate, prior.r, check_);
+  out.estimate.r = solver::nearest_equivalent_joints(out.estimate.r, prior.r);
+  if (out.solved()) {
+    out.tcp_mm = model_.tcp(out.estimate.r);
   }
-}
-
-const char* OraclePipeline::describe(StageError error) const noexcept {
-  return error.code == kNoTruth ? "no ground truth with this frame (oracle pipeline)" : "ok";
+  observer.step_done(vision::EstimationStep::kSolve);
+  observer.step_done(vision::EstimationStep::kRefine);
+  return out;
 }
 
 }  // namespace loop

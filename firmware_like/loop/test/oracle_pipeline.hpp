@@ -1,13 +1,14 @@
-// A stand-in for the vision stages: the "detected" corners are the frame's
-// ground-truth corners (simulated camera only), optionally with
-// deterministic pseudo-random noise. It lets the loop, the solver and the CAN
-// output be tested and timed end to end before (or without) the real feature
-// extraction, and gives a lower bound of the pipeline's error. It never runs
-// on real images: without truth, it finds nothing.
+// A stand-in for the frame estimator in the loop's tests: the "detected"
+// corners are the frame's ground-truth corners (simulated camera only),
+// optionally with deterministic pseudo-random noise, solved by the solver's
+// PoseEstimator from the frame's prior. It lets the loop, the solver and the
+// CAN output be tested end to end without the feature extraction. Without
+// truth, it finds nothing.
 #pragma once
 
 #include <cstdint>
 
+#include "tcpest/hal/clock/clock.hpp"
 #include "tcpest/loop/ports.hpp"
 
 namespace tcpest {
@@ -15,23 +16,45 @@ namespace loop {
 
 class OraclePipeline final : public FeaturePipeline {
  public:
-  explicit OraclePipeline(double noise_px = 0.0) noexcept : noise_px_(noise_px) {}
+  // `config`: the solve's options and the encoders' check, as the estimator applies them.
+  OraclePipeline(const solver::CameraModel& camera, const solver::InstrumentModel& model, double noise_px = 0.0,
+                 const vision::EstimatorConfig& config = vision::EstimatorConfig{}) noexcept
+      : model_(model), solver_(camera, model, config.solve), check_(config.encoder_check), noise_px_(noise_px) {}
   const char* name() const noexcept override { return "oracle"; }
   void begin_frame(const hal::FrameInfo& info) noexcept override;
-  Status<StageError> classify(const ImageView& image) noexcept override;
-  Status<StageError> interpret(PriorSource source, const solver::PoseVector& prior_r) noexcept override;
-  Status<StageError> borders(const ImageView& image) noexcept override;
-  Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept override;
-  void end_frame(bool success) noexcept override;
-  void drop_track() noexcept override { successes_ = 0; }
-  bool has_temporal_prior() const noexcept override { return successes_ >= 2; }
-  const char* describe(StageError error) const noexcept override;
+  vision::FrameEstimate estimate(const ImageView& image, const vision::FramePrior& prior,
+                                 vision::StepObserver& observer) noexcept override;
+  void drop_track() noexcept override { ++drops_; }
+  void set_encoder_check(const solver::EncoderCheck& check) noexcept { check_ = check; }
+  int drops() const noexcept { return drops_; }
 
  private:
+  const solver::InstrumentModel& model_;
+  solver::PoseEstimator solver_;
+  solver::EncoderCheck check_;
   double noise_px_;
   hal::FrameTruth truth_{};
   std::uint32_t sequence_ = 0U;
-  int successes_ = 0;
+  int drops_ = 0;
+};
+
+// The oracle with an estimate that takes simulated time (overruns and slips).
+class SlowOracle final : public FeaturePipeline {
+ public:
+  SlowOracle(hal::SimulatedClock& clock, OraclePipeline& inner) noexcept : clock_(clock), inner_(inner) {}
+  const char* name() const noexcept override { return "slow"; }
+  void begin_frame(const hal::FrameInfo& info) noexcept override { inner_.begin_frame(info); }
+  vision::FrameEstimate estimate(const ImageView& image, const vision::FramePrior& prior,
+                                 vision::StepObserver& observer) noexcept override {
+    clock_.advance_ns(next_ns);
+    return inner_.estimate(image, prior, observer);
+  }
+  void drop_track() noexcept override { inner_.drop_track(); }
+  std::int64_t next_ns = 0;
+
+ private:
+  hal::SimulatedClock& clock_;
+  OraclePipeline& inner_;
 };
 
 }  // namespace loop

@@ -16,7 +16,7 @@
 #include "tcpest/loop/can_node_port.hpp"
 #include "tcpest/loop/executive.hpp"
 #include "tcpest/loop/motion.hpp"
-#include "tcpest/loop/oracle_pipeline.hpp"
+#include "oracle_pipeline.hpp"
 #include "tcpest/loop/rendered_scene.hpp"
 #include "tcpest/loop/vision_pipeline.hpp"
 #include "tcpest/test/alloc_counter.hpp"
@@ -226,7 +226,7 @@ TEST(LoopWithUnits, SyncTriggerAnswersEachSyncWithTheLatestEstimate) {
   motion.frames = 100U;
   ModelScene scene(m.camera, m.model, motion);
   hal::SimCamera source(scene, 25.0, false);
-  OraclePipeline pipeline;
+  OraclePipeline pipeline(m.camera, m.model);
   hal::SimulatedClock clock(hal::kNsPerS);
   auto bus = std::make_unique<hal::SimBus>();
   LoopConfig config;
@@ -273,34 +273,6 @@ TEST(LoopWithUnits, SyncTriggerAnswersEachSyncWithTheLatestEstimate) {
   EXPECT_EQ(loop.last().latency_ns, -1);
 }
 
-// The oracle with a classify stage that takes simulated time (cycle overruns).
-class SlowClassify final : public FeaturePipeline {
- public:
-  SlowClassify(hal::SimulatedClock& clock, OraclePipeline& inner) : clock_(clock), inner_(inner) {}
-  const char* name() const noexcept override { return "slow"; }
-  void begin_frame(const hal::FrameInfo& info) noexcept override { inner_.begin_frame(info); }
-  Status<StageError> classify(const ImageView& image) noexcept override {
-    clock_.advance_ns(next_ns);
-    return inner_.classify(image);
-  }
-  Status<StageError> interpret(PriorSource s, const solver::PoseVector& r) noexcept override {
-    return inner_.interpret(s, r);
-  }
-  Status<StageError> borders(const ImageView& image) noexcept override { return inner_.borders(image); }
-  Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept override {
-    return inner_.corners(image, out);
-  }
-  void end_frame(bool success) noexcept override { inner_.end_frame(success); }
-  void drop_track() noexcept override { inner_.drop_track(); }
-  bool has_temporal_prior() const noexcept override { return inner_.has_temporal_prior(); }
-  const char* describe(StageError e) const noexcept override { return inner_.describe(e); }
-  std::int64_t next_ns = 0;
-
- private:
-  hal::SimulatedClock& clock_;
-  OraclePipeline& inner_;
-};
-
 TEST(LoopWithUnits, PeriodTriggerSendsTheTcpFrameFirstAtTheTickEvenAfterAnOverrun) {
   // The cycle-overrun EMCY is decided at the end of its cycle: it goes out
   // then, not at the next tick ahead of the TCP frame (which it would delay).
@@ -309,9 +281,9 @@ TEST(LoopWithUnits, PeriodTriggerSendsTheTcpFrameFirstAtTheTickEvenAfterAnOverru
   motion.frames = 100U;
   ModelScene scene(m.camera, m.model, motion);
   hal::SimCamera source(scene, 25.0, false);
-  OraclePipeline oracle;
+  OraclePipeline oracle(m.camera, m.model);
   hal::SimulatedClock clock(hal::kNsPerS);
-  SlowClassify slow(clock, oracle);
+  SlowOracle slow(clock, oracle);
   auto bus = std::make_unique<hal::SimBus>();
   LoopConfig config;
   config.loop.trigger = Trigger::kPeriod;

@@ -184,13 +184,13 @@ struct TcpTally {
   std::vector<double> valid_mm, degraded_mm;
   double valid_sq_mm2[3] = {0.0, 0.0, 0.0};
 
-  void add(EstimateStatus status, const solver::Vec3& error_mm) {
-    if (status == EstimateStatus::Valid) {
+  void add(solver::EstimateQuality status, const solver::Vec3& error_mm) {
+    if (status == solver::EstimateQuality::Valid) {
       valid_mm.push_back(error_mm.norm());
       for (int c = 0; c < 3; ++c) {
         valid_sq_mm2[c] += error_mm[c] * error_mm[c];
       }
-    } else if (status == EstimateStatus::Degraded) {
+    } else if (status == solver::EstimateQuality::Degraded) {
       degraded_mm.push_back(error_mm.norm());
     }
   }
@@ -247,7 +247,7 @@ CornerScore score_corners(const render::Sidecar& truth, const EstimateResult& re
 void write_corner_rows(FILE* csv, const char* dir, bool pooled, const render::Sidecar& truth,
                        const EstimateResult& result, const vision::Extraction& e, const ModelSetup& setup) {
   solver::CornerSet model;
-  if (result.status != EstimateStatus::None) {
+  if (result.status != solver::EstimateQuality::None) {
     setup.instrument.corners(setup.camera, result.r, model);
   }
   for (std::size_t k = 0U; k < static_cast<std::size_t>(solver::kNumCorners); ++k) {
@@ -318,12 +318,12 @@ struct EvaluateTotals {
       }
       if (!success) {
         switch (result.status) {
-          case EstimateStatus::None:
+          case solver::EstimateQuality::None:
             ++failed_none;
             failed_none_no_corner += score.found == 0 ? 1 : 0;
             break;
-          case EstimateStatus::Degraded: ++failed_degraded; break;
-          case EstimateStatus::Valid: ++failed_valid; break;
+          case solver::EstimateQuality::Degraded: ++failed_degraded; break;
+          case solver::EstimateQuality::Valid: ++failed_valid; break;
         }
       }
     }
@@ -340,11 +340,11 @@ struct EvaluateTotals {
     stages_total_us.push_back(result.times.stage_us[0] + result.times.stage_us[1] + result.times.stage_us[2] +
                               result.times.stage_us[3]);
     solve_us.push_back(result.times.solve_us);
-    if (result.status == EstimateStatus::None || !truth.instrument.has_tcp) {
+    if (result.status == solver::EstimateQuality::None || !truth.instrument.has_tcp) {
       return -1.0;
     }
     solve_tcp.add(result.status, result.tcp - truth.instrument.tcp);
-    if (result.status == EstimateStatus::Valid && truth.instrument.has_r) {
+    if (result.status == solver::EstimateQuality::Valid && truth.instrument.has_r) {
       valid_joints.add(result.r, truth.instrument.r);
     }
     if (result.guided_rounds > 0) {

@@ -43,7 +43,7 @@ bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, std::int64
   }
   bool ok = std::fprintf(out, "%llu,%u,%.3f,%s,%s,%s,%s,%u,%u,%.3f,%.3f,%.3f,%.3f",
                          static_cast<unsigned long long>(r.cycle), r.frame_sequence, ms(r.trigger_ns - t0_ns),
-                         loop::to_string(p.status), loop::to_string(r.prior),
+                         can::to_string(p.status), vision::to_string(r.prior),
                          r.failed_stage >= 0 ? loop::kSchedule[static_cast<std::size_t>(r.failed_stage)].name : "",
                          r.failed_stage < 0 && r.have_frame ? solver::to_string(r.solve_status) : "",
                          static_cast<unsigned>(p.corners_detected), static_cast<unsigned>(p.corners_used), p.rms_px,

@@ -224,20 +224,13 @@ int LoopRig::open_bus(const char* log_path) noexcept {
 
 int LoopRig::build() noexcept {
   auto vision_pipeline = loop::VisionPipeline::create(models.camera, models.instrument, vision::default_color_model(),
-                                                      config.loop.classify_step);
+                                                      config.loop.estimator);
   if (!vision_pipeline.ok()) {
-    std::fprintf(stderr, "tcpest %s: feature extraction: %s\n", request.command,
+    std::fprintf(stderr, "tcpest %s: frame estimator: %s\n", request.command,
                  vision::to_string(vision_pipeline.error()));
     return kExitFailure;
   }
   vision = vision_pipeline.value().get();
-  vision->guided_options().rounds = config.loop.guided_rounds;
-  vision->guided_options().fallback_seeds = config.loop.fallback_seeds;
-  vision->guided_options().shaft_recheck = config.loop.shaft_recheck;
-  vision->guided_options().alias_check = config.loop.alias_check;
-  vision->guided_options().valid_start_check = config.loop.valid_start_check;
-  vision->guided_options().base_rim_seed = config.loop.base_rim_seed;
-  vision->guided_options().max_valid_tcp_disagreement_mm = config.loop.max_valid_tcp_disagreement_mm;
   pipeline = std::move(vision_pipeline.value());
   if (source->width() != models.camera.width() || source->height() != models.camera.height()) {
     std::fprintf(stderr, "tcpest %s: the source's frames are %dx%d, the camera calibration is %dx%d\n",

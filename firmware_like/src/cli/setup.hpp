@@ -13,16 +13,19 @@ namespace cli {
 // The options every model-using command takes, with one help text.
 constexpr OptionSpec kCalibOption{"calib", "CAM.yaml",
                                   "camera calibration (ROS camera_info YAML); default: the PAL camera of model.md"};
-constexpr OptionSpec kInstrumentConfigOption{"config", "CFG.yaml", "instrument configuration; default: built-in geometry"};
+constexpr OptionSpec kInstrumentConfigOption{"config", "CFG.yaml",
+                                             "configuration: the instrument and the loop:/can:/rt: sections, as "
+                                             "`tcpest run` reads them; default: the built-in geometry and defaults"};
 
 constexpr OptionSpec kGuidedRoundsOption{"guided-rounds", "N",
-                                         "model-guided corner rounds after the first solve, 0..4 (default 1; 0: stage 4's "
-                                         "corners, the paper's pipeline)"};
+                                         "model-guided corner rounds after the first solve, 0..4 (default: the "
+                                         "configuration's loop.guided_rounds, 1; 0: stage 4's corners, the paper's "
+                                         "pipeline)"};
 constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
                                           "image fits from other seeds (the prior's pose, the same without its class fit, "
                                           "the regions' pose, the prior's pose moved +/- 2 mm along the insertion, then "
                                           "with its theta and phi moved +/- 0.2 rad) on a frame not yet valid, 0..9 "
-                                          "(default 9; the loop's loop.fallback_seeds: 1)"};
+                                          "(default: the configuration's loop.fallback_seeds, 1)"};
 constexpr OptionSpec kDenseOption{"dense", nullptr,
                                   "the dense fit (every pixel around the instrument against a rendering of the "
                                   "model) on each frame not yet valid, on each valid one where at most 7 corners "

@@ -206,28 +206,20 @@ bool load_color_model(const char* command, const char* path, vision::ColorModel&
 }
 
 bool EstimatePipeline::init(const char* command, const ModelSetup& setup, const vision::ColorModel& colors,
-                            bool fixed_model) noexcept {
+                            const loop::LoopConfig& config) noexcept {
   setup_ = setup;
-  vision::ExtractorConfig config;
-  config.max_width = setup.camera.width() > 1920 ? setup.camera.width() : 1920;
-  config.max_height = setup.camera.height() > 1080 ? setup.camera.height() : 1080;
-  const auto& g = setup.instrument.geometry();
-  for (std::size_t m = 0U; m < static_cast<std::size_t>(vision::kNumMarkers); ++m) {
-    config.marker_classes[m] =
-        g.marker_colors[m] == solver::MarkerColor::Blue ? vision::PixelClass::Blue : vision::PixelClass::Yellow;
-  }
-  auto created = vision::FeatureExtractor::create(config, colors);
+  config_ = config;
+  auto created = vision::FrameEstimator::create(setup_.camera, setup_.instrument, colors, config.loop.estimator);
   if (!created.ok()) {
-    std::fprintf(stderr, "tcpest %s: feature extractor: %s\n", command, vision::to_string(created.error()));
+    std::fprintf(stderr, "tcpest %s: frame estimator: %s\n", command, vision::to_string(created.error()));
     return false;
   }
-  extractor_ = std::move(created.value());
-  estimator_.reset(new (std::nothrow) solver::PoseEstimator(setup_.camera, setup_.instrument));
-  if (estimator_ == nullptr) {
+  estimator_ = std::move(created.value());
+  track_.reset(new (std::nothrow) vision::Track(setup_.instrument, config.loop.track_drop_after));
+  if (track_ == nullptr) {
     std::fprintf(stderr, "tcpest %s: out of memory\n", command);
     return false;
   }
-  fixed_model_ = fixed_model;
   reset_sequence();
   return true;
 }
@@ -240,7 +232,7 @@ bool EstimatePipeline::enable_dense(const vision::DenseOptions& options) noexcep
   config.max_width = setup_.camera.width();
   config.max_height = setup_.camera.height();
   config.max_work_pixels = options.coarse_pixels > options.fine_pixels ? options.coarse_pixels : options.fine_pixels;
-  auto created = vision::DenseFit::create(setup_.camera, setup_.instrument, extractor_->colors(), config);
+  auto created = vision::DenseFit::create(setup_.camera, setup_.instrument, estimator_->extractor().colors(), config);
   if (!created.ok()) {
     return false;
   }
@@ -250,8 +242,8 @@ bool EstimatePipeline::enable_dense(const vision::DenseOptions& options) noexcep
 }
 
 void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedResult& guided,
-                                   const solver::PoseVector& start, bool encoders_given, solver::SolveMode mode,
-                                   solver::Estimate& estimate, EstimateResult& out) noexcept {
+                                   const solver::PoseVector& start, bool encoders_given, solver::Estimate& estimate,
+                                   EstimateResult& out) noexcept {
   // Seeds: the image fit's pose and the solve's, when the pipeline has them.
   solver::PoseVector seeds[vision::kMaxDenseSeeds];
   int seed_count = 0;
@@ -270,7 +262,7 @@ void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedR
   }
   // The extractor still holds the pipeline's own corners here.
   std::array<vision::Corner, vision::kNumCorners> corners = dense.corners;
-  vision::blend_pipeline_corners(corners, extractor_->result().corners, dense_options_);
+  vision::blend_pipeline_corners(corners, estimator_->extractor().result().corners, dense_options_);
   solver::CornerObservation observation;
   for (std::size_t k = 0; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
     if (corners[k].found) {
@@ -278,7 +270,7 @@ void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedR
       observation.visible[k] = true;
     }
   }
-  solver::Estimate refined = estimator_->estimate(observation, mode, dense.r);
+  solver::Estimate refined = estimator_->solver().estimate(observation, estimator_->config().solve_mode, dense.r);
   if (refined.quality == solver::EstimateQuality::None) {
     return;  // the pipeline's own result stays
   }
@@ -291,99 +283,80 @@ void EstimatePipeline::apply_dense(const ImageView& image, const vision::GuidedR
   vision::FeatureExtractor::CornerSnapshot snapshot;
   snapshot.corners = corners;
   snapshot.refined = true;
-  extractor_->restore_snapshot(snapshot);
+  estimator_->extractor().restore_snapshot(snapshot);
   out.dense_kept = true;
   out.streak_px = dense.streak_px;
 }
 
 void EstimatePipeline::reset_sequence() noexcept {
-  temporal_.reset();
-  have_previous_ = false;
+  track_->reset();
+  estimator_->drop_track();
 }
+
+namespace {
+// Times the estimator's steps on the wall clock (reported, never decided on).
+class StepTimer final : public vision::StepObserver {
+ public:
+  StepTimer() noexcept : start_(std::chrono::steady_clock::now()), last_(start_) {}
+  void step_done(vision::EstimationStep step) noexcept override {
+    const auto now = std::chrono::steady_clock::now();
+    us_[static_cast<std::size_t>(step)] += elapsed_us(last_, now);
+    last_ = now;
+  }
+  double us(vision::EstimationStep step) const noexcept { return us_[static_cast<std::size_t>(step)]; }
+  double total_us() const noexcept { return elapsed_us(start_, std::chrono::steady_clock::now()); }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+  std::chrono::steady_clock::time_point last_;
+  std::array<double, vision::kNumEstimationSteps> us_{};
+};
+}  // namespace
 
 EstimateResult EstimatePipeline::process(const ImageView& image, const double* prior_joints) noexcept {
   EstimateResult out;
-  const auto& g = setup_.instrument.geometry();
-  solver::PoseVector start = g.nominal_pose(25.0, 0.0, 0.0);
-  vision::MarkerPriors priors;
-  if (prior_joints != nullptr) {
-    start = g.nominal_pose(prior_joints[0], prior_joints[1], prior_joints[2]);
-    priors = vision::model_priors(setup_.camera, setup_.instrument, start);
-  } else if (!temporal_.priors(priors)) {
-    priors = vision::generic_priors(setup_.camera, setup_.instrument);
+  const vision::FramePrior prior = track_->choose(prior_joints);
+  StepTimer timer;
+  const vision::FrameEstimate frame = estimator_->estimate(image, prior, &timer);
+  // The track follows the estimator's own result, as in the loop, whether
+  // or not the dense stage replaces it below.
+  if (track_->update(frame)) {
+    estimator_->drop_track();
   }
-  if (prior_joints == nullptr && have_previous_) {
-    start = previous_r_;
+  solver::Estimate estimate = frame.estimate;
+  out.encoder_disagrees = frame.encoder_disagrees;
+  out.streak_px = frame.guided.fit.streak_px;
+  out.measured_corners = measured_corner_count(estimator_->extractor().result(), estimator_->extractor().config());
+  if (dense_ != nullptr && dense_stage_applies(estimate.quality, out.measured_corners, frame.encoder_disagrees,
+                                               frame.guided.fit.streak_px.norm(), dense_options_)) {
+    apply_dense(image, frame.guided, prior.r, prior_joints != nullptr, estimate, out);
+    if (out.dense_kept) {
+      // The stage replaced the estimate: the encoders' check and the
+      // prior's equivalent joints again.
+      out.encoder_disagrees = prior.source == vision::PriorSource::kEncoder &&
+                              solver::check_against_encoders(estimate, prior.r, estimator_->config().encoder_check);
+      estimate.r = solver::nearest_equivalent_joints(estimate.r, prior.r);
+    }
   }
-  vision::FeatureExtractor& fx = *extractor_;
-  const auto t0 = std::chrono::steady_clock::now();
-  auto status = fx.find_regions(image);
-  const auto t1 = std::chrono::steady_clock::now();
-  if (status.ok()) {
-    status = fx.interpret(priors);
-  }
-  const auto t2 = std::chrono::steady_clock::now();
-  if (status.ok()) {
-    status = fx.fit_borders(image);
-  }
-  const auto t3 = std::chrono::steady_clock::now();
-  if (status.ok()) {
-    status = fx.find_corners(image);
-  }
-  const auto t4 = std::chrono::steady_clock::now();
-  out.times.stage_us[0] = elapsed_us(t0, t1);
-  out.times.stage_us[1] = elapsed_us(t1, t2);
-  out.times.stage_us[2] = elapsed_us(t2, t3);
-  out.times.stage_us[3] = elapsed_us(t3, t4);
-  out.extraction_ok = status.ok();
-  out.extraction_error = status.ok() ? "" : vision::to_string(status.error());
-  const auto t5 = std::chrono::steady_clock::now();
-  const solver::SolveMode mode = fixed_model_ ? solver::SolveMode::FixedModel : solver::SolveMode::Adaptive;
-  const vision::GuidedResult guided = vision::guided_estimate(fx, *estimator_, setup_.camera, setup_.instrument, image,
-                                                              status.ok(), mode, start, guided_);
-  solver::Estimate estimate = guided.estimate;
-  out.streak_px = guided.fit.streak_px;
-  // `start` holds the encoders' joints when prior_joints is given. Asked
-  // before the dense stage, which also runs where they disagree.
-  bool encoders_disagree =
-      prior_joints != nullptr && solver::disagrees_with_encoders(estimate, start, encoder_check_);
-  // The temporal track follows the pipeline's own valid results, whether
-  // or not the dense stage runs (docs/vision.md, "The dense stage").
-  const bool pipeline_valid = estimate.quality == solver::EstimateQuality::Valid && !encoders_disagree;
-  const solver::PoseVector pipeline_r = estimate.r;
-  out.measured_corners = measured_corner_count(fx.result(), extractor_->config());
-  if (dense_ != nullptr && dense_stage_applies(estimate.quality, out.measured_corners, encoders_disagree,
-                                               guided.fit.streak_px.norm(), dense_options_)) {
-    apply_dense(image, guided, start, prior_joints != nullptr, mode, estimate, out);
-    // The stage may have replaced the estimate: ask again.
-    encoders_disagree = prior_joints != nullptr && solver::disagrees_with_encoders(estimate, start, encoder_check_);
-  }
-  if (encoders_disagree) {
-    estimate.quality = solver::demoted_one_level(estimate.quality);
-  }
-  out.encoder_disagrees = encoders_disagree;
-  // The prior's turn of phi and sign of theta (the loop reports the same).
-  estimate.r = solver::nearest_equivalent_joints(estimate.r, start);
-  const vision::Extraction& e = fx.result();
-  const auto t6 = std::chrono::steady_clock::now();
+  out.times.stage_us[0] = timer.us(vision::EstimationStep::kClassify);
+  out.times.stage_us[1] = timer.us(vision::EstimationStep::kInterpret);
+  out.times.stage_us[2] = timer.us(vision::EstimationStep::kBorders);
+  out.times.stage_us[3] = timer.us(vision::EstimationStep::kCorners);
+  out.times.solve_us = timer.us(vision::EstimationStep::kSolve) + timer.us(vision::EstimationStep::kRefine);
+  out.total_us = timer.total_us();
+  out.extraction_ok = frame.extraction_ok;
+  out.extraction_error = frame.extraction_ok ? "" : vision::to_string(frame.stage_error);
   out.summary = estimate.summary;
-  out.times.solve_us = elapsed_us(t5, t6);
-  out.total_us = elapsed_us(t0, t6);
   out.status = estimate.quality;
   out.corners_rejected = estimate.corners_rejected;
-  out.guided_rounds = guided.rounds_kept;
-  out.fit_disagrees = guided.disagreement_demoted;
+  out.guided_rounds = frame.guided.rounds_kept;
+  out.fit_disagrees = frame.guided.disagreement_demoted;
   if (estimate.quality != solver::EstimateQuality::None) {
     out.r = estimate.r;
     out.tcp = setup_.instrument.tcp(estimate.r);
   }
-  if (guided.rounds_kept > 0) {
-    out.fit_tcp = setup_.instrument.tcp(guided.fitted_r);
-  }
-  if (pipeline_valid) {
-    previous_r_ = solver::nearest_equivalent_joints(pipeline_r, start);
-    have_previous_ = true;
-    temporal_.add(e.interpretation);
+  if (frame.guided.rounds_kept > 0) {
+    out.fit_tcp = setup_.instrument.tcp(frame.guided.fitted_r);
   }
   return out;
 }
@@ -393,7 +366,7 @@ namespace {
 // An optional integer option 0..max into `out`; false after printing an error.
 bool apply_count(const char* command, const char* option, const char* value, int max, int& out) noexcept {
   if (value == nullptr) {
-    return true;  // the default stays
+    return true;  // the configuration's value stays
   }
   unsigned long long n = 0ULL;
   if (!parse_unsigned(value, n) || n > static_cast<unsigned long long>(max)) {
@@ -406,31 +379,40 @@ bool apply_count(const char* command, const char* option, const char* value, int
 
 }  // namespace
 
-bool apply_guided_rounds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept {
-  return apply_count(command, "guided-rounds", value, vision::kMaxGuidedRounds, pipeline.guided_options().rounds);
-}
-
-bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept {
-  return apply_count(command, "fallback-seeds", value, vision::kMaxFallbackSeeds,
-                     pipeline.guided_options().fallback_seeds);
-}
-
 bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& setup, EstimatePipeline& pipeline,
                              int& exit_code) noexcept {
   exit_code = kExitConfig;
-  if (!load_model_setup(command, args.value("calib"), args.value("config"), setup)) {
+  const char* config_path = args.value("config");
+  if (!load_model_setup(command, args.value("calib"), config_path, setup)) {
+    return false;
+  }
+  // The loop's configuration from the same file: what `tcpest run` would use.
+  static yaml::Document scratch;  // large: static storage
+  static loop::LoopConfig config;
+  const auto loaded = loop::load_loop_config(config_path, scratch, config);
+  if (!loaded.ok()) {
+    char message[768];
+    loaded.error().format(message, sizeof message);
+    std::fprintf(stderr, "tcpest %s: %s\n", command, message);
     return false;
   }
   vision::ColorModel colors;
   if (!load_color_model(command, args.value("colors"), colors)) {
     return false;
   }
-  if (!pipeline.init(command, setup, colors, args.flag("fixed-model"))) {
+  exit_code = kExitUsage;
+  vision::EstimatorConfig& e = config.loop.estimator;
+  if (args.flag("fixed-model")) {
+    e.solve_mode = solver::SolveMode::FixedModel;
+  }
+  if (!apply_count(command, "guided-rounds", args.value("guided-rounds"), vision::kMaxGuidedRounds,
+                   e.guided.rounds) ||
+      !apply_count(command, "fallback-seeds", args.value("fallback-seeds"), vision::kMaxFallbackSeeds,
+                   e.guided.fallback_seeds)) {
     return false;
   }
-  exit_code = kExitUsage;
-  if (!apply_guided_rounds(command, args.value("guided-rounds"), pipeline) ||
-      !apply_fallback_seeds(command, args.value("fallback-seeds"), pipeline)) {
+  exit_code = kExitConfig;
+  if (!pipeline.init(command, setup, colors, config)) {
     return false;
   }
   if (args.flag("dense") && !pipeline.enable_dense(vision::DenseOptions{})) {
@@ -438,12 +420,13 @@ bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& 
     exit_code = kExitFailure;
     return false;
   }
+  exit_code = kExitOk;
   return true;
 }
 
 void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableImageView& image) const noexcept {
   vision::ReprojectedModel model;
-  if (result.status != EstimateStatus::None) {
+  if (result.status != solver::EstimateQuality::None) {
     solver::CornerSet cs;
     setup_.instrument.corners(setup_.camera, result.r, cs);
     model.valid = true;
@@ -457,7 +440,7 @@ void EstimatePipeline::draw_overlay(const EstimateResult& result, const MutableI
       model.tcp = vision::Point{tcp_px.x(), tcp_px.y()};
     }
   }
-  vision::draw_extraction(image, extractor_->result(), model);
+  vision::draw_extraction(image, estimator_->extractor().result(), model);
 }
 
 bool dense_stage_applies(solver::EstimateQuality quality, int measured_corners, bool encoders_disagree,
@@ -524,7 +507,7 @@ void format_estimate_json(const char* image, const EstimateResult& result, const
     }
   }
   advance(std::snprintf(out + used, capacity - used, "\", \"status\": \"%s\"", to_string(result.status)));
-  if (result.status != EstimateStatus::None) {
+  if (result.status != solver::EstimateQuality::None) {
     advance(std::snprintf(out + used, capacity - used, ", \"tcp\": [%.4f, %.4f, %.4f], \"r\": [", result.tcp.x(),
                           result.tcp.y(), result.tcp.z()));
     for (int i = 0; i < solver::kNumParams; ++i) {

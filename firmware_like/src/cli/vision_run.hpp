@@ -16,7 +16,9 @@
 #include "tcpest/solver/pose_estimator.hpp"
 #include "tcpest/vision/dense_estimate.hpp"
 #include "tcpest/vision/features.hpp"
+#include "tcpest/vision/frame_estimator.hpp"
 #include "tcpest/vision/guided_estimate.hpp"
+#include "tcpest/loop/config.hpp"
 
 namespace tcpest {
 namespace cli {
@@ -51,16 +53,13 @@ class ImageReader {
 // --colors FILE or the built-in model. False after printing an error.
 bool load_color_model(const char* command, const char* path, vision::ColorModel& out) noexcept;
 
-// valid / degraded / none: the solver's judgement, shared with the loop.
-using EstimateStatus = solver::EstimateQuality;
-
 struct StageTimes {
   double stage_us[4] = {0.0, 0.0, 0.0, 0.0};
   double solve_us = 0.0;
 };
 
 struct EstimateResult {
-  EstimateStatus status = EstimateStatus::None;
+  solver::EstimateQuality status = solver::EstimateQuality::None;
   solver::PoseVector r = solver::PoseVector::Zero();
   solver::Vec3 tcp = solver::Vec3::Zero();
   // With a model-guided round kept (guided_rounds > 0): the TCP of the pose
@@ -90,17 +89,23 @@ struct EstimateResult {
   double total_us = 0.0;
 };
 
+// The offline commands' frame loop: the loop's own FrameEstimator and Track
+// (vision/frame_estimator.hpp) with the loop's configuration, so that a
+// sequence of images gives the estimates `tcpest run` sends; plus, on
+// request, the offline dense stage (a research tool the loop never runs).
 class EstimatePipeline {
  public:
+  // `config`: the loop's configuration (its `loop:` section sets the
+  // estimator and the track).
   bool init(const char* command, const ModelSetup& setup, const vision::ColorModel& colors,
-            bool fixed_model) noexcept;
+            const loop::LoopConfig& config) noexcept;
   // One frame of a sequence. `prior_joints` (lambda, phi, theta) may be null.
   EstimateResult process(const ImageView& image, const double* prior_joints) noexcept;
   void reset_sequence() noexcept;
-  const vision::FeatureExtractor& extractor() const noexcept { return *extractor_; }
+  const vision::FeatureExtractor& extractor() const noexcept { return estimator_->extractor(); }
   const ModelSetup& setup() const noexcept { return setup_; }
-  // The model-guided rounds after the first solve (0: stage 4's corners only).
-  vision::GuidedOptions& guided_options() noexcept { return guided_; }
+  // The loop's configuration the pipeline was made with.
+  const loop::LoopConfig& config() const noexcept { return config_; }
   // The dense stage on the frames the pipeline does not make valid or on
   // which it read a motion streak (off until enabled; offline only:
   // several seconds per frame). False: the options are out of range or its
@@ -111,29 +116,16 @@ class EstimatePipeline {
 
  private:
   ModelSetup setup_{};
-  std::unique_ptr<vision::FeatureExtractor> extractor_;
-  std::unique_ptr<solver::PoseEstimator> estimator_;
-  vision::TemporalPriors temporal_{};
-  vision::GuidedOptions guided_{};
-  solver::EncoderCheck encoder_check_{};  // applied when a frame has the encoders' joints (docs/solver.md)
-  bool fixed_model_ = false;
+  loop::LoopConfig config_{};
+  std::unique_ptr<vision::FrameEstimator> estimator_;
+  std::unique_ptr<vision::Track> track_;
   // `start` holds the encoders' joints when `encoders_given`: the stage's
   // fits are then held within its box around them.
   void apply_dense(const ImageView& image, const vision::GuidedResult& guided, const solver::PoseVector& start,
-                   bool encoders_given, solver::SolveMode mode, solver::Estimate& estimate,
-                   EstimateResult& out) noexcept;
+                   bool encoders_given, solver::Estimate& estimate, EstimateResult& out) noexcept;
   std::unique_ptr<vision::DenseFit> dense_;
   vision::DenseOptions dense_options_{};
-  bool have_previous_ = false;
-  solver::PoseVector previous_r_ = solver::PoseVector::Zero();
 };
-
-// --guided-rounds VALUE (may be null: the default stays). False after
-// printing an error.
-bool apply_guided_rounds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept;
-// --fallback-seeds VALUE (may be null: the default stays). False after
-// printing an error.
-bool apply_fallback_seeds(const char* command, const char* value, EstimatePipeline& pipeline) noexcept;
 
 class Args;
 

@@ -10,6 +10,7 @@
 #include "tcpest/common/diagnostic.hpp"
 #include "tcpest/common/result.hpp"
 #include "tcpest/common/yaml_lite.hpp"
+#include "tcpest/vision/frame_estimator.hpp"
 
 namespace tcpest {
 namespace loop {
@@ -21,8 +22,6 @@ enum class Trigger : std::uint8_t {
 };
 const char* to_string(Trigger trigger) noexcept;
 
-enum class SolveModeSetting : std::uint8_t { kAdaptive, kFixedModel };
-
 constexpr std::size_t kMaxSpecText = 256U;
 
 struct LoopSettings {
@@ -33,26 +32,13 @@ struct LoopSettings {
   char source[kMaxSpecText] = "sim";   // sim | DIR | LIST.txt | FILE.y4m | /dev/videoN
   bool replay_loop = false;            // replay sources start again at their end
   char v4l2_format[16] = "yuyv";       // yuyv | mjpeg | rgb24
-  SolveModeSetting solve_mode = SolveModeSetting::kAdaptive;
-  int classify_step = 0;               // vision stage 1 grid: 0 = auto (2 from 4 PAL frames of pixels on), 1, 2
-  int track_drop_after = 5;            // consecutive failed frames before the track is dropped
-  int min_corners_valid = 6;           // fewer corners used: status "degraded"
-  double max_rms_valid_px = 2.0;       // larger RMS reprojection error: status "degraded"
-  // An estimate farther than these from the encoders' joints (when the
-  // frame's prior is theirs) loses one level: valid -> degraded -> held
-  // (solver::EncoderCheck; twice model.md's coarse prior; 0 = not checked).
-  double encoder_check_lambda_mm = 6.0;
-  double encoder_check_bend_rad = 0.5;  // |theta (cos phi, sin phi) - theirs|
-  int outlier_rounds = 2;              // re-solves without corners far from the model (0..4; solver::EstimateOptions)
-  int guided_rounds = 1;               // model-guided corner rounds after the first solve (0..4; 0: stage 4's corners)
-  int fallback_seeds = 1;              // image fits from other seeds on a frame not yet valid (0..9; vision::GuidedOptions)
-  bool shaft_recheck = false;          // a valid frame tried again from the shaft's channel pose (vision::GuidedOptions)
-  bool alias_check = false;            // a result 3 mm off the encoders' insertion tried two stripes back (vision::GuidedOptions)
-  bool valid_start_check = false;      // a valid frame tried again from the start seed (vision::GuidedOptions)
-  bool base_rim_seed = true;           // no fit kept: the channel from the shaft, the insertion from the base's rim (vision::GuidedOptions)
-  // A valid solve whose TCP lies farther than this from its image fit's
-  // pose's TCP: degraded (vision::GuidedOptions; 0 = not checked).
-  double max_valid_tcp_disagreement_mm = 2.0;
+  int track_drop_after = 5;            // consecutive failed frames before the track is dropped (vision::Track)
+  // Everything that decides an estimate (solve mode, validity test, outlier
+  // rounds, encoders' check, guided rounds and seeds, stage 1's grid): the
+  // estimator's own configuration, whose defaults are declared once, in
+  // vision/frame_estimator.hpp. The `loop:` keys that set it are listed in
+  // docs/loop.md and docs/estimation.md.
+  vision::EstimatorConfig estimator{};
   int camera_timeout_ms = 200;         // a live camera silent this long counts as not ready
   int camera_lost_after = 5;           // consecutive not-ready cycles before the camera is lost
   int retry_ms = 1000;                 // reopen attempts for a lost camera or bus

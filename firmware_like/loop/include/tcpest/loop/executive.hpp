@@ -156,17 +156,16 @@ class Executive {
   CycleOutcome wait_trigger() noexcept;
   void step_publish(std::int64_t trigger_ns) noexcept;
   bool step_acquire() noexcept;
-  void run_pipeline() noexcept;
-  void step_solve() noexcept;
-  void step_refine(const ImageView& image) noexcept;
-  void take_estimate() noexcept;
+  // The frame's estimate (its steps timed into the record); returns the
+  // clock's reading at its end.
+  std::int64_t run_pipeline() noexcept;
   void step_housekeeping() noexcept;
   // Heartbeat and EMCY out now (the node's housekeeping); `where` is the
   // bus-lost EMCY's detail (1 receive, 2 housekeeping, 3 after the cycle).
   void flush_node(std::int64_t now_ns, std::uint32_t where) noexcept;
   void choose_prior(std::int64_t now_ns) noexcept;
   void make_publication() noexcept;
-  void reset_track() noexcept;
+  void on_track_dropped() noexcept;
   bool camera_cycle() const noexcept;
 
   LoopConfig config_;
@@ -179,9 +178,6 @@ class Executive {
   std::unique_ptr<std::uint8_t[]> frame_buffer_;
   MutableImageView frame_view_{};
   std::unique_ptr<LoopStats> stats_;
-  std::unique_ptr<solver::PoseEstimator> estimator_;
-  solver::EncoderCheck encoder_check_{};  // from loop.encoder_check_*, checked at create()
-  solver::Estimate estimate_{};
   CycleObserver* observer_ = nullptr;
   CycleRecord record_{};
   hal::FrameInfo info_{};
@@ -189,14 +185,9 @@ class Executive {
   bool finished_ = false;
   bool sync_missed_ = false;  // the SYNC trigger's wait timed out
 
-  // The track and the estimate.
-  solver::CornerObservation corners_{};
-  solver::PoseVector prior_r_ = solver::PoseVector::Zero();
-  solver::PoseVector last_r_ = solver::PoseVector::Zero();
-  solver::PoseVector generic_r_ = solver::PoseVector::Zero();
-  bool have_estimate_ = false;   // a last estimate exists (held status repeats it)
-  bool track_alive_ = false;
-  int failed_frames_ = 0;
+  // The track: which prior each frame gets, what a held frame repeats.
+  vision::Track track_;
+  vision::FramePrior prior_{};
   Publication last_publication_{};
   bool have_pending_ = false;    // publish-first: an estimate waits for the next tick
   std::uint16_t frame_counter_ = 0U;

@@ -62,7 +62,7 @@ class MemoryNode final : public NodePort {
   std::uint64_t published_ = 0U;
   std::uint64_t heartbeats_ = 0U;
   std::uint64_t emcy_ = 0U;
-  std::uint8_t faults_ = 0U;
+  std::uint32_t faults_ = 0U;  // bit per can::Fault (ids below 32)
 };
 
 }  // namespace loop

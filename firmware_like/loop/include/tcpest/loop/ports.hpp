@@ -8,26 +8,20 @@
 
 #include "tcpest/common/image.hpp"
 #include "tcpest/common/result.hpp"
+#include "tcpest/can_iface/emcy.hpp"
+#include "tcpest/can_iface/messages.hpp"
 #include "tcpest/hal/camera/frame_source.hpp"
 #include "tcpest/solver/pose_estimator.hpp"
+#include "tcpest/vision/frame_estimator.hpp"
 
 namespace tcpest {
 namespace loop {
 
-// Where the start of a frame's interpretation and solve came from.
-enum class PriorSource : std::uint8_t {
-  kGeneric = 0,   // no track: the documented generic prior (nominal pose)
-  kTemporal = 1,  // the last successful frames of the current track
-  kEncoder = 2,   // a fresh, E2E-valid ENCODER_PRIOR from the robot
-};
-const char* to_string(PriorSource source) noexcept;
+// Where a frame's prior came from: one definition, the estimator's.
+using PriorSource = vision::PriorSource;
 
-// A stage's failure: its unit's own error code (the pipeline names it).
-struct StageError {
-  std::uint8_t code = 0U;
-};
-
-// Vision stages 1-4 (tcpest_vision's FeatureExtractor, or a stand-in).
+// The frame estimator (tcpest_vision's FrameEstimator, or a stand-in in the
+// loop's tests): one frame and its prior in, one estimate out.
 class FeaturePipeline {
  public:
   FeaturePipeline() noexcept = default;
@@ -38,47 +32,21 @@ class FeaturePipeline {
   FeaturePipeline& operator=(FeaturePipeline&&) = delete;
 
   virtual const char* name() const noexcept = 0;
-  // Called before the stages with what the source knows (the oracle uses the truth).
+  // Called before estimate() with what the source knows of the frame.
   virtual void begin_frame(const hal::FrameInfo& info) noexcept { static_cast<void>(info); }
-  virtual Status<StageError> classify(const ImageView& image) noexcept = 0;
-  // prior_r: the configuration the prior comes from (encoder / last estimate / nominal).
-  virtual Status<StageError> interpret(PriorSource source, const solver::PoseVector& prior_r) noexcept = 0;
-  virtual Status<StageError> borders(const ImageView& image) noexcept = 0;
-  virtual Status<StageError> corners(const ImageView& image, solver::CornerObservation& out) noexcept = 0;
-  // After the first solve from corners() (which may have given no pose):
-  // the model-guided rounds (vision's guided_rounds; `start` is the prior's
-  // configuration, a fallback seed), which may replace `estimate`; false when
-  // none was kept. A stand-in pipeline keeps the first estimate.
-  virtual bool refine(const ImageView& image, solver::PoseEstimator& estimator, solver::SolveMode mode,
-                      const solver::PoseVector& start, solver::Estimate& estimate) noexcept {
-    static_cast<void>(image);
-    static_cast<void>(estimator);
-    static_cast<void>(mode);
-    static_cast<void>(start);
-    static_cast<void>(estimate);
-    return false;
-  }
-  // After a refine() that returned true: it degraded a valid solve that its
-  // image fit contradicts at the TCP (vision::GuidedOptions::
-  // max_valid_tcp_disagreement_mm), for the cycle's record. A stand-in
-  // pipeline never does.
-  virtual bool refine_degraded_by_fit() const noexcept { return false; }
-  // End of a frame: `success` feeds the temporal prior.
-  virtual void end_frame(bool success) noexcept = 0;
-  // The track is dropped: forget the temporal prior.
+  // The observer is told when each step ends (the loop times the steps).
+  virtual vision::FrameEstimate estimate(const ImageView& image, const vision::FramePrior& prior,
+                                         vision::StepObserver& observer) noexcept = 0;
+  // The track is dropped: forget the temporal priors.
   virtual void drop_track() noexcept = 0;
-  // The temporal prior has enough frames to be used.
-  virtual bool has_temporal_prior() const noexcept = 0;
-  virtual const char* describe(StageError error) const noexcept = 0;
 };
 
 // The CiA 301 state the node is in (the CAN unit's NMT state machine).
 enum class NodeMode : std::uint8_t { kBootUp, kPreOperational, kOperational, kStopped };
 const char* to_string(NodeMode mode) noexcept;
 
-// Status nibble of TCP/JOINTS (can-protocol.md).
-enum class EstimateStatus : std::uint8_t { kValid = 0U, kDegraded = 1U, kHeld = 2U, kInvalid = 3U };
-const char* to_string(EstimateStatus status) noexcept;
+// Status nibble of TCP/JOINTS (can-protocol.md): one definition, the protocol's.
+using EstimateStatus = can::EstimateStatus;
 
 // What one cycle publishes, in physical units (the node encodes it).
 struct Publication {
@@ -98,15 +66,12 @@ struct JointPrior {
   double theta_rad = 0.0;
 };
 
-// Faults the loop reports (EMCY; bytes 3-7 manufacturer-specific).
-enum class Fault : std::uint8_t {
-  kCameraLost = 1,    // no frames: device gone or silent
-  kBusLost = 2,       // sends or receives fail
-  kCycleOverrun = 3,  // a cycle ran past its period (reported once per run of overruns)
-  kFrameErrors = 4,   // frames dropped as corrupt (reported once per run of errors)
-  kTrackingLost = 5,  // the track was dropped after the configured failed frames (until re-acquired)
-};
-const char* to_string(Fault fault) noexcept;
+// Faults the loop reports (EMCY): one definition, the protocol's
+// (can_iface/emcy.hpp). The loop raises kCameraTimeout (no frames: device
+// gone or silent), kCanTxDropped (sends or receives fail), kCycleOverrun
+// (once per run of overruns), kImageCorrupt (frames dropped as corrupt, once
+// per run) and kTrackingLost (the track was dropped, until re-acquired).
+using Fault = can::Fault;
 
 enum class PortError : std::uint8_t {
   kNone = 0,

@@ -12,6 +12,8 @@
 #include <array>
 #include <cstdint>
 
+#include "tcpest/vision/frame_estimator.hpp"
+
 namespace tcpest {
 namespace loop {
 
@@ -62,6 +64,15 @@ constexpr std::int64_t cycle_budget_us() noexcept {
 
 constexpr int index_of(Step step) noexcept { return static_cast<int>(step); }
 constexpr const char* step_name(Step step) noexcept { return kSchedule[static_cast<std::size_t>(step)].name; }
+
+// The estimator's steps are the schedule's, from kClassify to kRefine.
+constexpr Step step_of(vision::EstimationStep step) noexcept {
+  return static_cast<Step>(static_cast<int>(step) + static_cast<int>(Step::kClassify));
+}
+static_assert(step_of(vision::EstimationStep::kClassify) == Step::kClassify &&
+                  step_of(vision::EstimationStep::kSolve) == Step::kSolve &&
+                  step_of(vision::EstimationStep::kRefine) == Step::kRefine,
+              "the estimator's steps must map onto the schedule's");
 
 // The table is in Step order (index_of(s) is its row): checked at compile time.
 constexpr bool schedule_in_order() noexcept {
