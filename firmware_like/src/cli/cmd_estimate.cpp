@@ -9,6 +9,8 @@
 #include "cli/commands.hpp"
 #include "cli/setup.hpp"
 #include "cli/vision_run.hpp"
+#include "tcpest/can_iface/messages.hpp"
+#include "tcpest/hal/can/candump_log.hpp"
 #include "tcpest/render/image_io.hpp"
 
 namespace tcpest {
@@ -26,6 +28,9 @@ const OptionSpec kSpecs[] = {
     kDenseOption,
     {"overlay", "DIR", "write DIR/<image name>.overlay.jpg: borders, corners, model at the estimate, TCP"},
     {"json", nullptr, "one JSON object per image and line"},
+    {"can-log", "FILE",
+     "write the TCP and JOINTS frames the loop would send for each image (candump log; alive counter = image "
+     "index mod 15; an image without an estimate: status invalid)"},
 };
 constexpr std::size_t kSpecCount = sizeof kSpecs / sizeof kSpecs[0];
 
@@ -41,7 +46,7 @@ void print_estimate_line(const char* path, const EstimateResult& result, const v
   if (!result.extraction_ok) {
     std::printf(")");
   }
-  if (result.status != EstimateStatus::None) {
+  if (result.status != solver::EstimateQuality::None) {
     std::printf(", TCP [%.2f, %.2f, %.2f] mm, rms %.3f px, %d iterations", result.tcp.x(), result.tcp.y(),
                 result.tcp.z(), result.summary.rms_px, result.summary.iterations);
   }
@@ -76,7 +81,42 @@ struct EstimateRun {
   const char* overlay_dir;
   const double* prior;  // the encoders' joints for every image (nullptr: none)
   bool json;
+  hal::CandumpLogWriter* can_log;  // nullptr: no --can-log
+  std::uint32_t index;             // of the image in the sequence
+  int can_log_errors;
 };
+
+// The estimate's TCP and JOINTS frames as the loop's CAN node encodes them:
+// what `tcpest run` sends for the same frame with the same prior.
+void log_can_frames(EstimateRun& run, const EstimateResult& result) {
+  const std::uint8_t node_id = run.pipeline.config().can.node_id;
+  const auto counter = static_cast<std::uint8_t>(run.index % (can::kMaxAliveCounter + 1U));
+  can::EstimateStatus status = can::EstimateStatus::kInvalid;
+  if (result.status == solver::EstimateQuality::Valid) {
+    status = can::EstimateStatus::kValid;
+  } else if (result.status == solver::EstimateQuality::Degraded) {
+    status = can::EstimateStatus::kDegraded;
+  }
+  const bool solved = status != can::EstimateStatus::kInvalid;
+  can::TcpMessage tcp;
+  tcp.x_mm = solved ? result.tcp.x() : 0.0;
+  tcp.y_mm = solved ? result.tcp.y() : 0.0;
+  tcp.z_mm = solved ? result.tcp.z() : 0.0;
+  tcp.status = status;
+  tcp.counter = counter;
+  can::JointsMessage joints;
+  joints.lambda_mm = solved ? result.r[solver::kLambda] : 0.0;
+  joints.phi_rad = solved ? result.r[solver::kPhi] : 0.0;
+  joints.theta_rad = solved ? result.r[solver::kTheta] : 0.0;
+  joints.status = status;
+  joints.counter = counter;
+  can::Frame frames[2];
+  const std::int64_t t_us = static_cast<std::int64_t>(run.index) * 40000;  // 25 Hz
+  const bool encoded = can::encode_tcp(node_id, tcp, frames[0]).ok() && can::encode_joints(node_id, joints, frames[1]).ok();
+  if (!encoded || !run.can_log->write(frames[0], t_us).ok() || !run.can_log->write(frames[1], t_us).ok()) {
+    ++run.can_log_errors;
+  }
+}
 
 // One image: read, estimated and reported (a line, or a JSON object), its
 // overlay written. False when the image cannot be read or its size is not
@@ -101,6 +141,9 @@ bool estimate_image(EstimateRun& run, const char* path) {
     return false;
   }
   const EstimateResult result = run.pipeline.process(view, run.prior);
+  if (run.can_log != nullptr) {
+    log_can_frames(run, result);
+  }
   const vision::Extraction& e = run.pipeline.extractor().result();
   if (run.json) {
     char line[4096];
@@ -133,7 +176,8 @@ int cmd_estimate(int argc, char** argv) {
   }
   if (args.help_requested()) {
     print_usage("tcpest estimate --calib CAM.yaml [--config CFG] [--colors MODEL] [--prior LAMBDA,PHI,THETA] "
-                "[--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--dense] [--overlay DIR] [--json] IMAGE...",
+                "[--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--dense] [--overlay DIR] [--json] "
+                "[--can-log FILE] IMAGE...",
                 "Extracts the labelled apparent corners of each image (JPEG or PPM) and solves the pose.",
                 kSpecs, kSpecCount);
     return kExitOk;
@@ -164,13 +208,27 @@ int cmd_estimate(int argc, char** argv) {
   if (overlay_dir != nullptr && !open_overlay(overlay_dir, pipeline, encoder)) {
     return kExitFailure;
   }
+  static hal::CandumpLogWriter can_log;  // large buffer: static storage
+  const char* can_log_path = args.value("can-log");
+  if (can_log_path != nullptr) {
+    const auto opened = can_log.open(can_log_path, "est");
+    if (!opened.ok()) {
+      std::fprintf(stderr, "tcpest estimate: --can-log %s: %s\n", can_log_path, hal::to_string(opened.error()));
+      return kExitFailure;
+    }
+  }
   std::vector<std::uint8_t> pixels;
   EstimateRun run{setup, pipeline, reader, pixels, encoder.get(), overlay_dir, has_prior ? prior : nullptr,
-                  args.flag("json")};
+                  args.flag("json"), can_log_path != nullptr ? &can_log : nullptr, 0U, 0};
   int failures = 0;
   for (std::size_t i = 0U; i < args.positional_count(); ++i) {
+    run.index = static_cast<std::uint32_t>(i);
     failures += estimate_image(run, args.positional(i)) ? 0 : 1;
     static_cast<void>(std::fflush(stdout));  // one line per image, as it comes
+  }
+  if (can_log_path != nullptr && (!can_log.close().ok() || run.can_log_errors > 0)) {
+    std::fprintf(stderr, "tcpest estimate: --can-log %s: writing failed\n", can_log_path);
+    return kExitFailure;
   }
   return failures == 0 ? kExitOk : kExitFailure;
 }
