@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# The results page: the shipped configuration (the estimator's built-in
+# defaults, the same `tcpest run` uses) scored on both data sources side by
+# side -- our renderer's sets at fixed seeds and the independent frames in
+# ../shared/data/independent -- and the loop's cycle times on a sequence of
+# each. Writes OUT/results.md (default build/results; docs/results.md is its
+# output, committed). A few minutes on two cores.
+#
+#   toolchain/results.sh [OUT]
+#   CONFIG=candidate.yaml toolchain/results.sh OUT   (a candidate configuration: its loop: section, for both commands)
+#   TCPEST=path/to/tcpest EVALUATE_ARGS="--fallback-seeds 1" toolchain/results.sh OUT   (another build or setting)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out="${1:-build/results}"
+tcpest="${TCPEST:-build/default/firmware_like/tcpest}"
+independent="${INDEPENDENT_DIR:-../shared/data/independent}"
+read -r -a extra <<<"${EVALUATE_ARGS:-}"
+config_args=()
+[ -n "${CONFIG:-}" ] && config_args=(--config "$CONFIG")
+if [ ! -x "$tcpest" ]; then
+  echo "results: no tcpest at $tcpest (build first: cmake --preset default && cmake --build build/default)" >&2
+  exit 1
+fi
+if [ ! -d "$independent" ]; then
+  echo "results: the independent frames are not at $independent (set INDEPENDENT_DIR)" >&2
+  exit 1
+fi
+mkdir -p "$out"
+
+# Our renderer's sets: the documented seeds (lab 77, hard 78, sequence 79).
+frames="${OWN_FRAMES:-294}"
+[ -d "$out/own_lab" ] || "$tcpest" render --set lab --n "$frames" --seed 77 --out "$out/own_lab" --quiet
+[ -d "$out/own_hard" ] || "$tcpest" render --set hard --n "$frames" --seed 78 --out "$out/own_hard" --quiet
+[ -d "$out/own_seq" ] || "$tcpest" render --set seq --n 100 --seed 79 --out "$out/own_seq" --quiet
+
+pal="$independent/cams/pal.yaml"
+hd="$independent/cams/hd.yaml"
+evaluate() {  # NAME CALIB DIR [ARGS...]
+  local name="$1" calib="$2" dir="$3"
+  shift 3
+  local calib_args=()
+  [ -n "$calib" ] && calib_args=(--calib "$calib")
+  "$tcpest" evaluate "${calib_args[@]}" "${config_args[@]}" "${extra[@]}" "$@" "$dir" >"$out/eval_$name.txt"
+}
+evaluate own_lab "" "$out/own_lab"
+evaluate own_hard "" "$out/own_hard"
+evaluate own_seq "" "$out/own_seq" --no-prior
+evaluate ind_lab "$pal" "$independent/pal_lab"
+evaluate ind_hard "$pal" "$independent/pal_hard"
+evaluate ind_real "$pal" "$independent/pal_real"
+evaluate ind_seq "$pal" "$independent/pal_seq" --no-prior
+evaluate ind_hd "$hd" "$independent/hd_lab"
+
+# The loop itself on a sequence of each source (no encoders, as fast as it goes).
+run() {  # NAME CALIB DIR
+  local calib_args=()
+  [ -n "$2" ] && calib_args=(--calib "$2")
+  "$tcpest" run "${calib_args[@]}" "${config_args[@]}" --source "$3" --bus "log:$out/run_$1.log" --no-pacing --quiet >"$out/run_$1.txt"
+}
+run own_seq "" "$out/own_seq"
+run ind_seq "$pal" "$independent/pal_seq"
+
+python3 toolchain/results_table.py "$out" >"$out/results.md"
+echo "results: $out/results.md"
