@@ -159,56 +159,53 @@ bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, con
   return false;
 }
 
-// Which of the start's variants the fallback seeds tried (GuidedResult's
-// unmoved_tried, insertion_tried and bend_tried), and the start's shaft fit
-// when the start seed made it (the base-rim seed needs the same one).
-struct SeedsTried {
-  bool unmoved = false;
-  bool insertion = false;
-  bool bend = false;
-  bool start_shaft_fitted = false;  // fit_channel_to_shaft was run from `start`
-  bool start_shaft_ok = false;      // ... and succeeded: start_shafted holds its pose
-  solver::PoseVector start_shafted = solver::PoseVector::Zero();
+// The start's shaft fit when the start seed made it (the base-rim seed
+// needs the same one: the same fit of the same image from the same pose).
+struct StartShaft {
+  bool fitted = false;  // fit_channel_to_shaft was run from `start`
+  bool ok = false;      // ... and succeeded: `shafted` holds its pose
+  solver::PoseVector shafted = solver::PoseVector::Zero();
 };
 
-// The fallback seeds' order (try_fallback_seeds).
-constexpr int kStartSeed = 0;
-constexpr int kRegionsSeed = 1;
-constexpr int kInsertionForthSeed = 2;
-constexpr int kInsertionBackSeed = 3;
-constexpr int kBendSeed = 4;  // 4, 5: theta +, -; 6, 7: phi +, -
-constexpr int kSeedIndices = 8;
-
-// Fallback seed `seed_index`'s pose from `start` and the rule its result
-// must meet (SeedRule); false when the options or the start leave it out.
+// A fallback seed's pose from `start` and the rule its result must meet
+// (its policy row's acceptance); false when the options or the start leave
+// it out. The unmoved start is not made here: it is the start seed's pose
+// before its class fit.
 bool fallback_seed(FeatureExtractor& extractor, const solver::CameraModel& camera,
                    const solver::InstrumentModel& model, const solver::PoseVector& start, const GuidedOptions& options,
-                   int seed_index, solver::PoseVector& seed_r, SeedRule& rule) noexcept {
+                   StepKind kind, solver::PoseVector& seed_r, SeedRule& rule) noexcept {
   seed_r = start;
   rule = SeedRule{};
-  if (seed_index == kStartSeed) {
-    return options.start_seed && start.allFinite();
-  }
-  if (seed_index == kRegionsSeed) {
-    return options.from_regions && extractor.pose_from_regions(camera, model, seed_r).ok();
-  }
-  if (seed_index >= kBendSeed) {
-    if (!options.start_seed || !(options.bend_seed_step_rad > 0.0) || !start.allFinite()) {
-      return false;
+  switch (kind) {
+    case StepKind::kStartSeed:
+      return options.start_seed && start.allFinite();
+    case StepKind::kRegionsSeed:
+      return options.from_regions && extractor.pose_from_regions(camera, model, seed_r).ok();
+    case StepKind::kInsertionForthSeed:
+    case StepKind::kInsertionBackSeed:
+      if (!options.start_seed || !(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
+        return false;
+      }
+      seed_r[solver::kLambda] +=
+          kind == StepKind::kInsertionForthSeed ? options.insertion_seed_step_mm : -options.insertion_seed_step_mm;
+      rule.near_lambda_mm = start[solver::kLambda];
+      return seed_r[solver::kLambda] > 0.0;
+    case StepKind::kThetaUpSeed:
+    case StepKind::kThetaDownSeed:
+    case StepKind::kPhiUpSeed:
+    case StepKind::kPhiDownSeed: {
+      if (!options.start_seed || !(options.bend_seed_step_rad > 0.0) || !start.allFinite()) {
+        return false;
+      }
+      const bool theta = kind == StepKind::kThetaUpSeed || kind == StepKind::kThetaDownSeed;
+      const bool up = kind == StepKind::kThetaUpSeed || kind == StepKind::kPhiUpSeed;
+      seed_r[theta ? solver::kTheta : solver::kPhi] += up ? options.bend_seed_step_rad : -options.bend_seed_step_rad;
+      rule.clearly_better = true;
+      return true;
     }
-    const int bend_index = seed_index - kBendSeed;  // 0..3
-    const int joint = bend_index < 2 ? solver::kTheta : solver::kPhi;
-    seed_r[joint] += bend_index % 2 == 0 ? options.bend_seed_step_rad : -options.bend_seed_step_rad;
-    rule.clearly_better = true;
-    return true;
+    default:
+      return false;
   }
-  if (!options.start_seed || !(options.insertion_seed_step_mm > 0.0) || !start.allFinite()) {
-    return false;
-  }
-  seed_r[solver::kLambda] +=
-      seed_index == kInsertionForthSeed ? options.insertion_seed_step_mm : -options.insertion_seed_step_mm;
-  rule.near_lambda_mm = start[solver::kLambda];
-  return seed_r[solver::kLambda] > 0.0;
 }
 
 // A seed moved onto the class image (class_fit): the channel's pose from
@@ -250,72 +247,6 @@ bool prepare_seed(FeatureExtractor& extractor, const solver::CameraModel& camera
   return channel_known;
 }
 
-// The fallback seeds (GuidedOptions), each kept in `out` when better.
-SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
-                              const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                              const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
-                              const solver::PoseVector& start, const GuidedOptions& options,
-                              GuidedResult& out) noexcept {
-  // The fit from other seeds, each moved onto the class image
-  // first (class_fit) and fitted from a coarse start. Seed 0: `start` (the
-  // encoders' or the track's pose; start_seed), measured the more useful of
-  // the two (docs/vision.md), then, when not valid, the same start without
-  // its class fit (start_unmoved); seed 1: the rough pose of the labelled
-  // regions (from_regions), when seed 0 did not give a valid estimate;
-  // seeds 2 and 3: the start moved forth and back along the insertion
-  // (insertion_seed_step_mm), their results kept against a fit-confirmed
-  // one only when nearer to the start's insertion; seeds 4 to 7: the
-  // start's theta, then its phi, moved forth and back (bend_seed_step_rad),
-  // their results kept against a fit-confirmed one only when clearly
-  // better.
-  int seeds_tried = 0;
-  SeedsTried tried{};
-  for (int seed_index = 0; seed_index < kSeedIndices; ++seed_index) {
-    if (out.estimate.quality == solver::EstimateQuality::Valid || seeds_tried >= options.fallback_seeds) {
-      break;
-    }
-    solver::PoseVector seed_r;
-    SeedRule rule;
-    if (!fallback_seed(extractor, camera, model, start, options, seed_index, seed_r, rule)) {
-      continue;
-    }
-    const bool insertion_seed = seed_index == kInsertionForthSeed || seed_index == kInsertionBackSeed;
-    const bool bend_seed = seed_index >= kBendSeed;
-    solver::PoseVector unmoved;  // the seed with its channel from the shaft, before the class fit
-    const bool channel_known = prepare_seed(extractor, camera, model, image, options, seed_r, unmoved);
-    if (seed_index == kStartSeed && options.shaft_fit) {
-      tried.start_shaft_fitted = true;
-      tried.start_shaft_ok = channel_known;
-      tried.start_shafted = unmoved;
-    }
-    ++seeds_tried;
-    tried.insertion = tried.insertion || insertion_seed;
-    tried.bend = tried.bend || bend_seed;
-    if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, rule)) {
-      out.from_start = seed_index == kStartSeed;
-      out.from_regions = seed_index == kRegionsSeed;
-      out.from_unmoved = false;
-      out.from_insertion = insertion_seed;
-      out.from_bend = bend_seed;
-    }
-    if (seed_index == kStartSeed && options.class_fit && options.start_unmoved &&
-        out.estimate.quality != solver::EstimateQuality::Valid && seeds_tried < options.fallback_seeds) {
-      ++seeds_tried;
-      SeedRule unmoved_rule;
-      unmoved_rule.no_fewer_boundaries = true;  // a class-fitted seed may have read a smeared tube more fully
-      tried.unmoved = true;
-      if (try_seed(extractor, estimator, camera, model, image, mode, first, unmoved, options, out, unmoved_rule)) {
-        out.from_start = true;
-        out.from_unmoved = true;
-        out.from_regions = false;
-        out.from_insertion = false;
-        out.from_bend = false;
-      }
-    }
-  }
-  return tried;
-}
-
 // Two stripes along the tube the colours repeat (blue, yellow, blue): with
 // an end of the tube hidden or smeared, a fit can hold the stripes two
 // along from the true ones, the insertion off by 7.4 mm (hard frames 9, 14,
@@ -330,7 +261,7 @@ SeedsTried try_fallback_seeds(FeatureExtractor& extractor, solver::PoseEstimator
 bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
                const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
                const solver::Estimate& first, const solver::PoseVector& start, const GuidedOptions& options,
-               GuidedResult& out) noexcept {
+               GuidedResult& out, StepSet& tried) noexcept {
   if (!options.alias_check || options.rounds <= 0 || out.rounds_kept == 0 || !start.allFinite()) {
     return false;
   }
@@ -346,33 +277,31 @@ bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, co
     return false;
   }
   const double near_mm = start[solver::kLambda];
-  const bool kept =
-      (options.alias_fine_start &&
-       try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
-                SeedRule{near_mm, false, false})) ||
-      try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
-               SeedRule{near_mm, true, false});
-  out.alias_checked = true;
-  out.from_alias = kept;
-  return kept;
+  tried.add(StepKind::kAliasCheck);
+  return (options.alias_fine_start &&
+          try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
+                   SeedRule{near_mm, false, false})) ||
+         try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
+                  SeedRule{near_mm, true, false});
 }
 
 // GuidedOptions::base_rim_seed. True when its result was kept in `out`.
 // The start's shaft fit is taken from the start seed when it made one
-// (`tried`): the same fit of the same image from the same pose.
+// (`start_shaft`): the same fit of the same image from the same pose.
 bool try_base_rim(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
                   const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
-                  const solver::PoseVector& start, const GuidedOptions& options, const SeedsTried& tried,
-                  GuidedResult& out) noexcept {
+                  const solver::PoseVector& start, const GuidedOptions& options, const StartShaft& start_shaft,
+                  GuidedResult& out, StepSet& tried) noexcept {
   if (!options.base_rim_seed || options.rounds <= 0 || out.rounds_kept > 0 ||
       out.estimate.quality == solver::EstimateQuality::Valid || !start.allFinite()) {
     return false;
   }
+  tried.add(StepKind::kBaseRimSeed);
   solver::PoseVector seed_r = start;
   bool channel_known = false;
-  if (tried.start_shaft_fitted) {
-    channel_known = tried.start_shaft_ok;
-    seed_r = tried.start_shafted;
+  if (start_shaft.fitted) {
+    channel_known = start_shaft.ok;
+    seed_r = start_shaft.shafted;
   } else {
     ShaftFitSummary shaft;
     channel_known = extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
@@ -409,7 +338,6 @@ bool try_base_rim(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
   out.estimate = estimate;
   out.rounds_kept = 1;
   out.fitted_r = seed_r;
-  out.from_base_rim = true;
   return true;
 }
 
@@ -418,6 +346,7 @@ void check_against_fit(const solver::InstrumentModel& model, const GuidedOptions
   if (out.rounds_kept == 0 || !out.estimate.r.allFinite() || !out.fitted_r.allFinite()) {
     return;
   }
+  out.tried.add(StepKind::kFitAgreementCheck);
   out.tcp_disagreement_mm = (model.tcp(out.estimate.r) - model.tcp(out.fitted_r)).norm();
   if (options.max_valid_tcp_disagreement_mm > 0.0 && out.estimate.quality == solver::EstimateQuality::Valid &&
       out.tcp_disagreement_mm > options.max_valid_tcp_disagreement_mm) {
@@ -426,63 +355,180 @@ void check_against_fit(const solver::InstrumentModel& model, const GuidedOptions
   }
 }
 
+// One frame's walk through the policy's rows (estimation_policy.hpp):
+// what every row's step needs, and what the steps before it left.
+struct PolicyWalk {
+  FeatureExtractor& extractor;
+  solver::PoseEstimator& estimator;
+  const solver::CameraModel& camera;
+  const solver::InstrumentModel& model;
+  const ImageView& image;
+  solver::SolveMode mode;
+  const solver::Estimate& first;
+  const solver::PoseVector& start;
+  const GuidedOptions& options;
+  GuidedResult out{};
+  StepSet tried{};
+  StartShaft start_shaft{};
+  int seeds_tried = 0;
+  bool start_seed_tried = false;           // this frame's start seed ran (the unmoved seed follows it)
+  solver::PoseVector start_unmoved = solver::PoseVector::Zero();  // its pose before the class fit
+
+  bool try_from(const solver::PoseVector& seed_r, const SeedRule& rule = SeedRule{}) noexcept {
+    return try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, rule);
+  }
+  void kept_from(StepKind kind) noexcept { out.produced_by = kind; }
+
+  // kShaftRecheck: a valid result whose channel pose the shaft's silhouette
+  // places elsewhere: the rounds again from the shaft's channel pose (the
+  // joints kept), the better one kept. The solve's penalty holds the channel
+  // near its CAD pose, and the image fit's narrow windows cannot move it far.
+  void shaft_recheck() noexcept {
+    if (!options.shaft_recheck) {
+      return;
+    }
+    solver::PoseVector seed_r = out.estimate.r;
+    ShaftFitSummary shaft;
+    if (extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok() &&
+        (seed_r.head<2>() - out.estimate.r.head<2>()).norm() > options.shaft_recheck_min_mm) {
+      tried.add(StepKind::kShaftRecheck);
+      if (try_from(seed_r)) {
+        kept_from(StepKind::kShaftRecheck);
+      }
+    }
+  }
+
+  // kStartCheck: a valid result from stage 4's solve or the shaft re-check
+  // may be a local minimum of the fit: the start seed's rounds are tried
+  // too, the better result kept; only when no fit confirmed it closely.
+  void start_check() noexcept {
+    if (!options.valid_start_check || !start.allFinite() ||
+        !(out.rounds_kept == 0 || out.fit.rms_px > options.valid_start_check_min_rms_px)) {
+      return;
+    }
+    solver::PoseVector seed_r = start;
+    solver::PoseVector shafted;
+    static_cast<void>(prepare_seed(extractor, camera, model, image, options, seed_r, shafted));  // moved either way
+    tried.add(StepKind::kStartCheck);
+    if (try_from(seed_r)) {
+      kept_from(StepKind::kStartCheck);
+    }
+  }
+
+  // The fallback seeds need labelled markers: without them (stage 1 or 2
+  // failed) the fit would read whatever edges lie where the seed puts the
+  // instrument. At most options.fallback_seeds per frame.
+  bool seed_allowed() const noexcept {
+    return extractor.result().interpretation.found_count >= kMinSeedMarkers && seeds_tried < options.fallback_seeds;
+  }
+
+  // kStartUnmovedSeed: the class fit can move a good start away (stripes an
+  // occluder hides pull the visible ones along): the start seed's pose
+  // before its class fit, right after the start seed.
+  void unmoved_seed() noexcept {
+    if (!start_seed_tried || !options.class_fit || !options.start_unmoved) {
+      return;
+    }
+    ++seeds_tried;
+    tried.add(StepKind::kStartUnmovedSeed);
+    SeedRule rule;
+    rule.no_fewer_boundaries = true;  // a class-fitted seed may have read a smeared tube more fully
+    if (try_from(start_unmoved, rule)) {
+      kept_from(StepKind::kStartUnmovedSeed);
+    }
+  }
+
+  // A fallback seed row other than the unmoved start.
+  void fallback(StepKind kind) noexcept {
+    solver::PoseVector seed_r;
+    SeedRule rule;
+    if (!fallback_seed(extractor, camera, model, start, options, kind, seed_r, rule)) {
+      return;
+    }
+    solver::PoseVector unmoved;  // the seed with its channel from the shaft, before the class fit
+    const bool channel_known = prepare_seed(extractor, camera, model, image, options, seed_r, unmoved);
+    if (kind == StepKind::kStartSeed) {
+      start_seed_tried = true;
+      start_unmoved = unmoved;
+      if (options.shaft_fit) {
+        start_shaft = StartShaft{true, channel_known, unmoved};
+      }
+    }
+    ++seeds_tried;
+    tried.add(kind);
+    if (try_from(seed_r, rule)) {
+      kept_from(kind);
+    }
+  }
+
+  void run(const PolicyStep& step) noexcept {
+    const bool valid = out.estimate.quality == solver::EstimateQuality::Valid;
+    if (options.rounds <= 0) {
+      return;  // the paper's pipeline: stage 4's solve stands
+    }
+    switch (step.kind) {
+      case StepKind::kShaftRecheck:
+        if (valid) {
+          shaft_recheck();
+        }
+        return;
+      case StepKind::kStartCheck:
+        if (valid) {
+          start_check();
+        }
+        return;
+      case StepKind::kStartUnmovedSeed:
+        if (!valid && seed_allowed()) {
+          unmoved_seed();
+        }
+        return;
+      case StepKind::kAliasCheck:
+        if (try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out, tried)) {
+          kept_from(StepKind::kAliasCheck);
+        }
+        return;
+      case StepKind::kBaseRimSeed:
+        if (try_base_rim(extractor, estimator, camera, model, image, mode, start, options, start_shaft, out, tried)) {
+          kept_from(StepKind::kBaseRimSeed);
+        }
+        return;
+      default:
+        if (is_fallback_seed(step.kind) && !valid && seed_allowed()) {
+          fallback(step.kind);
+        }
+        return;
+    }
+  }
+};
+
 }  // namespace
 
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                            const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
                            const solver::PoseVector& start, const GuidedOptions& options) noexcept {
-  GuidedResult out;
-  out.estimate = first;
+  PolicyWalk walk{extractor, estimator, camera, model, image, mode, first, start, options};
+  walk.out.estimate = first;
   if (first.quality != solver::EstimateQuality::None) {
-    out = rounds_from(extractor, estimator, camera, model, image, mode, first, options, false);
-  }
-  // A valid result whose channel pose the shaft's silhouette places
-  // elsewhere: the rounds again from the shaft's channel pose (the joints
-  // kept), the better one kept. The solve's penalty holds the channel near
-  // its CAD pose, and the image fit's narrow windows cannot move it far;
-  // the base boundary's corners, which are the fitted pose's, follow it.
-  if (options.rounds > 0 && options.shaft_recheck && out.estimate.quality == solver::EstimateQuality::Valid) {
-    solver::PoseVector seed_r = out.estimate.r;
-    ShaftFitSummary shaft;
-    if (extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok() &&
-        (seed_r.head<2>() - out.estimate.r.head<2>()).norm() > options.shaft_recheck_min_mm) {
-      // Kept or not, `out` is then the better of the two.
-      static_cast<void>(try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out));
-      out.shaft_rechecked = true;
+    walk.out = rounds_from(extractor, estimator, camera, model, image, mode, first, options, false);
+    if (walk.out.rounds_kept > 0) {
+      walk.out.produced_by = StepKind::kGuidedRounds;
     }
+    walk.tried.add(StepKind::kGuidedRounds);
   }
-  // A valid result from stage 4's solve or the shaft re-check may be a
-  // local minimum of the fit: the start seed's rounds are tried too, the
-  // better result kept.
-  if (options.rounds > 0 && options.valid_start_check && out.estimate.quality == solver::EstimateQuality::Valid &&
-      start.allFinite() && (out.rounds_kept == 0 || out.fit.rms_px > options.valid_start_check_min_rms_px)) {
-    solver::PoseVector seed_r = start;
-    solver::PoseVector shafted;
-    static_cast<void>(prepare_seed(extractor, camera, model, image, options, seed_r, shafted));  // moved either way
-    out.start_checked = true;
-    const bool rechecked = out.shaft_rechecked;
-    if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out)) {
-      out.from_start_check = true;
-      out.start_checked = true;
-      out.shaft_rechecked = rechecked;
-    }
+  // The rows between the guided rounds and the fit agreement check, in the
+  // table's order; each tests its own condition (RunWhen) on the result so far.
+  for (int i = static_cast<int>(StepKind::kGuidedRounds) + 1; i < static_cast<int>(StepKind::kFitAgreementCheck);
+       ++i) {
+    walk.run(kEstimationPolicy[static_cast<std::size_t>(i)]);
   }
-  // Not valid yet: the fallback seeds. They need labelled markers: without
-  // them (stage 1 or 2 failed) the fit would read whatever edges lie where
-  // the seed puts the instrument.
-  SeedsTried tried{};
-  if (options.rounds > 0 && out.estimate.quality != solver::EstimateQuality::Valid &&
-      extractor.result().interpretation.found_count >= kMinSeedMarkers) {
-    tried = try_fallback_seeds(extractor, estimator, camera, model, image, mode, first, start, options, out);
-  }
-  static_cast<void>(try_alias(extractor, estimator, camera, model, image, mode, first, start, options, out));
-  static_cast<void>(try_base_rim(extractor, estimator, camera, model, image, mode, start, options, tried, out));
+  GuidedResult& out = walk.out;
   check_against_fit(model, options, out);
-  // After every seed: a kept result's flags come from its own rounds.
-  out.unmoved_tried = tried.unmoved;
-  out.insertion_tried = tried.insertion;
-  out.bend_tried = tried.bend;
+  StepSet tried = walk.tried;
+  if (out.tried.has(StepKind::kFitAgreementCheck)) {
+    tried.add(StepKind::kFitAgreementCheck);
+  }
+  out.tried = tried;
   return out;
 }
 

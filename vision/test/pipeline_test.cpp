@@ -35,6 +35,31 @@ GuidedOptions every_seed_options() {
   return options;
 }
 
+// Which policy rows produced or were tried for a frame (GuidedResult).
+bool produced_by_any(const GuidedResult& g, std::initializer_list<StepKind> kinds) {
+  for (const StepKind k : kinds) {
+    if (g.produced_by == k) {
+      return true;
+    }
+  }
+  return false;
+}
+bool tried_any(const GuidedResult& g, std::initializer_list<StepKind> kinds) {
+  for (const StepKind k : kinds) {
+    if (g.tried.has(k)) {
+      return true;
+    }
+  }
+  return false;
+}
+bool from_start(const GuidedResult& g) {
+  return produced_by_any(g, {StepKind::kStartSeed, StepKind::kStartUnmovedSeed});
+}
+constexpr std::initializer_list<StepKind> kInsertionSeeds = {StepKind::kInsertionForthSeed,
+                                                             StepKind::kInsertionBackSeed};
+constexpr std::initializer_list<StepKind> kBendSeeds = {StepKind::kThetaUpSeed, StepKind::kThetaDownSeed,
+                                                        StepKind::kPhiUpSeed, StepKind::kPhiDownSeed};
+
 struct Fixture {
   solver::CameraModel camera = solver::CameraModel::create(solver::default_pal_camera()).value();
   solver::InstrumentModel model = solver::InstrumentModel::create(solver::InstrumentGeometry{}).value();
@@ -356,8 +381,8 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
       options.start_seed = i % 10 != 0;
       const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, i % 5 != 0,
                                                   solver::SolveMode::Adaptive, r, options);
-      region_seeded += guided.from_regions ? 1 : 0;
-      start_seeded += guided.from_start ? 1 : 0;
+      region_seeded += (guided.produced_by == StepKind::kRegionsSeed) ? 1 : 0;
+      start_seeded += from_start(guided) ? 1 : 0;
       guided_rounds += guided.rounds_kept;
       if (i % 10 == 0) {
         const ImageView smeared{blurred.data(), f.camera.width(), f.camera.height(),
@@ -373,8 +398,8 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
         const bool stage4_ok = fx->extract(hidden, model_priors(f.camera, f.model, occluded_encoders)).ok();
         const GuidedResult from_encoders = guided_estimate(*fx, estimator, f.camera, f.model, hidden, stage4_ok,
                                                            solver::SolveMode::Adaptive, occluded_encoders, options);
-        unmoved_tried += from_encoders.unmoved_tried ? 1 : 0;
-        insertion_tried += from_encoders.insertion_tried ? 1 : 0;
+        unmoved_tried += from_encoders.tried.has(StepKind::kStartUnmovedSeed) ? 1 : 0;
+        insertion_tried += tried_any(from_encoders, kInsertionSeeds) ? 1 : 0;
       }
       if (i % 10 == 7) {
         const ImageView behind{end_on.data(), f.camera.width(), f.camera.height(),
@@ -382,7 +407,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
         const bool stage4_ok = fx->extract(behind, model_priors(f.camera, f.model, end_on_encoders)).ok();
         const GuidedResult from_rim = guided_estimate(*fx, estimator, f.camera, f.model, behind, stage4_ok,
                                                       solver::SolveMode::Adaptive, end_on_encoders, every_seed_options());
-        rim_seeded += from_rim.from_base_rim ? 1 : 0;
+        rim_seeded += (from_rim.produced_by == StepKind::kBaseRimSeed) ? 1 : 0;
       }
     }
     EXPECT_EQ(scope.count(), 0U);
@@ -545,7 +570,7 @@ TEST(Pipeline, RegionPoseSeedsTheImageFitWhenStage4GivesNoPose) {
   regions_only.start_seed = false;  // the start seed (tried first by default) would serve too
   const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, false,
                                               solver::SolveMode::Adaptive, prior, regions_only);
-  EXPECT_TRUE(guided.from_regions);
+  EXPECT_TRUE((guided.produced_by == StepKind::kRegionsSeed));
   ASSERT_NE(guided.estimate.quality, solver::EstimateQuality::None);
   EXPECT_LT((f.model.tcp(guided.estimate.r) - f.model.tcp(truth)).norm(), 2.0);
   // Off: no estimate (nor the base-rim seed's, which needs no seed).
@@ -959,7 +984,7 @@ TEST(Pipeline, ShaftRecheckMovesTheChannelTowardsTheShaft) {
     const GuidedResult guided =
         guided_estimate(*fx, estimator, f.camera, f.model, image, true, solver::SolveMode::Adaptive, prior, options);
     ASSERT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid);
-    EXPECT_EQ(guided.shaft_rechecked, with_check == 1);
+    EXPECT_EQ(guided.tried.has(StepKind::kShaftRecheck), with_check == 1);
     const Extraction& e = fx->result();
     for (std::size_t k = 0U; k < 2U; ++k) {
       ASSERT_TRUE(e.corners[k].found);
@@ -1189,10 +1214,10 @@ TEST(Pipeline, TheStartWithoutTheClassFitServesAnOccludedFrame) {
     options.start_unmoved = false;
     const GuidedRun without = guided_run(f, estimator, image, prior, options);
     expect_success_only_with(with, without, 4, scene.seed);
-    EXPECT_TRUE(with.guided.unmoved_tried);
-    EXPECT_TRUE(with.guided.from_unmoved);
-    EXPECT_TRUE(with.guided.from_start);
-    EXPECT_FALSE(without.guided.unmoved_tried);
+    EXPECT_TRUE(with.guided.tried.has(StepKind::kStartUnmovedSeed));
+    EXPECT_TRUE((with.guided.produced_by == StepKind::kStartUnmovedSeed));
+    EXPECT_TRUE(from_start(with.guided));
+    EXPECT_FALSE(without.guided.tried.has(StepKind::kStartUnmovedSeed));
     EXPECT_NE(with.guided.estimate.quality, solver::EstimateQuality::Valid);  // fewer than 3 boundaries read
   }
 }
@@ -1234,11 +1259,11 @@ TEST(Pipeline, TheStartMovedAlongTheInsertionServesAFrameTheOtherSeedsMiss) {
         [](GuidedOptions& o, ExtractorConfig&) { o.insertion_seed_step_mm = 0.0; });
     const GuidedRun& with = runs.with;
     const GuidedRun& without = runs.without;
-    EXPECT_TRUE(with.guided.insertion_tried);
-    EXPECT_TRUE(with.guided.from_insertion);
-    EXPECT_FALSE(with.guided.from_start);
-    EXPECT_FALSE(without.guided.insertion_tried);
-    EXPECT_FALSE(without.guided.from_insertion);
+    EXPECT_TRUE(tried_any(with.guided, kInsertionSeeds));
+    EXPECT_TRUE(produced_by_any(with.guided, kInsertionSeeds));
+    EXPECT_FALSE(from_start(with.guided));
+    EXPECT_FALSE(tried_any(without.guided, kInsertionSeeds));
+    EXPECT_FALSE(produced_by_any(without.guided, kInsertionSeeds));
     EXPECT_NEAR(with.guided.estimate.r[solver::kLambda], scene.r[solver::kLambda], 3.0);
     EXPECT_NE(with.guided.estimate.quality, solver::EstimateQuality::None);
     if (scene.seed == kNoPoseWithout) {
@@ -1284,10 +1309,10 @@ TEST(Pipeline, TheStartWithItsBendMovedServesAFrameTheOtherSeedsMiss) {
         [](GuidedOptions& o, ExtractorConfig&) { o.bend_seed_step_rad = 0.0; });
     const GuidedRun& with = runs.with;
     const GuidedRun& without = runs.without;
-    EXPECT_TRUE(with.guided.bend_tried) << "seed " << scene.seed;
-    EXPECT_TRUE(with.guided.from_bend) << "seed " << scene.seed;
-    EXPECT_FALSE(without.guided.bend_tried);
-    EXPECT_FALSE(without.guided.from_bend);
+    EXPECT_TRUE(tried_any(with.guided, kBendSeeds)) << "seed " << scene.seed;
+    EXPECT_TRUE(produced_by_any(with.guided, kBendSeeds)) << "seed " << scene.seed;
+    EXPECT_FALSE(tried_any(without.guided, kBendSeeds));
+    EXPECT_FALSE(produced_by_any(without.guided, kBendSeeds));
     EXPECT_NE(with.guided.estimate.quality, solver::EstimateQuality::None);
   }
 }
@@ -1323,9 +1348,9 @@ TEST(Pipeline, AValidResultIsCheckedAgainstTheStart) {
     const GuidedRun& with = runs.with;
     const GuidedRun& without = runs.without;
     EXPECT_EQ(without.guided.estimate.quality, solver::EstimateQuality::Valid) << "seed " << scene.seed;
-    EXPECT_FALSE(without.guided.start_checked);
-    EXPECT_TRUE(with.guided.start_checked) << "seed " << scene.seed;
-    EXPECT_TRUE(with.guided.from_start_check) << "seed " << scene.seed;
+    EXPECT_FALSE(without.guided.tried.has(StepKind::kStartCheck));
+    EXPECT_TRUE(with.guided.tried.has(StepKind::kStartCheck)) << "seed " << scene.seed;
+    EXPECT_TRUE((with.guided.produced_by == StepKind::kStartCheck)) << "seed " << scene.seed;
     EXPECT_NE(with.guided.estimate.quality, solver::EstimateQuality::None);
   }
 }
@@ -1774,7 +1799,7 @@ TEST(Pipeline, AResultTheImageFitConfirmsReplacesAValidOneItDoesNot) {
     options.fallback_seeds = 0;
     const GuidedResult guided = guided_rounds(*fx, estimator, f.camera, f.model, scene.image,
                                               solver::SolveMode::Adaptive, first, first.r, options);
-    EXPECT_TRUE(guided.shaft_rechecked);
+    EXPECT_TRUE(guided.tried.has(StepKind::kShaftRecheck));
     int visible = 0;
     const int found = corners_found(*fx, f.truth.instruments[0], visible);
     if (rule == 0) {
@@ -1811,7 +1836,7 @@ TEST(Pipeline, AMuchBetterImageFitReplacesAValidResult) {
     int visible = 0;
     const int found = corners_found(*fx, f.truth.instruments[0], visible);
     if (rule == 0) {
-      EXPECT_TRUE(guided.shaft_rechecked);
+      EXPECT_TRUE(guided.tried.has(StepKind::kShaftRecheck));
       EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Valid);
       EXPECT_GT(guided.fit.rms_px, 0.4);
       EXPECT_LT(found * 10, visible * 8);
@@ -1856,8 +1881,8 @@ TEST(Pipeline, AResultTwoStripesFromTheEncodersIsTriedAgainTwoStripesBack) {
     options.longer_run_rms_ratio = 0.0;  // which keeps the first rounds' result here: no alias to check
     const GuidedRun run = guided_run(f, estimator, scene.image, scene.prior, options, without_grasper());
     ASSERT_GT(run.guided.rounds_kept, 0);
-    EXPECT_EQ(run.guided.alias_checked, rule == 1);
-    EXPECT_EQ(run.guided.from_alias, rule == 1);
+    EXPECT_EQ(run.guided.tried.has(StepKind::kAliasCheck), rule == 1);
+    EXPECT_EQ((run.guided.produced_by == StepKind::kAliasCheck), rule == 1);
     const double off_mm = run.guided.estimate.r[solver::kLambda] - scene.prior[solver::kLambda];
     if (rule == 0) {
       EXPECT_GT(std::fabs(off_mm), 5.0);
@@ -1921,8 +1946,8 @@ TEST(Pipeline, TheAliasSeedIsTriedFromAFineStartFirst) {
     options.longer_run_rms_ratio = 0.0;  // which keeps the first rounds' result here: no alias to check
     const GuidedRun run = guided_run(f, estimator, image, prior, options, without_grasper());
     ASSERT_GT(run.guided.rounds_kept, 0);
-    EXPECT_TRUE(run.guided.alias_checked);
-    EXPECT_EQ(run.guided.from_alias, rule == 1);
+    EXPECT_TRUE(run.guided.tried.has(StepKind::kAliasCheck));
+    EXPECT_EQ((run.guided.produced_by == StepKind::kAliasCheck), rule == 1);
     const double off_mm = run.guided.estimate.r[solver::kLambda] - scene_r[solver::kLambda];
     if (rule == 0) {
       EXPECT_GT(std::fabs(off_mm), 5.0);
@@ -1995,13 +2020,13 @@ TEST(Pipeline, TheBaseRimServesATubeSeenEndOnBehindTheShaft) {
         [](GuidedOptions& o, ExtractorConfig&) { o.base_rim_seed = false; });
     const GuidedRun& with = runs.with;
     const GuidedRun& without = runs.without;
-    EXPECT_TRUE(with.guided.from_base_rim) << "seed " << scene.seed;
+    EXPECT_TRUE((with.guided.produced_by == StepKind::kBaseRimSeed)) << "seed " << scene.seed;
     // The pose its corners were read at: the start with the rim's insertion.
     EXPECT_TRUE(with.guided.fitted_r.allFinite()) << "seed " << scene.seed;
     EXPECT_GT(with.guided.fitted_r[solver::kLambda], 0.0) << "seed " << scene.seed;
     EXPECT_EQ(with.guided.estimate.quality, solver::EstimateQuality::Degraded) << "seed " << scene.seed;
     EXPECT_TRUE(with.fx->result().boundary_measured[0]) << "seed " << scene.seed;
-    EXPECT_FALSE(without.guided.from_base_rim) << "seed " << scene.seed;
+    EXPECT_FALSE((without.guided.produced_by == StepKind::kBaseRimSeed)) << "seed " << scene.seed;
     EXPECT_EQ(without.guided.rounds_kept, 0) << "seed " << scene.seed;
   }
 }
@@ -2059,7 +2084,7 @@ TEST(Pipeline, StartSeedOnTheClassImageGivesTheEstimateWhenStage4GivesNoPose) {
   ASSERT_TRUE(fx->extract(image, model_priors(f.camera, f.model, prior)).ok());
   const GuidedResult guided = guided_estimate(*fx, estimator, f.camera, f.model, image, false,
                                               solver::SolveMode::Adaptive, prior, every_seed_options());
-  EXPECT_TRUE(guided.from_start);
+  EXPECT_TRUE(from_start(guided));
   ASSERT_NE(guided.estimate.quality, solver::EstimateQuality::None);
   EXPECT_LT((f.model.tcp(guided.estimate.r) - f.model.tcp(truth)).norm(), 2.0);
 }

@@ -12,6 +12,7 @@
 #include <limits>
 
 #include "tcpest/solver/pose_estimator.hpp"
+#include "tcpest/vision/estimation_policy.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -189,20 +190,11 @@ struct GuidedResult {
   // "The image fit's pose and the TCP").
   solver::PoseVector fitted_r = solver::PoseVector::Zero();
   ImageFitSummary fit{};          // of the last fit tried
-  bool from_regions = false;      // the rounds started from pose_from_regions
-  bool from_start = false;        // the rounds started from the start pose (start_seed)
-  bool unmoved_tried = false;     // the start was also tried without its class fit (start_unmoved)
-  bool from_unmoved = false;      // ... and that result was kept (from_start is then true too)
-  bool from_insertion = false;    // the rounds started from the start moved along the insertion
-  bool insertion_tried = false;   // the start was also tried moved along the insertion
-  bool from_bend = false;         // the rounds started from the start with its bend moved (bend_seed_step_rad)
-  bool bend_tried = false;        // the start was also tried with its bend moved
-  bool shaft_rechecked = false;   // a valid result was tried again from the shaft's channel pose
-  bool start_checked = false;     // a valid result was tried against the start seed (valid_start_check)
-  bool from_start_check = false;  // ... and that result was kept
-  bool alias_checked = false;     // the result was tried again two stripes along (alias_check)
-  bool from_alias = false;        // ... and that result was kept
-  bool from_base_rim = false;     // the result is base_rim_seed's
+  // The policy row whose result was kept (kStage4Solve: none replaced the
+  // first solve; kGuidedRounds: the rounds from it), and every row tried on
+  // this frame (estimation_policy.hpp).
+  StepKind produced_by = StepKind::kStage4Solve;
+  StepSet tried{};
   // With a round kept: the distance (mm) between the TCP of the estimate's
   // r and that of fitted_r; NaN without one.
   double tcp_disagreement_mm = std::numeric_limits<double>::quiet_NaN();

@@ -36,6 +36,14 @@ struct StepSpec {
   std::int64_t budget_us;
 };
 
+// The refine step's budget, from the estimation policy's table
+// (vision/estimation_policy.hpp): the guided rounds, then at most the
+// shipped number of fallback seeds, each budgeted as the start seed.
+constexpr std::int64_t kRefineBudgetUs =
+    vision::policy_step(vision::StepKind::kGuidedRounds).budget_us +
+    static_cast<std::int64_t>(vision::GuidedOptions{}.fallback_seeds) *
+        vision::policy_step(vision::StepKind::kStartSeed).budget_us;
+
 // THE schedule.
 constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
     {Step::kAcquire, "acquire", 1500},
@@ -45,11 +53,10 @@ constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
     {Step::kInterpret, "interpret", 200},
     {Step::kBorders, "borders", 500},
     {Step::kCorners, "corners", 700},
-    {Step::kSolve, "solve", 300},
-    // 0.5-1 ms for the model-guided round; 3-4.3 ms on a frame that is not
-    // valid yet and tries one fallback seed (loop.fallback_seeds): shaft
-    // fit, distance images (~1.3 ms), class-image fit, image fit, solve.
-    {Step::kRefine, "refine", 4100},
+    {Step::kSolve, "solve", vision::policy_step(vision::StepKind::kStage4Solve).budget_us},
+    // The guided rounds and the fallback seeds the shipped configuration
+    // tries on a frame not yet valid, as the estimation policy budgets them.
+    {Step::kRefine, "refine", kRefineBudgetUs},
     {Step::kPublish, "publish", 100},
     {Step::kHousekeeping, "housekeeping", 100},
 }};
