@@ -127,6 +127,25 @@ struct SeedRule {
   bool clearly_better = false;
 };
 
+// What a row's result must meet, from its acceptance in the policy table.
+SeedRule rule_of(StepKind kind, const solver::PoseVector& start) noexcept {
+  SeedRule rule;
+  switch (policy_step(kind).acceptance) {
+    case Acceptance::kBetterNoFewerBoundaries:
+      rule.no_fewer_boundaries = true;
+      break;
+    case Acceptance::kBetterNearerStart:
+      rule.near_lambda_mm = start[solver::kLambda];
+      break;
+    case Acceptance::kClearlyBetter:
+      rule.clearly_better = true;
+      break;
+    default:
+      break;
+  }
+  return rule;
+}
+
 // The rounds from a seed; the result replaces `out` when better and meets
 // `rule` (else the extractor's corners are put back). True when it was kept.
 bool try_seed(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
@@ -167,15 +186,13 @@ struct StartShaft {
   solver::PoseVector shafted = solver::PoseVector::Zero();
 };
 
-// A fallback seed's pose from `start` and the rule its result must meet
-// (its policy row's acceptance); false when the options or the start leave
-// it out. The unmoved start is not made here: it is the start seed's pose
-// before its class fit.
+// A fallback seed's pose from `start`; false when the options or the
+// start leave it out. The unmoved start is not made here: it is the start
+// seed's pose before its class fit.
 bool fallback_seed(FeatureExtractor& extractor, const solver::CameraModel& camera,
                    const solver::InstrumentModel& model, const solver::PoseVector& start, const GuidedOptions& options,
-                   StepKind kind, solver::PoseVector& seed_r, SeedRule& rule) noexcept {
+                   StepKind kind, solver::PoseVector& seed_r) noexcept {
   seed_r = start;
-  rule = SeedRule{};
   switch (kind) {
     case StepKind::kStartSeed:
       return options.start_seed && start.allFinite();
@@ -188,7 +205,6 @@ bool fallback_seed(FeatureExtractor& extractor, const solver::CameraModel& camer
       }
       seed_r[solver::kLambda] +=
           kind == StepKind::kInsertionForthSeed ? options.insertion_seed_step_mm : -options.insertion_seed_step_mm;
-      rule.near_lambda_mm = start[solver::kLambda];
       return seed_r[solver::kLambda] > 0.0;
     case StepKind::kThetaUpSeed:
     case StepKind::kThetaDownSeed:
@@ -200,7 +216,6 @@ bool fallback_seed(FeatureExtractor& extractor, const solver::CameraModel& camer
       const bool theta = kind == StepKind::kThetaUpSeed || kind == StepKind::kThetaDownSeed;
       const bool up = kind == StepKind::kThetaUpSeed || kind == StepKind::kPhiUpSeed;
       seed_r[theta ? solver::kTheta : solver::kPhi] += up ? options.bend_seed_step_rad : -options.bend_seed_step_rad;
-      rule.clearly_better = true;
       return true;
     }
     default:
@@ -276,13 +291,13 @@ bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, co
   if (!(seed_r[solver::kLambda] > 0.0)) {
     return false;
   }
-  const double near_mm = start[solver::kLambda];
   tried.add(StepKind::kAliasCheck);
+  SeedRule fine = rule_of(StepKind::kAliasCheck, start);
+  fine.coarse_start = false;
   return (options.alias_fine_start &&
-          try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
-                   SeedRule{near_mm, false, false})) ||
+          try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, fine)) ||
          try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out,
-                  SeedRule{near_mm, true, false});
+                  rule_of(StepKind::kAliasCheck, start));
 }
 
 // GuidedOptions::base_rim_seed. True when its result was kept in `out`.
@@ -374,7 +389,7 @@ struct PolicyWalk {
   bool start_seed_tried = false;           // this frame's start seed ran (the unmoved seed follows it)
   solver::PoseVector start_unmoved = solver::PoseVector::Zero();  // its pose before the class fit
 
-  bool try_from(const solver::PoseVector& seed_r, const SeedRule& rule = SeedRule{}) noexcept {
+  bool try_from(const solver::PoseVector& seed_r, const SeedRule& rule) noexcept {
     return try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out, rule);
   }
   void kept_from(StepKind kind) noexcept { out.produced_by = kind; }
@@ -392,7 +407,7 @@ struct PolicyWalk {
     if (extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok() &&
         (seed_r.head<2>() - out.estimate.r.head<2>()).norm() > options.shaft_recheck_min_mm) {
       tried.add(StepKind::kShaftRecheck);
-      if (try_from(seed_r)) {
+      if (try_from(seed_r, rule_of(StepKind::kShaftRecheck, start))) {
         kept_from(StepKind::kShaftRecheck);
       }
     }
@@ -410,7 +425,7 @@ struct PolicyWalk {
     solver::PoseVector shafted;
     static_cast<void>(prepare_seed(extractor, camera, model, image, options, seed_r, shafted));  // moved either way
     tried.add(StepKind::kStartCheck);
-    if (try_from(seed_r)) {
+    if (try_from(seed_r, rule_of(StepKind::kStartCheck, start))) {
       kept_from(StepKind::kStartCheck);
     }
   }
@@ -431,9 +446,8 @@ struct PolicyWalk {
     }
     ++seeds_tried;
     tried.add(StepKind::kStartUnmovedSeed);
-    SeedRule rule;
-    rule.no_fewer_boundaries = true;  // a class-fitted seed may have read a smeared tube more fully
-    if (try_from(start_unmoved, rule)) {
+    // No fewer boundaries read: a class-fitted seed may have read a smeared tube more fully.
+    if (try_from(start_unmoved, rule_of(StepKind::kStartUnmovedSeed, start))) {
       kept_from(StepKind::kStartUnmovedSeed);
     }
   }
@@ -441,8 +455,7 @@ struct PolicyWalk {
   // A fallback seed row other than the unmoved start.
   void fallback(StepKind kind) noexcept {
     solver::PoseVector seed_r;
-    SeedRule rule;
-    if (!fallback_seed(extractor, camera, model, start, options, kind, seed_r, rule)) {
+    if (!fallback_seed(extractor, camera, model, start, options, kind, seed_r)) {
       return;
     }
     solver::PoseVector unmoved;  // the seed with its channel from the shaft, before the class fit
@@ -456,7 +469,7 @@ struct PolicyWalk {
     }
     ++seeds_tried;
     tried.add(kind);
-    if (try_from(seed_r, rule)) {
+    if (try_from(seed_r, rule_of(kind, start))) {
       kept_from(kind);
     }
   }

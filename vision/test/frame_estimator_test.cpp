@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <string>
 #include <limits>
 #include <memory>
 #include <vector>
@@ -210,6 +212,36 @@ TEST(Track, IsDroppedAfterTheConfiguredFailuresAndKeepsItsLastPoseForAHeldFrame)
   track.reset();
   EXPECT_FALSE(track.alive());
   EXPECT_FALSE(track.has_estimate());
+}
+
+}  // namespace
+}  // namespace vision
+}  // namespace tcpest
+
+namespace tcpest {
+namespace vision {
+namespace {
+
+// docs/estimation.md shows the policy table: its rows are the table's, in
+// the table's order (the page cannot drift from the code unnoticed).
+TEST(EstimationPolicy, TheDocsListTheTableInItsOrder) {
+  std::ifstream page(std::string(TCPEST_TEST_DATA_DIR) + "/../../docs/estimation.md");
+  ASSERT_TRUE(page.good());
+  std::vector<std::string> listed;
+  std::string line;
+  while (std::getline(page, line)) {
+    if (line.rfind("| `", 0) == 0) {
+      const std::size_t end = line.find('`', 3U);
+      const std::string name = line.substr(3U, end - 3U);
+      if (name.find('-') != std::string::npos || name == "stage4-solve") {
+        listed.push_back(name);
+      }
+    }
+  }
+  ASSERT_EQ(listed.size(), kEstimationPolicy.size());
+  for (std::size_t i = 0U; i < kEstimationPolicy.size(); ++i) {
+    EXPECT_EQ(listed[i], kEstimationPolicy[i].name) << i;
+  }
 }
 
 }  // namespace
