@@ -29,14 +29,23 @@ std::vector<std::string> split(const std::string& line) {
 }
 
 // The header and one row of `r`, written through a temporary file.
-std::vector<std::vector<std::string>> header_and_row(const loop::CycleRecord& r, std::int64_t t0_ns) {
+// The truth of the record's frame, as a simulated source gives it beside the loop.
+hal::FrameTruth truth_at_50mm() {
+  hal::FrameTruth truth;
+  truth.valid = true;
+  truth.tcp_mm[2] = 50.0;
+  return truth;
+}
+
+std::vector<std::vector<std::string>> header_and_row(const loop::CycleRecord& r, std::int64_t t0_ns,
+                                                     const hal::FrameTruth* truth) {
   std::FILE* f = std::tmpfile();
   EXPECT_NE(f, nullptr);
   if (f == nullptr) {
     return {};
   }
   EXPECT_TRUE(write_cycles_csv_header(f));
-  EXPECT_TRUE(write_cycles_csv_row(f, r, t0_ns));
+  EXPECT_TRUE(write_cycles_csv_row(f, r, truth, t0_ns));
   std::rewind(f);
   std::vector<std::vector<std::string>> lines;
   char buffer[4096];
@@ -91,13 +100,12 @@ loop::CycleRecord degraded_by_the_image_fit() {
   r.publication.tcp_mm[2] = 50.0;
   r.publication.corners_detected = 11U;
   r.publication.corners_used = 9U;
-  r.truth.valid = true;
-  r.truth.tcp_mm[2] = 50.0;
   return r;
 }
 
 TEST(CyclesCsv, EveryRowHasTheHeadersColumns) {
-  const auto lines = header_and_row(degraded_by_the_image_fit(), 2'000'000'000);
+  const hal::FrameTruth truth = truth_at_50mm();
+  const auto lines = header_and_row(degraded_by_the_image_fit(), 2'000'000'000, &truth);
   ASSERT_EQ(lines.size(), 2U);
   EXPECT_EQ(lines[1].size(), lines[0].size());
   // Appended last, so that a reader of the first columns by position keeps working.
@@ -114,7 +122,8 @@ TEST(CyclesCsv, EveryRowHasTheHeadersColumns) {
 }
 
 TEST(CyclesCsv, TheRowSaysWhyTheEstimateIsDegraded) {
-  const auto lines = header_and_row(degraded_by_the_image_fit(), 2'000'000'000);
+  const hal::FrameTruth truth = truth_at_50mm();
+  const auto lines = header_and_row(degraded_by_the_image_fit(), 2'000'000'000, &truth);
   ASSERT_EQ(lines.size(), 2U);
   expect_columns(lines, {{"status", "degraded"},
                          {"t_ms", "40.000"},
@@ -134,9 +143,8 @@ TEST(CyclesCsv, AFailedStageAndNoTruthAreSaidSo) {
   r.fit_disagrees = false;
   r.encoder_disagrees = true;
   r.publication.status = loop::EstimateStatus::kHeld;
-  r.truth.valid = false;
   r.latency_ns = -1;
-  const auto lines = header_and_row(r, r.trigger_ns);
+  const auto lines = header_and_row(r, r.trigger_ns, nullptr);
   ASSERT_EQ(lines.size(), 2U);
   expect_columns(lines, {{"failed_stage", loop::kSchedule[1].name},
                          {"solve_status", ""},
@@ -150,7 +158,7 @@ TEST(CyclesCsv, AStreamThatRefusesTheWriteIsReported) {
   std::FILE* read_only = std::fopen("/dev/null", "r");
   ASSERT_NE(read_only, nullptr);
   EXPECT_FALSE(write_cycles_csv_header(read_only));
-  EXPECT_FALSE(write_cycles_csv_row(read_only, degraded_by_the_image_fit(), 0));
+  EXPECT_FALSE(write_cycles_csv_row(read_only, degraded_by_the_image_fit(), nullptr, 0));
   static_cast<void>(std::fclose(read_only));  // opened for reading: nothing to flush
 }
 

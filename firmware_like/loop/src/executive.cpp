@@ -348,7 +348,6 @@ bool Executive::step_acquire() noexcept {
     record_.frame_sequence = info_.sequence;
     // Replay frames "arrive" at the trigger; a live camera's own time stamp travels with its frame.
     record_.frame_timestamp_ns = parts_.source->live() ? info_.timestamp_ns : record_.trigger_ns;
-    record_.truth = info_.truth;
     if (frame_error_reported_) {
       node.set_fault(Fault::kImageCorrupt, false, 0U);
       frame_error_reported_ = false;
@@ -416,7 +415,6 @@ class StepLaps final : public vision::StepObserver {
 std::int64_t Executive::run_pipeline() noexcept {
   FeaturePipeline& pipeline = *parts_.pipeline;
   choose_prior(parts_.clock->now_ns());
-  pipeline.begin_frame(info_);
   StepLaps laps(*parts_.clock, record_);
   const vision::FrameEstimate e = pipeline.estimate(frame_view_.view(), prior_, laps);
   if (!e.extraction_ok) {

@@ -143,9 +143,10 @@ Status<hal::CameraError> PrerenderedSource::acquire(const MutableImageView& out,
   const Frame& f = frames_[next_];
   info.timestamp_ns = hal::monotonic_now_ns();
   info.sequence = sequence_++;
-  info.truth = f.truth;
   ++next_;
-  return decoder_.decode(f.jpeg.get(), f.size, out);
+  const auto decoded = decoder_.decode(f.jpeg.get(), f.size, out);
+  last_truth_ = decoded.ok() ? f.truth : hal::FrameTruth{};
+  return decoded;
 }
 
 Status<hal::CameraError> PrerenderedSource::reopen() noexcept {

@@ -122,6 +122,7 @@ TEST(CanNodePort, ABusOffIsOneLossAndTheLoopRecoversWhenItEnds) {
   ModelScene scene(camera.value(), model.value(), motion);
   hal::SimCamera source(scene, 25.0, false);
   OraclePipeline pipeline(camera.value(), model.value());
+  pipeline.set_truth_source(&source);
   PortRig rig;
   LoopParts parts{&source, &rig.clock, &pipeline, &rig.port, &camera.value(), &model.value()};
   auto created = Executive::create(rig.config, parts);

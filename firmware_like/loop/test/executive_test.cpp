@@ -49,6 +49,8 @@ struct Rig {
     motion.frames = frames;
     scene = std::make_unique<ModelScene>(camera, model, motion);
     source = std::make_unique<hal::SimCamera>(*scene, 25.0, false);
+    // The truth beside the loop: the simulated camera's (none for another source).
+    pipeline.set_truth_source(other_source != nullptr ? nullptr : source.get());
     build(other_source != nullptr ? other_source : source.get());
   }
   // The rig's parts with another pipeline (or source).
@@ -362,7 +364,6 @@ class FitDegradingOracle final : public FeaturePipeline {
  public:
   explicit FitDegradingOracle(OraclePipeline& inner) : inner_(inner) {}
   const char* name() const noexcept override { return "fit-degrading"; }
-  void begin_frame(const hal::FrameInfo& info) noexcept override { inner_.begin_frame(info); }
   vision::FrameEstimate estimate(const ImageView& image, const vision::FramePrior& prior,
                                  vision::StepObserver& observer) noexcept override {
     vision::FrameEstimate e = inner_.estimate(image, prior, observer);

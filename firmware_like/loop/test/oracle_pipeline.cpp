@@ -12,24 +12,21 @@ double unit_noise(std::uint64_t key) noexcept {
 }
 }  // namespace
 
-void OraclePipeline::begin_frame(const hal::FrameInfo& info) noexcept {
-  truth_ = info.truth;
-  sequence_ = info.sequence;
-}
-
 vision::FrameEstimate OraclePipeline::estimate(const ImageView& image, const vision::FramePrior& prior,
                                                vision::StepObserver& observer) noexcept {
   static_cast<void>(image);
   vision::FrameEstimate out;
   out.prior = prior.source;
   solver::CornerObservation corners;
-  if (truth_.valid) {
+  const hal::FrameTruth truth = truth_ != nullptr ? truth_->last_truth() : hal::FrameTruth{};
+  const std::uint32_t sequence = sequence_++;
+  if (truth.valid) {
     for (int k = 0; k < solver::kNumCorners; ++k) {
       const auto i = static_cast<std::size_t>(k);
-      corners.visible[i] = truth_.corner_visible[i];
-      const std::uint64_t key = (static_cast<std::uint64_t>(sequence_) << 8U) + static_cast<std::uint64_t>(2 * k);
-      corners.pixel[i] = solver::Vec2(truth_.corners_px[i][0] + noise_px_ * unit_noise(key),
-                                      truth_.corners_px[i][1] + noise_px_ * unit_noise(key + 1U));
+      corners.visible[i] = truth.corner_visible[i];
+      const std::uint64_t key = (static_cast<std::uint64_t>(sequence) << 8U) + static_cast<std::uint64_t>(2 * k);
+      corners.pixel[i] = solver::Vec2(truth.corners_px[i][0] + noise_px_ * unit_noise(key),
+                                      truth.corners_px[i][1] + noise_px_ * unit_noise(key + 1U));
     }
     out.extraction_ok = true;
     out.corners_detected = corners.count_visible();

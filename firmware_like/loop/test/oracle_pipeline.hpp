@@ -1,5 +1,6 @@
 // A stand-in for the frame estimator in the loop's tests: the "detected"
-// corners are the frame's ground-truth corners (simulated camera only),
+// corners are the frame's ground-truth corners (from the simulated source's
+// TruthSource, beside the loop),
 // optionally with deterministic pseudo-random noise, solved by the solver's
 // PoseEstimator from the frame's prior. It lets the loop, the solver and the
 // CAN output be tested end to end without the feature extraction. Without
@@ -8,6 +9,7 @@
 
 #include <cstdint>
 
+#include "tcpest/hal/camera/sim_camera.hpp"
 #include "tcpest/hal/clock/clock.hpp"
 #include "tcpest/loop/ports.hpp"
 
@@ -21,7 +23,8 @@ class OraclePipeline final : public FeaturePipeline {
                  const vision::EstimatorConfig& config = vision::EstimatorConfig{}) noexcept
       : model_(model), solver_(camera, model, config.solve), check_(config.encoder_check), noise_px_(noise_px) {}
   const char* name() const noexcept override { return "oracle"; }
-  void begin_frame(const hal::FrameInfo& info) noexcept override;
+  // Where the frames' truth comes from (nullptr: none, the oracle finds nothing).
+  void set_truth_source(const hal::TruthSource* truth) noexcept { truth_ = truth; }
   vision::FrameEstimate estimate(const ImageView& image, const vision::FramePrior& prior,
                                  vision::StepObserver& observer) noexcept override;
   void drop_track() noexcept override { ++drops_; }
@@ -33,8 +36,8 @@ class OraclePipeline final : public FeaturePipeline {
   solver::PoseEstimator solver_;
   solver::EncoderCheck check_;
   double noise_px_;
-  hal::FrameTruth truth_{};
-  std::uint32_t sequence_ = 0U;
+  const hal::TruthSource* truth_ = nullptr;
+  std::uint32_t sequence_ = 0U;  // frames estimated (the noise's key)
   int drops_ = 0;
 };
 
@@ -43,7 +46,6 @@ class SlowOracle final : public FeaturePipeline {
  public:
   SlowOracle(hal::SimulatedClock& clock, OraclePipeline& inner) noexcept : clock_(clock), inner_(inner) {}
   const char* name() const noexcept override { return "slow"; }
-  void begin_frame(const hal::FrameInfo& info) noexcept override { inner_.begin_frame(info); }
   vision::FrameEstimate estimate(const ImageView& image, const vision::FramePrior& prior,
                                  vision::StepObserver& observer) noexcept override {
     clock_.advance_ns(next_ns);

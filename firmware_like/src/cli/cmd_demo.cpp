@@ -135,8 +135,11 @@ class DemoObserver final : public loop::CycleObserver {
       t0_ns_ = r.trigger_ns;
     }
     const loop::Publication& p = r.publication;
+    // The frame's truth, beside the loop: the simulated source's.
+    const hal::FrameTruth truth =
+        r.have_frame && rig_.sim != nullptr ? rig_.sim->last_truth() : hal::FrameTruth{};
     // A refused row is reported once, with the outputs, at the end.
-    csv_failed_ = !write_cycles_csv_row(csv_, r, t0_ns_) || csv_failed_;
+    csv_failed_ = !write_cycles_csv_row(csv_, r, &truth, t0_ns_) || csv_failed_;
     // The cycle that finds the sequence ended has its row, but it is not a
     // frame: the accuracy counts frames (a dropped frame is one, without an
     // estimate).
@@ -150,24 +153,24 @@ class DemoObserver final : public loop::CycleObserver {
       s.solved = r.solved;
       for (std::size_t i = 0; i < 3U; ++i) {
         s.est[i] = p.tcp_mm[i];
-        s.truth[i] = r.truth.tcp_mm[i];
+        s.truth[i] = truth.tcp_mm[i];
       }
-      s.truth_valid = r.truth.valid;
+      s.truth_valid = truth.valid;
       s.est_r = p.r;
-      for (std::size_t i = 0; i < r.truth.r.size(); ++i) {
-        s.truth_r[static_cast<Eigen::Index>(i)] = r.truth.r[i];
+      for (std::size_t i = 0; i < truth.r.size(); ++i) {
+        s.truth_r[static_cast<Eigen::Index>(i)] = truth.r[i];
       }
       s.latency_ms = r.latency_ns >= 0 ? ms(r.latency_ns) : -1.0;
       s.total_ms = ms(r.total_ns);
       samples_.push_back(s);
     }
     if (r.have_frame && overlay_every_ > 0 && r.frame_sequence % static_cast<std::uint32_t>(overlay_every_) == 0U) {
-      write_overlay(r, frame);
+      write_overlay(r, truth, frame);
     }
   }
 
  private:
-  void write_overlay(const loop::CycleRecord& r, const ImageView& frame) noexcept {
+  void write_overlay(const loop::CycleRecord& r, const hal::FrameTruth& truth, const ImageView& frame) noexcept {
     const MutableImageView out{overlay_.get(), frame.width, frame.height, static_cast<std::size_t>(frame.width) * 3U};
     for (int y = 0; y < frame.height; ++y) {
       std::memcpy(out.row(y), frame.row(y), static_cast<std::size_t>(frame.width) * 3U);
@@ -190,9 +193,9 @@ class DemoObserver final : public loop::CycleObserver {
     if (rig_.vision != nullptr) {
       vision::draw_extraction(out, rig_.vision->extractor().result(), model);
     }
-    if (r.truth.valid) {
+    if (truth.valid) {
       solver::Vec2 truth_px;
-      const solver::Vec3 truth_tcp(r.truth.tcp_mm[0], r.truth.tcp_mm[1], r.truth.tcp_mm[2]);
+      const solver::Vec3 truth_tcp(truth.tcp_mm[0], truth.tcp_mm[1], truth.tcp_mm[2]);
       if (rig_.models.camera.project(truth_tcp, truth_px)) {
         vision::draw_cross(out, vision::Point{truth_px.x(), truth_px.y()}, 9, 0U, 255U, 0U);  // truth: green cross
       }

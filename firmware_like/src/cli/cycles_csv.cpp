@@ -32,13 +32,15 @@ bool write_cycles_csv_header(std::FILE* out) noexcept {
   return ok;
 }
 
-bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, std::int64_t t0_ns) noexcept {
+bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, const hal::FrameTruth* truth,
+                          std::int64_t t0_ns) noexcept {
   const loop::Publication& p = r.publication;
+  const hal::FrameTruth t = truth != nullptr ? *truth : hal::FrameTruth{};
   double error_mm = -1.0;  // -1: nothing estimated, or no truth to compare with
-  if (r.truth.valid && p.status <= loop::EstimateStatus::kDegraded) {
-    const double dx = p.tcp_mm[0] - r.truth.tcp_mm[0];
-    const double dy = p.tcp_mm[1] - r.truth.tcp_mm[1];
-    const double dz = p.tcp_mm[2] - r.truth.tcp_mm[2];
+  if (t.valid && p.status <= loop::EstimateStatus::kDegraded) {
+    const double dx = p.tcp_mm[0] - t.tcp_mm[0];
+    const double dy = p.tcp_mm[1] - t.tcp_mm[1];
+    const double dz = p.tcp_mm[2] - t.tcp_mm[2];
     error_mm = std::sqrt(dx * dx + dy * dy + dz * dz);
   }
   bool ok = std::fprintf(out, "%llu,%u,%.3f,%s,%s,%s,%s,%u,%u,%.3f,%.3f,%.3f,%.3f",
@@ -53,7 +55,7 @@ bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, std::int64
     ok = std::fprintf(out, ",%.3f", ms(r.step_ns[static_cast<std::size_t>(i)])) >= 0 && ok;
   }
   ok = std::fprintf(out, ",%d,%u,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%d\n", flag(r.overrun), r.slipped,
-                    p.tcp_mm[0], p.tcp_mm[1], p.tcp_mm[2], r.truth.tcp_mm[0], r.truth.tcp_mm[1], r.truth.tcp_mm[2],
+                    p.tcp_mm[0], p.tcp_mm[1], p.tcp_mm[2], t.tcp_mm[0], t.tcp_mm[1], t.tcp_mm[2],
                     error_mm, flag(r.refined), r.corners_rejected, flag(r.encoder_disagrees),
                     flag(r.fit_disagrees)) >= 0 &&
        ok;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 
+#include "tcpest/hal/camera/sim_camera.hpp"
 #include "tcpest/loop/executive.hpp"
 
 namespace tcpest {
@@ -16,8 +17,10 @@ namespace cli {
 bool write_cycles_csv_header(std::FILE* out) noexcept;
 
 // The row of cycle `r`; `t0_ns` is the trigger time of the first row
-// (t_ms counts from it). False when the stream refused the write.
-bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, std::int64_t t0_ns) noexcept;
+// (t_ms counts from it); `truth`: the frame's, from a simulated source
+// (nullptr: none). False when the stream refused the write.
+bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, const hal::FrameTruth* truth,
+                          std::int64_t t0_ns) noexcept;
 
 }  // namespace cli
 }  // namespace tcpest

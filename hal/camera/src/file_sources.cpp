@@ -344,7 +344,6 @@ Status<CameraError> JpegFileSource::acquire(const MutableImageView& out, FrameIn
   }
   info.timestamp_ns = monotonic_now_ns();
   info.sequence = sequence_++;
-  info.truth.valid = false;
   last_file_ = file_name(next_);
   ++next_;
   std::size_t size = 0U;
@@ -554,7 +553,6 @@ Status<CameraError> Y4mSource::acquire(const MutableImageView& out, FrameInfo& i
     return Status<CameraError>::failure(CameraError::kWrongSize);
   }
   info.timestamp_ns = monotonic_now_ns();
-  info.truth.valid = false;
   auto status = read_frame();
   if (!status.ok() && status.error() == CameraError::kEndOfStream && loop_) {
     const auto rewound = reopen();

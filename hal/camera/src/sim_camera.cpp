@@ -19,9 +19,13 @@ Status<CameraError> SimCamera::acquire(const MutableImageView& out, FrameInfo& i
   }
   info.timestamp_ns = monotonic_now_ns();
   info.sequence = sequence_++;
-  info.truth = FrameTruth{};
+  truth_ = FrameTruth{};
   const std::uint32_t index = next_++;
-  return renderer_.render(index, out, info.truth);
+  const auto drawn = renderer_.render(index, out, truth_);
+  if (!drawn.ok()) {
+    truth_ = FrameTruth{};
+  }
+  return drawn;
 }
 
 Status<CameraError> SimCamera::reopen() noexcept {

@@ -282,7 +282,6 @@ Status<CameraError> V4l2Source::acquire(const MutableImageView& out, FrameInfo& 
   last_driver_sequence_ = buffer.sequence;
   have_driver_sequence_ = true;
   info.sequence = sequence_++;
-  info.truth.valid = false;
   if ((buffer.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC) {
     info.timestamp_ns = static_cast<std::int64_t>(buffer.timestamp.tv_sec) * 1000000000LL +
                         static_cast<std::int64_t>(buffer.timestamp.tv_usec) * 1000LL;

@@ -385,15 +385,16 @@ class StripesRenderer final : public SceneRenderer {
   }
 };
 
-TEST(SimCamera, CarriesTruthAndLoops) {
+// The truth travels beside the frame (TruthSource), not in FrameInfo.
+TEST(SimCamera, KeepsTheTruthBesideTheFrameAndLoops) {
   StripesRenderer renderer;
   SimCamera camera(renderer, 25.0, true);
   Image out(8, 4);
   FrameInfo info;
   for (std::uint32_t i = 0; i < 5U; ++i) {
     ASSERT_TRUE(camera.acquire(out.view, info).ok());
-    EXPECT_TRUE(info.truth.valid);
-    EXPECT_DOUBLE_EQ(info.truth.tcp_mm[2], static_cast<double>(i % 2U));
+    EXPECT_TRUE(camera.last_truth().valid);
+    EXPECT_DOUBLE_EQ(camera.last_truth().tcp_mm[2], static_cast<double>(i % 2U));
     EXPECT_EQ(info.sequence, i);
   }
   SimCamera once(renderer, 25.0, false);

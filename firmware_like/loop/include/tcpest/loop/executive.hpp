@@ -72,7 +72,6 @@ struct CycleRecord {
   Publication publication{};        // what this cycle's estimate is (sent now or at the next tick)
   bool camera_lost = false;
   bool bus_lost = false;
-  hal::FrameTruth truth{};
 };
 
 struct LoopStats {

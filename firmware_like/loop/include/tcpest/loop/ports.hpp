@@ -32,8 +32,6 @@ class FeaturePipeline {
   FeaturePipeline& operator=(FeaturePipeline&&) = delete;
 
   virtual const char* name() const noexcept = 0;
-  // Called before estimate() with what the source knows of the frame.
-  virtual void begin_frame(const hal::FrameInfo& info) noexcept { static_cast<void>(info); }
   // The observer is told when each step ends (the loop times the steps).
   virtual vision::FrameEstimate estimate(const ImageView& image, const vision::FramePrior& prior,
                                          vision::StepObserver& observer) noexcept = 0;

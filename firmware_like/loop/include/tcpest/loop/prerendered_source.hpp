@@ -11,6 +11,7 @@
 
 #include "tcpest/hal/camera/frame_source.hpp"
 #include "tcpest/hal/camera/jpeg_decoder.hpp"
+#include "tcpest/hal/camera/sim_camera.hpp"
 #include "tcpest/loop/ports.hpp"
 #include "tcpest/solver/camera.hpp"
 #include "tcpest/solver/instrument.hpp"
@@ -29,7 +30,7 @@ struct PrerenderOptions {
   void (*progress)(std::uint32_t done, std::uint32_t total) = nullptr;
 };
 
-class PrerenderedSource final : public hal::FrameSource {
+class PrerenderedSource final : public hal::FrameSource, public hal::TruthSource {
  public:
   static Result<std::unique_ptr<PrerenderedSource>, hal::CameraError> create(const solver::CameraModel& camera,
                                                                             const solver::InstrumentModel& model,
@@ -47,6 +48,7 @@ class PrerenderedSource final : public hal::FrameSource {
   bool live() const noexcept override { return false; }
   Status<hal::CameraError> acquire(const MutableImageView& out, hal::FrameInfo& info) noexcept override;
   Status<hal::CameraError> reopen() noexcept override;
+  const hal::FrameTruth& last_truth() const noexcept override { return last_truth_; }
 
   std::uint32_t frame_count() const noexcept { return options_.frames; }
   // Index of the frame the next acquire() delivers.
@@ -66,6 +68,7 @@ class PrerenderedSource final : public hal::FrameSource {
   hal::JpegDecoder decoder_;
   std::uint32_t next_ = 0U;
   std::uint32_t sequence_ = 0U;
+  hal::FrameTruth last_truth_{};
 };
 
 }  // namespace loop

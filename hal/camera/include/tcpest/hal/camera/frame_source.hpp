@@ -19,21 +19,12 @@
 namespace tcpest {
 namespace hal {
 
-constexpr int kTruthCorners = 12;
-
-// Exact ground truth, when the source knows it (the simulated camera).
-struct FrameTruth {
-  bool valid = false;
-  std::array<double, 3> tcp_mm{};              // camera frame
-  std::array<double, 7> r{};                   // [x_ch, y_ch, psi, mu, lambda, phi, theta]
-  std::array<std::array<double, 2>, kTruthCorners> corners_px{};
-  std::array<bool, kTruthCorners> corner_visible{};
-};
-
+// What a source knows of a frame besides its pixels. No ground truth: that
+// travels beside the frame in the simulation layer (sim_camera.hpp's
+// TruthSource), never through the loop.
 struct FrameInfo {
   std::int64_t timestamp_ns = 0;  // CLOCK_MONOTONIC time the frame was captured (replay: delivered)
   std::uint32_t sequence = 0U;    // the source's frame index (0, 1, ...; replay restarts count on)
-  FrameTruth truth{};
 };
 
 class FrameSource {
