@@ -264,15 +264,16 @@ bool prepare_seed(FeatureExtractor& extractor, const solver::CameraModel& camera
 
 // Two stripes along the tube the colours repeat (blue, yellow, blue): with
 // an end of the tube hidden or smeared, a fit can hold the stripes two
-// along from the true ones, the insertion off by 7.4 mm (hard frames 9, 14,
-// 27). When the result's insertion lies farther from the start's (the
+// along from the true ones, the insertion off by 7.4 mm. When the result's
+// insertion lies farther from the start's (the
 // encoders', +/- 3 mm) than alias_lambda_tolerance_mm, the rounds are tried
 // from the pose two stripes back towards it; that result is kept only if
 // it is better (the rule above) and nearer to the start. From a fine start
 // first (alias_fine_start): that seed has the result's shape, and the wide
 // windows of a coarse start let the fit slide back onto the stripes it
-// came from (hard frame 27); then from a coarse start when the fine one was
-// not kept (lab frame 14 needs it). True when kept.
+// came from; then from a coarse start when the fine one was not kept, for a
+// result whose shape is wrong too (docs/decisions/0030-alias-check.md).
+// True when kept.
 bool try_alias(FeatureExtractor& extractor, solver::PoseEstimator& estimator, const solver::CameraModel& camera,
                const solver::InstrumentModel& model, const ImageView& image, solver::SolveMode mode,
                const solver::Estimate& first, const solver::PoseVector& start, const GuidedOptions& options,

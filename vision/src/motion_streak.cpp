@@ -18,7 +18,7 @@ namespace detail {
 namespace {
 
 // Motion blur's streak from the boundary arcs (read_streak,
-// docs/vision-measurements.md "The smear from the arcs"). Each stripe boundary is a sharp colour change
+// docs/decisions/0014-motion-streak-reading.md). Each stripe boundary is a sharp colour change
 // between surfaces shaded alike, so the width of its change along an arc
 // point's image normal n is the streak's length along n: w^2 = (b . n)^2 +
 // kStreakSharpWidthPx^2 (the width of a sharp change: JPEG chroma and
@@ -31,7 +31,7 @@ constexpr int kStreakProfile = 2 * kStreakReachPx + 3;
 constexpr int kStreakPeakSearchPx = 6;       // the change's peak within +/- this of the model's arc
 constexpr double kStreakMinPeak = 0.01;      // linear-light contrast per px below which no width is read
 constexpr double kStreakLobeShare = 0.1;     // the peak's main lobe: contiguous samples above this share
-constexpr double kStreakSharpWidthPx = 5.8;  // measured on the sharp hard frames (docs/vision-measurements.md)
+constexpr double kStreakSharpWidthPx = 5.8;  // measured on sharp frames (docs/decisions/0014-motion-streak-reading.md)
 // A smear across the tube shows in the silhouette's width instead: across
 // the middle of each blue stripe, where the tube's linear red is near 0
 // whatever its shading and the tissue's is high, the red step's width is

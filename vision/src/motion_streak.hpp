@@ -1,6 +1,6 @@
 // The motion-blur streak read from the model's boundary arcs and the
-// blue stripes' silhouette at a pose (docs/vision-measurements.md "The
-// smear from the arcs"), for the image fit and
+// blue stripes' silhouette at a pose (docs/decisions/0014-motion-streak-reading.md),
+// for the image fit and
 // FeatureExtractor::read_motion_streak.
 #pragma once
 

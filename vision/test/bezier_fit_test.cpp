@@ -69,8 +69,8 @@ TEST(BezierFit, PointsOnACurveAreFittedWithinAFewHundredthsOfAPixel) {
 // of every point after it, and the weighted fit follows those t (2 points
 // of 40 at 10 px: 20 px, against 8 px for plain least squares). Stage 3
 // keeps only edge points near the labelled region's boundary; parameters
-// from median-filtered points gained nothing on the rendered sets
-// (docs/vision-measurements.md, "Stage 3's chord-length parameters").
+// from median-filtered points gained nothing
+// (docs/decisions/0006-bezier-irls-constants.md).
 TEST(BezierFit, OutliersGetNoWeightAndEvenlySpreadOnesLeaveTheCurveNearTheInliers) {
   Border clean = border_on_curve(40, 0);
   ASSERT_TRUE(fit_bezier(clean, 1.5, 10, 4));

@@ -865,8 +865,8 @@ TEST(DenseFit, OptionsOutOfRangeAreRefused) {
 // pixels that show a stripe's colour: otherwise the occluder's pixels,
 // drawn as the stripes it hides, set those stripes' chroma near 0 (a faded
 // stripe explains the occluder), and the stripes' own visible pixels become
-// outliers, their corners unreported (hard5/0058,
-// docs/vision-measurements.md). The scene's seed 21 puts the occluder
+// outliers, their corners unreported
+// (docs/decisions/0043-dense-stripe-colours.md). The scene's seed 21 puts the occluder
 // there; with every pixel by its responsibility alone one of its 4 visible
 // corners is found.
 TEST(DenseFit, AnOccluderIsNotTakenForFadedStripes) {

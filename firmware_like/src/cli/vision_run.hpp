@@ -205,7 +205,7 @@ void format_visible_corners_tally(const VisibleCornersTally& tally, char* out, s
 // mm; a lambda beyond the grid joins its end bin). Both ends of the range
 // lose frames for their own reasons (at 10 mm the base at the image's edge
 // and the shaft outside it, at 40 mm the shaft hiding most of the first
-// stripe: docs/vision-measurements.md), which a pooled rate hides.
+// stripe: docs/decisions/0046-evaluate-pools-seeds.md), which a pooled rate hides.
 struct InsertionTally {
   static constexpr int kBins = 7;
   static constexpr double kFirstMm = 10.0;

@@ -55,9 +55,8 @@ struct DenseOptions {
   // After the fine stage: its winner moved by -/+ its softest step
   // (DenseFit::softest_step: the model's corners moved by this many px
   // RMS), each fitted finely; a lower cost replaces the winner (0: no
-  // such steps). Off: on the continuous rendering 3 px gained 10 frames
-  // of the hard sets (2160 measured) and lost 16, for a third more time
-  // (docs/vision.md, "The dense stage").
+  // such steps). Off: it lost as many frames as it gained, for a third
+  // more time (docs/decisions/0038-dense-search.md).
   double softest_step_px = 0.0;
   // Where no streak comes in (the pipeline's image fit read none: it
   // failed on a blurred frame, or the frame is sharp), the fit cannot
@@ -66,9 +65,7 @@ struct DenseOptions {
   // the cheapest of no streak and streak_screen_lengths lengths (from
   // streak_screen_min_px to streak_screen_max_px) in
   // streak_screen_directions directions over 180 deg, by the cost alone
-  // at its pose (0 directions: no screen). On the hard sets' blurred
-  // frames not valid it gained 31 frames and lost 9, on the sharp ones
-  // gained 6 and lost 12 (docs/vision.md, "The dense stage").
+  // at its pose (0 directions: no screen; docs/decisions/0039-dense-streak-screen.md).
   int streak_screen_directions = 6;
   int streak_screen_lengths = 3;
   double streak_screen_min_px = 5.0;
@@ -78,26 +75,21 @@ struct DenseOptions {
   // most this many corners on the image (read, not predicted at its
   // pose); 12: on every frame not valid. With the corners blended with the
   // pipeline's (pipeline_corner_weight), its result is the better one
-  // there too: on the 483 frames of the hard sets where the pipeline
-  // measured more than 2, 39 frames gained and 16 lost (before the blend,
-  // 2 was best: the stage's own minimum was more often elsewhere;
-  // docs/vision.md, "The dense stage").
+  // there too (docs/decisions/0040-dense-where-it-runs.md).
   int max_measured_corners = kNumCorners;
   // ... and on one the encoders contradict
   // (solver::disagrees_with_encoders; it would end none) whatever was
   // measured: it is not mostly right.
   bool run_when_encoders_disagree = true;
   // ... and on a valid result where the pipeline measured at most this
-  // many corners (-1: never on a valid one): on the hard sets' 229 such
-  // frames without a streak read, 17 gained and 2 lost; where it
-  // measured more (614 frames) it fails on 5.
+  // many corners (-1: never on a valid one): with more measured, the
+  // pipeline's corners are the better ones (docs/decisions/0040-dense-where-it-runs.md).
   int max_measured_corners_valid = 7;
   // ... and where the pipeline's image fit read a motion streak (longer
   // than DenseFit::kMinStreakPx), whatever its estimate, valid too: along
   // a smeared border the pipeline's corners lie 1-3 px off on a fifth of
   // the valid blurred frames, and the dense fit models the streak at every
-  // pixel. On the hard sets' 146 valid frames with a streak read it gained
-  // 16 frames and lost 4 (docs/vision.md, "The dense stage").
+  // pixel (docs/decisions/0040-dense-where-it-runs.md).
   bool run_where_streak_read = true;
   // A valid estimate the stage replaces stays valid when the solve from
   // the stage's corners is valid and its TCP lies within this of the

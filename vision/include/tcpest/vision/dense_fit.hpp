@@ -31,7 +31,7 @@ namespace vision {
 // instrument's region is at the camera's own pixels whatever its size (at
 // 10-15 mm of insertion the near tube's region can exceed 250000 px). The
 // corners at the bend's far end move by pixels for hundredths of a radian,
-// and 2x2 or 3x3 blocks cost frames there (docs/vision-measurements.md).
+// and 2x2 or 3x3 blocks cost frames there (docs/decisions/0038-dense-search.md).
 // DenseFitConfig's capacity by default (about 117 MB of buffers, allocated
 // once, only for the offline stage), and DenseOptions::fine_pixels.
 constexpr int kDenseFineWorkPixels = 720 * 576;
@@ -65,7 +65,7 @@ struct DenseFitConfig {
   // its position on that axis per work pixel). The many pixels of the
   // tube's long sides, where shading and highlights are modelled least
   // well, otherwise outweigh the few that place the stripes along the tube
-  // (docs/vision-measurements.md). The weight comes from the image alone,
+  // (docs/decisions/0037-dense-edge-emphasis.md). The weight comes from the image alone,
   // so costs stay comparable between poses; the appearance's solve does
   // not use it. 0: every pixel alike.
   double edge_emphasis = 15.0;
@@ -79,7 +79,7 @@ struct DenseFitConfig {
   // occluder_weight) x (its stripes' coverage). Without it an occluder over
   // a stripe is explained as that stripe faded (its chroma scale near 0),
   // and the stripe's own visible pixels become outliers, their corners
-  // unreported (docs/vision-measurements.md). false: every pixel by its
+  // unreported (docs/decisions/0043-dense-stripe-colours.md). false: every pixel by its
   // responsibility alone.
   bool stripes_from_stripe_colours = true;
   // Longer steps tried along an accepted direction (doubling).
@@ -97,7 +97,7 @@ struct DenseFitConfig {
   // interpolation (libjpeg's "fancy" upsampling) spreads it further: per
   // axis, weights 1/8, 1/8, 3/8, 3/8 about the pixel, a variance of 1 px^2,
   // which two passes (0.5 px^2 each) match. Without them the fit reads the
-  // chroma's wider edges as the stripes' (docs/vision-measurements.md).
+  // chroma's wider edges as the stripes' (docs/decisions/0044-dense-chroma-blur.md).
   // 0: the chroma as sharp as the lightness (an uncompressed camera).
   int chroma_blur_passes = 2;
   // L* is compared beside a* and b*, scaled by this (it carries the

@@ -38,8 +38,8 @@ struct GuidedOptions {
   // corners, at most a Degraded estimate (docs/vision.md). Counted are the
   // readings at the gradient peak's centre (plain_silhouette_readings): those
   // at the plateau's outer end under a streak (refine_streak_*) move the fit
-  // but do not make it valid; counted, they turned 12 more blurred hard
-  // frames valid, some with most corners off.
+  // but do not make it valid: under a streak they are not where the edge
+  // is (docs/decisions/0012-consecutive-boundary-run.md).
   int min_valid_fit_silhouette_readings = 12;
   // Fallback seeds, when the result is not valid yet (no pose, or a degraded
   // one): the image fit is tried again from the start pose (`start_seed`:
@@ -63,9 +63,9 @@ struct GuidedOptions {
   // longer run is kept unless the shorter one's residual is below
   // longer_run_rms_ratio times the longer one's. A fit two stripes along,
   // or onto an occluder's edge, reads fewer boundaries and can settle on a
-  // lower residual; a lower residual alone replaced the true stripes there
-  // (lab frame 14; docs/vision.md, "The longer run"). 0: off (the lower
-  // residual alone).
+  // lower residual, and a lower residual alone would replace the true
+  // stripes (docs/decisions/0028-longer-run.md). 0: off (the lower residual
+  // alone).
   double longer_run_rms_ratio = 0.7;
   bool start_seed = true;
   bool from_regions = true;
@@ -112,9 +112,8 @@ struct GuidedOptions {
   // boundaries and silhouette points with a residual below
   // prefer_fit_rms_ratio times the current's, whatever the qualities.
   // Four more seeds are four more chances for a lower residual at a wrong
-  // pose: the plain rule, measured, lost a frame for every two it gained,
-  // and a better quality alone turned two lab frames valid and wrong (0:
-  // off, and off with start_seed; docs/vision.md, "Bend seeds").
+  // pose, so the plain rule and a better quality alone are not enough (0:
+  // off, and off with start_seed; docs/decisions/0026-bend-seeds.md).
   double bend_seed_step_rad = 0.2;
   // A valid result is checked against the shaft: when the shaft's fit moves
   // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
@@ -132,8 +131,9 @@ struct GuidedOptions {
   // checked against the start"). Only when the result's image fit left a robust
   // RMS above valid_start_check_min_rms_px, or no fit confirmed it: a fit
   // that close to the image is rarely beside the tube, and checking every
-  // valid frame more than doubled lab's solve time for one frame more. One
-  // shaft fit, one class fit and one more set of rounds per frame checked.
+  // valid frame costs a set of rounds on every frame
+  // (docs/decisions/0031-valid-start-check.md). One shaft fit, one class
+  // fit and one more set of rounds per frame checked.
   bool valid_start_check = false;
   double valid_start_check_min_rms_px = 0.2;
   // Two stripes along the tube the colours repeat: a fit-confirmed result
