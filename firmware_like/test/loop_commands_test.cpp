@@ -65,6 +65,8 @@ TEST(RunCommand, ExitCodes) {
   const std::string dir = temp_dir();
   EXPECT_EQ(run({"run", "--bogus"}), kExitUsage);
   EXPECT_EQ(run({"run", "--frames", "-3"}), kExitUsage);
+  EXPECT_EQ(run({"run", "--frames", "18446744073709551615"}), kExitUsage);  // was -1 after the conversion: no limit
+  EXPECT_EQ(run({"run", "--frames", "1e3"}), kExitUsage);
   EXPECT_EQ(run({"run", "--source", dir + "/missing", "--quiet"}), kExitConfig);
   write_clip(dir + "/small.y4m", 64, 48, 1);
   EXPECT_EQ(run({"run", "--source", dir + "/small.y4m", "--quiet"}), kExitConfig);  // not the camera's size

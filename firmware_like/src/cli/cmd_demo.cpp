@@ -39,7 +39,7 @@ constexpr OptionSpec kOptions[] = {
     {"frames", "N", "frames of the sequence (default 250: 10 s at 25 Hz)"},
     {"seed", "S", "seed of the motion sequence and the rendering (default 7)"},
     {"bus", "BUS", "vcan0 | IFACE | sim (default: vcan0 if it exists, else the simulated bus)"},
-    {"overlay-every", "N", "write an overlay every N frames (default 25)"},
+    {"overlay-every", "N", "write an overlay every N frames (default 25; 0 = none)"},
 };
 constexpr std::size_t kOptionCount = sizeof kOptions / sizeof kOptions[0];
 
@@ -355,6 +355,9 @@ bool write_latency_svg(const char* path, const std::vector<Sample>& samples) {
   return std::fclose(f) == 0;
 }
 
+// The longest sequence the demo renders (and so the largest overlay period).
+constexpr unsigned long long kMaxDemoFrames = 100000U;
+
 // The demo's options.
 struct DemoOptions {
   const char* out_dir = "tcpest-demo";
@@ -367,11 +370,9 @@ struct DemoOptions {
 // (reported).
 int parse_demo_options(const Args& args, DemoOptions& o) noexcept {
   o.out_dir = args.value("out") != nullptr ? args.value("out") : "tcpest-demo";
-  if ((args.value("frames") != nullptr &&
-       (!parse_unsigned(args.value("frames"), o.frames) || o.frames == 0U || o.frames > 100000U)) ||
-      (args.value("seed") != nullptr && !parse_unsigned(args.value("seed"), o.seed)) ||
-      (args.value("overlay-every") != nullptr && !parse_unsigned(args.value("overlay-every"), o.overlay_every))) {
-    std::fprintf(stderr, "tcpest demo: --frames, --seed, --overlay-every: expected non-negative integers\n");
+  if (!unsigned_option(args, "demo", "frames", 1U, kMaxDemoFrames, o.frames) ||
+      !unsigned_option(args, "demo", "seed", 0U, ~0ULL, o.seed) ||
+      !unsigned_option(args, "demo", "overlay-every", 0U, kMaxDemoFrames, o.overlay_every)) {
     return kExitUsage;
   }
   return kExitOk;

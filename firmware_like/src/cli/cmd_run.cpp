@@ -92,8 +92,7 @@ int cmd_run(int argc, char** argv) {
   request.quiet = args.flag("quiet");
   if (args.value("frames") != nullptr) {
     unsigned long long frames = 0U;
-    if (!parse_unsigned(args.value("frames"), frames)) {
-      std::fprintf(stderr, "tcpest run: --frames: expected a non-negative integer\n");
+    if (!unsigned_option(args, "run", "frames", 0U, 1000000000000ULL, frames)) {  // loop.frames' range
       return kExitUsage;
     }
     request.frames = static_cast<long long>(frames);

@@ -313,8 +313,7 @@ int load_all_frames(const Args& args, std::vector<Frame>& frames) {
     return kExitConfig;
   }
   unsigned long long max_frames = ~0ULL;
-  if (args.value("max") != nullptr && !parse_unsigned(args.value("max"), max_frames)) {
-    std::fprintf(stderr, "tcpest train-colors: --max needs a non-negative integer\n");
+  if (!unsigned_option(args, "train-colors", "max", 0U, ~0ULL, max_frames)) {
     return kExitUsage;
   }
   if (frames.size() > max_frames) {
