@@ -61,6 +61,58 @@ TEST(RunCommand, PacedRunPrintsAStatusLineEverySecond) {
   EXPECT_EQ(count_of(slurp(log), " sim0 190#"), 30U);
 }
 
+std::vector<std::uint8_t> bytes_of(const std::string& path) {
+  const std::string text = slurp(path);
+  return std::vector<std::uint8_t>(text.begin(), text.end());
+}
+
+void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+// A damaged recording: one bad frame tag costs one frame; a header followed
+// by junk stops the run with the reason and exit 3 (it used to be millions of
+// dropped cycles, exit 0 and nothing said); so does a colour space the loop
+// cannot read, or a file with no frame.
+TEST(RunCommand, ADamagedRecordingDropsAFrameOrStopsWithTheReason) {
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 4);
+  std::vector<std::uint8_t> clip = bytes_of(dir + "/clip.y4m");
+  const std::size_t header = std::string(clip.begin(), clip.end()).find('\n') + 1U;
+  clip[header + 4U] = 'X';  // the first FRAME tag -> FRAMX
+  write_bytes(dir + "/framx.y4m", clip);
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"run", "--source", dir + "/framx.y4m", "--bus", "sim", "--no-pacing", "--quiet"}), kExitOk);
+  std::string printed = testing::internal::GetCapturedStdout();
+  EXPECT_NE(printed.find("frames 3, dropped frames 1"), std::string::npos) << printed;
+
+  std::vector<std::uint8_t> junk(clip.begin(), clip.begin() + static_cast<std::ptrdiff_t>(header));
+  junk.resize(header + 4U * 1024U * 1024U, 0x5AU);
+  write_bytes(dir + "/junk.y4m", junk);
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", "--source", dir + "/junk.y4m", "--bus", "sim", "--no-pacing", "--quiet"}), kExitConfig);
+  printed = testing::internal::GetCapturedStdout();
+  std::string errors = testing::internal::GetCapturedStderr();
+  EXPECT_NE(printed.find("frames 0, dropped frames 1"), std::string::npos) << printed;
+  EXPECT_NE(errors.find("damaged stream"), std::string::npos) << errors;
+
+  junk.resize(header);
+  write_bytes(dir + "/empty.y4m", junk);
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", "--source", dir + "/empty.y4m", "--bus", "sim", "--quiet"}), kExitConfig);
+  errors = testing::internal::GetCapturedStderr();
+  EXPECT_NE(errors.find("no frame after the header"), std::string::npos) << errors;
+
+  const std::string p10 = "YUV4MPEG2 W720 H576 F25:1 Ip C420p10\n";
+  write_bytes(dir + "/p10.y4m", std::vector<std::uint8_t>(p10.begin(), p10.end()));
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", "--source", dir + "/p10.y4m", "--bus", "sim", "--quiet"}), kExitConfig);
+  errors = testing::internal::GetCapturedStderr();
+  EXPECT_NE(errors.find("'C420p10'"), std::string::npos) << errors;
+}
+
 TEST(RunCommand, ExitCodes) {
   const std::string dir = temp_dir();
   EXPECT_EQ(run({"run", "--bogus"}), kExitUsage);

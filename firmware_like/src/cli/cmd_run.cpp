@@ -119,7 +119,16 @@ int cmd_run(int argc, char** argv) {
   const loop::CycleOutcome outcome = rig.executive->run(stop);
   std::printf("tcpest run: %s\n", outcome == loop::CycleOutcome::kInterrupted ? "stopped by signal" : "finished");
   print_summary(stdout, *rig.executive);
-  return outcome == loop::CycleOutcome::kInterrupted ? kExitInterrupted : kExitOk;
+  if (outcome == loop::CycleOutcome::kInterrupted) {
+    return kExitInterrupted;
+  }
+  // A recording too damaged to go on: the input is at fault.
+  const char* stopped = rig.source->stop_reason();
+  if (stopped != nullptr) {
+    std::fprintf(stderr, "tcpest run: source %s: %s: stopped\n", rig.config.loop.source, stopped);
+    return kExitConfig;
+  }
+  return kExitOk;
 }
 
 }  // namespace cli

@@ -34,6 +34,7 @@ int camera_exit_code(hal::CameraError e) noexcept {
     case hal::CameraError::kTruncated:
     case hal::CameraError::kWrongSize:
     case hal::CameraError::kUnsupported:
+    case hal::CameraError::kEndOfStream:  // an empty recording
       return kExitConfig;
     default:
       return kExitFailure;
@@ -118,6 +119,7 @@ int LoopRig::open_source() noexcept {
     return kExitOk;
   }
   hal::CameraError error = hal::CameraError::kNone;
+  char detail[192] = {};  // why a file is refused, when the source says
   if (std::strncmp(spec, "/dev/video", 10) == 0) {
     hal::V4l2Options options;
     options.width = w;
@@ -140,7 +142,7 @@ int LoopRig::open_source() noexcept {
     options.height = h;
     options.loop = config.loop.replay_loop;
     if (ends_with(spec, ".y4m")) {
-      auto opened = hal::Y4mSource::open(spec, options);
+      auto opened = hal::Y4mSource::open(spec, options, detail, sizeof detail);
       if (opened.ok()) {
         source = std::move(opened.value());
       } else {
@@ -159,6 +161,8 @@ int LoopRig::open_source() noexcept {
     if (error == hal::CameraError::kWrongSize) {
       std::fprintf(stderr, "tcpest %s: source %s: frames are not %dx%d, the calibrated camera's size\n",
                    request.command, spec, w, h);
+    } else if (detail[0] != '\0') {
+      std::fprintf(stderr, "tcpest %s: source %s: %s: %s\n", request.command, spec, hal::to_string(error), detail);
     } else {
       std::fprintf(stderr, "tcpest %s: source %s: %s\n", request.command, spec, hal::to_string(error));
     }
