@@ -1,5 +1,6 @@
 // tcpest run end to end on a small raw clip: exit codes and the candump log.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <string>
@@ -111,6 +112,32 @@ TEST(RunCommand, ADamagedRecordingDropsAFrameOrStopsWithTheReason) {
   EXPECT_EQ(run({"run", "--source", dir + "/p10.y4m", "--bus", "sim", "--quiet"}), kExitConfig);
   errors = testing::internal::GetCapturedStderr();
   EXPECT_NE(errors.find("'C420p10'"), std::string::npos) << errors;
+}
+
+// Every log write failing (a full disk) used to end in exit 0 and
+// "published 20 (errors 0)": now the summary counts the write errors and the
+// run exits 1 (docs/cli.md: a write failed).
+TEST(RunCommand, ALogThatCannotBeWrittenIsReportedAndFailsTheRun) {
+  if (::access("/dev/full", W_OK) != 0) {
+    GTEST_SKIP() << "no /dev/full here";
+  }
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 3);
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  const int code = run({"run", "--source", dir + "/clip.y4m", "--bus", "log:/dev/full", "--no-pacing", "--quiet"});
+  const std::string printed = testing::internal::GetCapturedStdout();
+  const std::string errors = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(code, kExitFailure) << printed << errors;
+  EXPECT_NE(printed.find("candump log /dev/full: "), std::string::npos) << printed;
+  EXPECT_EQ(printed.find("write errors 0"), std::string::npos) << printed;
+  EXPECT_NE(errors.find("No space left on device"), std::string::npos) << errors;
+  // A log that is written: said so, exit 0.
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + dir + "/can.log", "--no-pacing", "--quiet"}),
+            kExitOk);
+  const std::string good = testing::internal::GetCapturedStdout();
+  EXPECT_NE(good.find("lost 0, write errors 0"), std::string::npos) << good;
 }
 
 TEST(RunCommand, ExitCodes) {

@@ -586,12 +586,9 @@ int cmd_demo(int argc, char** argv) {
   const loop::CycleOutcome outcome = rig.executive->run(stop);
   robot.drain();
   const bool csv_ok = std::fclose(csv) == 0 && !observer.csv_failed();
-  if (rig.logging) {
-    static_cast<void>(rig.log.flush());  // checked by close() in the rig's destructor path below
-  }
-
   const bool svg_ok = report_run(rig, robot, samples, paths);
-  if (!csv_ok || !svg_ok) {
+  const bool log_ok = rig.finish_log(stdout);
+  if (!csv_ok || !svg_ok || !log_ok) {
     std::fprintf(stderr, "tcpest demo: some outputs could not be written\n");
     return kExitFailure;
   }

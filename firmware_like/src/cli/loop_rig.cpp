@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstring>
 #include <new>
 
@@ -212,6 +213,7 @@ int LoopRig::open_bus(const char* log_path) noexcept {
       return kExitConfig;
     }
     logging = true;
+    static_cast<void>(std::snprintf(log_file, sizeof log_file, "%s", log_path));  // for messages: truncation is harmless
   }
   node.reset(new (std::nothrow) loop::CanNodePort(clock, *bus, sim_bus.get(), logging ? &log : nullptr, log_interface));
   if (!node) {
@@ -270,6 +272,24 @@ int LoopRig::open_all(const RigRequest& r) noexcept {
     code = build();
   }
   return code;
+}
+
+bool LoopRig::finish_log(std::FILE* out) noexcept {
+  if (!logging) {
+    return true;
+  }
+  static_cast<void>(log.close());  // its failure is in the counts below
+  logging = false;
+  const std::uint64_t errors = log.write_errors();
+  std::fprintf(out, "candump log %s: %llu lines, lost %llu, write errors %llu\n", log_file,
+               static_cast<unsigned long long>(log.lines_written()), static_cast<unsigned long long>(log.lines_lost()),
+               static_cast<unsigned long long>(errors));
+  if (errors == 0U) {
+    return true;
+  }
+  std::fprintf(stderr, "tcpest %s: candump log %s: %llu write error(s), the first: %s; the log is incomplete\n",
+               request.command, log_file, static_cast<unsigned long long>(errors), std::strerror(log.first_errno()));
+  return false;
 }
 
 void print_steps(std::FILE* out, const loop::Executive& executive) noexcept {
