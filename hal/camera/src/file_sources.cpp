@@ -7,7 +7,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cstdarg>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
@@ -365,14 +364,14 @@ Status<CameraError> JpegFileSource::reopen() noexcept {
 
 namespace {
 
-// Writes why a Y4M file is refused into `detail` (when given); returns `error`.
-__attribute__((format(printf, 4, 5))) CameraError explain(char* detail, std::size_t capacity, CameraError error,
-                                                          const char* format, ...) noexcept {
+// Writes why a Y4M file is refused (a printf format and its values) into
+// `detail`, when given; returns `error`.
+template <typename... Values>
+CameraError explain(char* detail, std::size_t capacity, CameraError error, const char* format,
+                    Values... values) noexcept {
+  static_assert(sizeof...(Values) > 0U, "a plain message goes through \"%s\"");
   if (detail != nullptr && capacity > 0U) {
-    va_list args;
-    va_start(args, format);
-    static_cast<void>(std::vsnprintf(detail, capacity, format, args));  // a message: truncation is harmless
-    va_end(args);
+    static_cast<void>(std::snprintf(detail, capacity, format, values...));  // a message: truncation is harmless
   }
   return error;
 }
@@ -445,7 +444,7 @@ Result<Y4mHeader, CameraError> parse_y4m_header(const char* line, std::size_t le
   constexpr char kMagic[] = "YUV4MPEG2";
   constexpr std::size_t kMagicLen = sizeof kMagic - 1U;
   if (line == nullptr || length < kMagicLen || std::strncmp(line, kMagic, kMagicLen) != 0) {
-    return R::failure(explain(detail, detail_capacity, CameraError::kCorrupt, "not a YUV4MPEG2 header"));
+    return R::failure(explain(detail, detail_capacity, CameraError::kCorrupt, "%s", "not a YUV4MPEG2 header"));
   }
   Y4mHeader header;  // no C tag: 4:2:0, the format's default
   std::size_t i = kMagicLen;
@@ -517,7 +516,7 @@ Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path
   }
   if (!complete) {
     return R::failure(explain(detail, detail_capacity, length == 0U ? CameraError::kTruncated : CameraError::kCorrupt,
-                              length == 0U ? "empty file" : "no complete YUV4MPEG2 header line"));
+                              "%s", length == 0U ? "empty file" : "no complete YUV4MPEG2 header line"));
   }
   const auto header = parse_y4m_header(line, length, detail, detail_capacity);
   if (!header.ok()) {
@@ -531,7 +530,7 @@ Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path
   source->data_offset_ = static_cast<long long>(length) + 1;
   struct stat st {};
   if (::fstat(source->fd_, &st) == 0 && S_ISREG(st.st_mode) && static_cast<long long>(st.st_size) <= source->data_offset_) {
-    return R::failure(explain(detail, detail_capacity, CameraError::kEndOfStream,
+    return R::failure(explain(detail, detail_capacity, CameraError::kEndOfStream, "%s",
                               "no frame after the header (an empty stream)"));
   }
   source->frame_bytes_ = planar_frame_bytes(source->header_.width, source->header_.height, source->header_.layout);
