@@ -149,20 +149,6 @@ Status<Diagnostic> fail(const Parser& p, std::uint32_t line, const char* field, 
   return Status<Diagnostic>::failure(Diagnostic::make(p.file, line, field, message));
 }
 
-// A line that continues the flow sequence of the last entry.
-Status<Diagnostic> continue_flow(Parser& p, Span content) noexcept {
-  Entry& e = p.entries[p.count - 1U];
-  bool closed = false;
-  bool nested = false;
-  if (!add_flow_items(e, content, closed, nested)) {
-    return fail(p, p.line_number, e.path, "sequence too long");
-  }
-  if (nested) {
-    return fail(p, p.line_number, e.path, "nested sequences are not supported");
-  }
-  p.open_flow = !closed;
-  return ok_status<Diagnostic>();
-}
 
 // Block sequence item: "- value", added to the key above it.
 Status<Diagnostic> add_sequence_item(Parser& p, std::size_t indent, Span content) noexcept {
@@ -199,6 +185,33 @@ std::size_t key_colon(Span content) noexcept {
   return first_outside_quotes(content, [&content](std::size_t i) noexcept {
     return content.begin[i] == ':' && (i + 1U == content.size || content.begin[i + 1U] == ' ');
   });
+}
+
+// A flow sequence whose ']' never came: reported at its '['.
+Status<Diagnostic> unclosed_flow(const Parser& p) noexcept {
+  return fail(p, static_cast<std::uint32_t>(p.open_flow_line), p.entries[p.count - 1U].path,
+              "flow sequence '[' not closed with ']'");
+}
+
+// A line that continues the flow sequence of the last entry. A key ("k: v")
+// or a block item ("- v") cannot be one of its items: the '[' above was not
+// closed, and that is where the error is.
+Status<Diagnostic> continue_flow(Parser& p, Span content) noexcept {
+  Entry& e = p.entries[p.count - 1U];
+  const bool block_item = content.begin[0] == '-' && (content.size == 1U || content.begin[1] == ' ');
+  if (key_colon(content) != content.size || block_item) {
+    return unclosed_flow(p);
+  }
+  bool closed = false;
+  bool nested = false;
+  if (!add_flow_items(e, content, closed, nested)) {
+    return fail(p, p.line_number, e.path, "sequence too long");
+  }
+  if (nested) {
+    return fail(p, p.line_number, e.path, "nested sequences are not supported");
+  }
+  p.open_flow = !closed;
+  return ok_status<Diagnostic>();
 }
 
 // Sets the path of a key at `indent`: its parent level's path, '.', the key.
@@ -399,8 +412,7 @@ Status<Diagnostic> Document::parse(const char* text, std::size_t length, const c
     }
   }
   if (p.open_flow) {
-    return fail(p, static_cast<std::uint32_t>(p.open_flow_line), entries_[count_ - 1U].path,
-                "sequence not closed with ']'");
+    return unclosed_flow(p);
   }
   return ok_status<Diagnostic>();
 }

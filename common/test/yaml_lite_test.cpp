@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cstring>
 
 namespace tcpest {
@@ -78,6 +79,32 @@ TEST(YamlLite, RefusesWhatItDoesNotSupport) {
   for (const char* text : bad) {
     EXPECT_FALSE(parse(text)) << text;
   }
+}
+
+// An unclosed '[' used to be reported lines later, at the next key whose
+// value is a sequence, as "nested sequences are not supported": now at the
+// '['s own line, as what it is. A flow sequence over several lines still reads.
+TEST(YamlLite, AnUnclosedFlowSequenceIsReportedAtItsBracket) {
+  const struct {
+    const char* text;
+    std::uint32_t line;
+  } cases[] = {{"a: [1, 2\nb: 3\nc: 4\nd: 5\ne: 6\nf: [7]\n", 1U},
+               {"x: 1\na: [1,\n  2\nb: 3\n", 2U},
+               {"a: [1, 2\n", 1U},
+               {"a: [1\n- 2\n", 1U},
+               {"a: [1, 2\n  b:\n", 1U}};
+  for (const auto& c : cases) {
+    const auto status = doc().parse(c.text, std::strlen(c.text), "test.yaml");
+    ASSERT_FALSE(status.ok()) << c.text;
+    EXPECT_EQ(status.error().line, c.line) << c.text;
+    EXPECT_STREQ(status.error().field, "a") << c.text;
+    EXPECT_STREQ(status.error().message, "flow sequence '[' not closed with ']'") << c.text;
+  }
+  ASSERT_TRUE(parse("a: [1,\n  2,\n  \"x: y\"]\nb: [3, 4]\n"));
+  EXPECT_EQ(doc().find("a")->line, 1U);
+  double b[2];
+  ASSERT_TRUE(doc().numbers("b", b, 2U).ok());
+  EXPECT_DOUBLE_EQ(b[1], 4.0);
 }
 
 TEST(YamlLite, EmptyMappingAndNesting) {

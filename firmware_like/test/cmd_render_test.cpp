@@ -94,6 +94,13 @@ TEST(CmdRender, BadInputIsRefusedClearly) {
   EXPECT_EQ(run({"--set", "single", "--r", "1,2,3", "--out", dir}), kExitUsage);
   EXPECT_EQ(run({"--set", "lab", "--quality", "0", "--out", dir}), kExitUsage);
   EXPECT_EQ(run({"--set", "lab", "--hard", "rain", "--out", dir}), kExitUsage);
+  // A start past the grid used to write nothing and exit 0.
+  EXPECT_EQ(run({"--set", "lab", "--start", "1000000", "--out", dir}), kExitUsage);
+  EXPECT_EQ(run({"--set", "hard", "--start", "294", "--out", dir}), kExitUsage);
+  EXPECT_EQ(run({"--set", "seq", "--start", "1000001", "--out", dir}), kExitUsage);
+  EXPECT_EQ(run({"--set", "seq", "--n", "0", "--out", dir}), kExitUsage);
+  EXPECT_EQ(run({"--set", "seq", "--fps", "1e308", "--out", dir}), kExitUsage);
+  EXPECT_EQ(run({"--set", "lab", "--supersample", "4294967297", "--out", dir}), kExitUsage);
   const std::string calib = temp_dir("bad_camera.yaml");
   {
     std::ofstream out(calib);

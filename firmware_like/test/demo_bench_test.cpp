@@ -81,6 +81,9 @@ TEST(DemoCommand, BadArgumentsAreRefusedWithTheirExitCodes) {
   EXPECT_EQ(run(cmd_demo, {"demo", "--out", dir + "/a", "--frames", "abc"}), kExitUsage);
   EXPECT_EQ(run(cmd_demo, {"demo", "--out", dir + "/a", "--frames", "0"}), kExitUsage);
   EXPECT_EQ(run(cmd_demo, {"demo", "--out", dir + "/a", "--seed", "-3"}), kExitUsage);
+  EXPECT_EQ(run(cmd_demo, {"demo", "--out", dir + "/a", "--overlay-every", "4294967296"}), kExitUsage);  // wrapped to 0
+  EXPECT_EQ(run(cmd_demo, {"demo", "--out", dir + "/a", "--overlay-every", "100001"}), kExitUsage);
+  EXPECT_EQ(run(cmd_demo, {"demo", "--out", dir + "/a", "--frames", "100001"}), kExitUsage);
   EXPECT_EQ(run(cmd_demo, {"demo", "--out", dir + "/a", "stray"}), kExitUsage);
   EXPECT_EQ(run(cmd_demo, {"demo", "--out", dir + "/a", "--no-such-option"}), kExitUsage);
   // An output directory that cannot be made, a calibration that cannot be read.
@@ -116,6 +119,11 @@ TEST(BenchCommand, BadArgumentsAreRefusedWithTheirExitCodes) {
   EXPECT_EQ(run(cmd_bench, {"bench", "--dataset", "10001"}), kExitUsage);
   EXPECT_EQ(run(cmd_bench, {"bench", "--period-us", "999"}), kExitUsage);
   EXPECT_EQ(run(cmd_bench, {"bench", "--jitter-seconds", "-1"}), kExitUsage);
+  // Past what the conversions after the check can hold: refused, not wrapped or undefined.
+  EXPECT_EQ(run(cmd_bench, {"bench", "--frames", "1", "--dataset", "1", "--jitter-seconds", "1e308"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--jitter-seconds", "86401"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--period-us", "18446744073709551615"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--frames", "18446744073709551616"}), kExitUsage);
   EXPECT_EQ(run(cmd_bench, {"bench", "stray"}), kExitUsage);
   EXPECT_EQ(run(cmd_bench, {"bench", "--frames", "2", "--dataset", "1", "--jitter-seconds", "0", "--calib",
                             "/nonexistent/camera.yaml"}),

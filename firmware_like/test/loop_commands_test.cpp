@@ -1,5 +1,6 @@
 // tcpest run end to end on a small raw clip: exit codes and the candump log.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <string>
@@ -61,10 +62,90 @@ TEST(RunCommand, PacedRunPrintsAStatusLineEverySecond) {
   EXPECT_EQ(count_of(slurp(log), " sim0 190#"), 30U);
 }
 
+std::vector<std::uint8_t> bytes_of(const std::string& path) {
+  const std::string text = slurp(path);
+  return std::vector<std::uint8_t>(text.begin(), text.end());
+}
+
+void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+// A damaged recording: one bad frame tag costs one frame; a header followed
+// by junk stops the run with the reason and exit 3 (it used to be millions of
+// dropped cycles, exit 0 and nothing said); so does a colour space the loop
+// cannot read, or a file with no frame.
+TEST(RunCommand, ADamagedRecordingDropsAFrameOrStopsWithTheReason) {
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 4);
+  std::vector<std::uint8_t> clip = bytes_of(dir + "/clip.y4m");
+  const std::size_t header = std::string(clip.begin(), clip.end()).find('\n') + 1U;
+  clip[header + 4U] = 'X';  // the first FRAME tag -> FRAMX
+  write_bytes(dir + "/framx.y4m", clip);
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"run", "--source", dir + "/framx.y4m", "--bus", "sim", "--no-pacing", "--quiet"}), kExitOk);
+  std::string printed = testing::internal::GetCapturedStdout();
+  EXPECT_NE(printed.find("frames 3, dropped frames 1"), std::string::npos) << printed;
+
+  std::vector<std::uint8_t> junk(clip.begin(), clip.begin() + static_cast<std::ptrdiff_t>(header));
+  junk.resize(header + 4U * 1024U * 1024U, 0x5AU);
+  write_bytes(dir + "/junk.y4m", junk);
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", "--source", dir + "/junk.y4m", "--bus", "sim", "--no-pacing", "--quiet"}), kExitConfig);
+  printed = testing::internal::GetCapturedStdout();
+  std::string errors = testing::internal::GetCapturedStderr();
+  EXPECT_NE(printed.find("frames 0, dropped frames 1"), std::string::npos) << printed;
+  EXPECT_NE(errors.find("damaged stream"), std::string::npos) << errors;
+
+  junk.resize(header);
+  write_bytes(dir + "/empty.y4m", junk);
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", "--source", dir + "/empty.y4m", "--bus", "sim", "--quiet"}), kExitConfig);
+  errors = testing::internal::GetCapturedStderr();
+  EXPECT_NE(errors.find("no frame after the header"), std::string::npos) << errors;
+
+  const std::string p10 = "YUV4MPEG2 W720 H576 F25:1 Ip C420p10\n";
+  write_bytes(dir + "/p10.y4m", std::vector<std::uint8_t>(p10.begin(), p10.end()));
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", "--source", dir + "/p10.y4m", "--bus", "sim", "--quiet"}), kExitConfig);
+  errors = testing::internal::GetCapturedStderr();
+  EXPECT_NE(errors.find("'C420p10'"), std::string::npos) << errors;
+}
+
+// Every log write failing (a full disk) used to end in exit 0 and
+// "published 20 (errors 0)": now the summary counts the write errors and the
+// run exits 1 (docs/cli.md: a write failed).
+TEST(RunCommand, ALogThatCannotBeWrittenIsReportedAndFailsTheRun) {
+  if (::access("/dev/full", W_OK) != 0) {
+    GTEST_SKIP() << "no /dev/full here";
+  }
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 3);
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  const int code = run({"run", "--source", dir + "/clip.y4m", "--bus", "log:/dev/full", "--no-pacing", "--quiet"});
+  const std::string printed = testing::internal::GetCapturedStdout();
+  const std::string errors = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(code, kExitFailure) << printed << errors;
+  EXPECT_NE(printed.find("candump log /dev/full: "), std::string::npos) << printed;
+  EXPECT_EQ(printed.find("write errors 0"), std::string::npos) << printed;
+  EXPECT_NE(errors.find("No space left on device"), std::string::npos) << errors;
+  // A log that is written: said so, exit 0.
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + dir + "/can.log", "--no-pacing", "--quiet"}),
+            kExitOk);
+  const std::string good = testing::internal::GetCapturedStdout();
+  EXPECT_NE(good.find("lost 0, write errors 0"), std::string::npos) << good;
+}
+
 TEST(RunCommand, ExitCodes) {
   const std::string dir = temp_dir();
   EXPECT_EQ(run({"run", "--bogus"}), kExitUsage);
   EXPECT_EQ(run({"run", "--frames", "-3"}), kExitUsage);
+  EXPECT_EQ(run({"run", "--frames", "18446744073709551615"}), kExitUsage);  // was -1 after the conversion: no limit
+  EXPECT_EQ(run({"run", "--frames", "1e3"}), kExitUsage);
   EXPECT_EQ(run({"run", "--source", dir + "/missing", "--quiet"}), kExitConfig);
   write_clip(dir + "/small.y4m", 64, 48, 1);
   EXPECT_EQ(run({"run", "--source", dir + "/small.y4m", "--quiet"}), kExitConfig);  // not the camera's size

@@ -131,6 +131,10 @@ TEST(CornersJson, SolveLineHasEveryMemberAndNullsForRefusedInput) {
   EXPECT_FALSE(format_solve_json(s, r, solver::Vec3::Zero(), small, sizeof small));
   ASSERT_TRUE(format_error_json("a \"quoted\" word", 3, line, sizeof line));
   EXPECT_STREQ(line, "{\"error\": \"a \\\"quoted\\\" word\", \"line\": 3}\n");
+  // Input quoted in a message (any bytes): escaped, the line stays JSON.
+  ASSERT_TRUE(format_error_json("bad key 'a\\b\tc\xFF'", 4, line, sizeof line));
+  EXPECT_STREQ(line, "{\"error\": \"bad key 'a\\\\b\\tc\\ufffd'\", \"line\": 4}\n");
+  EXPECT_FALSE(format_error_json("a long message that does not fit", 1, small, sizeof small));
 }
 
 TEST(CornersJson, ProjectLineListsTwelveCornersAndTheTcp) {

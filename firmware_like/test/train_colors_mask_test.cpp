@@ -7,6 +7,7 @@
 // and skipped.
 #include <gtest/gtest.h>
 
+#include <stdlib.h>
 #include <sys/stat.h>
 
 #include <cmath>
@@ -357,6 +358,22 @@ TEST(TrainColorsMasks, BadMasksAreReportedAndTheirFramesSkipped) {
   // A frame of a --masks file without a mask, or a mask that is not a name: configuration errors.
   EXPECT_EQ(run({"train-colors", "--masks", masks_json(f, R"({"image": "frame.ppm"})")}), kExitConfig);
   EXPECT_EQ(run({"train-colors", "--masks", masks_json(f, R"({"image": "frame.ppm", "mask": 3})")}), kExitConfig);
+}
+
+// A corrupt sidecar in a --sidecars dataset used to be skipped without a
+// word: it is now named and counted, and the run goes on with the others.
+TEST(TrainColorsSidecars, ACorruptSidecarIsNamedAndCounted) {
+  std::string dir = std::string(::testing::TempDir()) + "tcpest_sidecars_XXXXXX";
+  ASSERT_NE(::mkdtemp(&dir[0]), nullptr);
+  ASSERT_EQ(run({"render", "--set", "lab", "--n", "1", "--start", "150", "--quiet", "--out", dir}), kExitOk);
+  write_file(dir + "/broken.json", "{\"image\": ");
+  ::testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"train-colors", "--sidecars", dir, "--out", dir + "/model.out"}), kExitOk);
+  const std::string messages = ::testing::internal::GetCapturedStderr();
+  EXPECT_NE(messages.find("unreadable sidecar " + dir + "/broken.json"), std::string::npos) << messages;
+  EXPECT_NE(messages.find("sidecars in " + dir + ": 1 used, 1 unreadable, 0 without a configuration"),
+            std::string::npos)
+      << messages;
 }
 
 TEST(TrainColorsMasks, ImageReaderReadsPgmAndPpmSamples) {

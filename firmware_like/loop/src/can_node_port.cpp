@@ -58,7 +58,8 @@ void CanNodePort::set_bus_time(std::int64_t now_ns) noexcept {
 
 void CanNodePort::log(const can::Frame& frame, std::int64_t now_ns) noexcept {
   if (log_ != nullptr) {
-    // A full disk loses log lines, never a cycle: the writer counts nothing we could act on here.
+    // A full disk loses log lines, never a cycle: the writer counts its failures (write_errors()),
+    // which the command reports at the end of the run.
     static_cast<void>(log_->write(frame, to_us(now_ns + wall_offset_ns_)));
   }
 }

@@ -1,7 +1,9 @@
 #include "tcpest/loop/config.hpp"
 
+#include <cstdio>
 #include <cstring>
 
+#include "tcpest/loop/rt_setup.hpp"
 #include "tcpest/solver/pose_estimator.hpp"
 #include "tcpest/vision/guided_estimate.hpp"
 
@@ -76,6 +78,29 @@ S read_text(const yaml::Document& doc, const char* path, char* out, std::size_t 
     return ok_status<Diagnostic>();
   }
   return doc.text(path, out, capacity);
+}
+
+// rt.prefault_stack_kb: at most what the reading thread's stack can take
+// (the loop runs on it), else the start-up pre-fault would overflow it.
+S read_prefault_stack_kb(const yaml::Document& doc, int& out) noexcept {
+  constexpr const char* kPath = "rt.prefault_stack_kb";
+  if (!doc.has(kPath)) {
+    return ok_status<Diagnostic>();
+  }
+  const auto v = doc.integer(kPath);
+  if (!v.ok()) {
+    return S::failure(v.error());
+  }
+  const long long max_kb = max_prefault_stack_kb();
+  if (v.value() < 0 || v.value() > max_kb) {
+    char message[160];
+    static_cast<void>(std::snprintf(message, sizeof message,
+                                    "%lld out of range: allowed 0..%lld (KiB; this thread's stack less a margin)",
+                                    v.value(), max_kb));  // fits
+    return S::failure(doc.error_at(doc.find(kPath), kPath, message));
+  }
+  out = static_cast<int>(v.value());
+  return ok_status<Diagnostic>();
 }
 
 #define TCPEST_TRY(expr)   \
@@ -178,7 +203,7 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
   TCPEST_TRY(read_bool(doc, "rt.lock_memory", r.lock_memory));
   TCPEST_TRY(read_int_as(doc, "rt.fifo_priority", 0, 99, r.fifo_priority));
   TCPEST_TRY(read_int_as(doc, "rt.cpu", -1, 1023, r.cpu));
-  TCPEST_TRY(read_int_as(doc, "rt.prefault_stack_kb", 0, 65536, r.prefault_stack_kb));
+  TCPEST_TRY(read_prefault_stack_kb(doc, r.prefault_stack_kb));
   TCPEST_TRY(read_int_as(doc, "rt.cpu_latency_us", -1, 1000000, r.cpu_latency_us));
 
   const char* sections[] = {"loop", "can", "rt"};

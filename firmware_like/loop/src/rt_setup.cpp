@@ -5,6 +5,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -29,10 +30,37 @@ void note(RtReport& report, const char* what, int error) noexcept {
   ++report.message_count;
 }
 
+// A stack pre-fault beyond what the thread's stack can take: not done.
+void note_prefault_refused(RtReport& report, int requested_kb, long long max_kb) noexcept {
+  if (report.message_count >= RtReport::kMaxMessages) {
+    return;
+  }
+  static_cast<void>(std::snprintf(report.messages[report.message_count], RtReport::kMessageLength,
+                                  "rt.prefault_stack_kb: %d is more than this thread's stack can take (allowed 0..%lld)"
+                                  " (continuing without it)",
+                                  requested_kb, max_kb));  // truncation is harmless
+  ++report.message_count;
+}
+
+// The lowest usable address of the calling thread's stack (above its guard
+// page; for the main thread its top less RLIMIT_STACK), 0 if unknown.
+std::uintptr_t stack_low_end() noexcept {
+  pthread_attr_t attributes{};
+  if (::pthread_getattr_np(::pthread_self(), &attributes) != 0) {
+    return 0U;
+  }
+  void* address = nullptr;
+  std::size_t size = 0U;
+  const int got = ::pthread_attr_getstack(&attributes, &address, &size);
+  static_cast<void>(::pthread_attr_destroy(&attributes));  // cannot fail for an initialised attribute object
+  return got == 0 ? reinterpret_cast<std::uintptr_t>(address) : 0U;  // NOLINT(cppcoreguidelines-pro-type-reinterpret-cast): an address compared, never dereferenced
+}
+
 // Touches `bytes` of stack below the caller so that the pages are mapped
-// (and locked, after mlockall) before the first cycle needs them.
+// (and locked, after mlockall) before the first cycle needs them. The caller
+// checks `bytes` against max_prefault_stack_kb().
 __attribute__((noinline)) void prefault_stack(std::size_t bytes) noexcept {
-  // cppcheck-suppress allocaCalled ; the only way to touch N KiB of our own stack without recursion; start-up only, N bounded by the config (64 MiB)
+  // cppcheck-suppress allocaCalled ; the only way to touch N KiB of our own stack without recursion; start-up only, N bounded by the thread's free stack less a margin (max_prefault_stack_kb)
   auto* block = static_cast<volatile unsigned char*>(alloca(bytes));
   for (std::size_t i = 0; i < bytes; i += 4096U) {
     block[i] = 0U;
@@ -60,6 +88,30 @@ int open_cpu_latency_request(RtReport& report, int latency_us) noexcept {
 }
 
 }  // namespace
+
+long long max_prefault_stack_kb() noexcept {
+  // Where the caller's frames end: the pre-fault starts a few bytes below.
+  const auto here = reinterpret_cast<std::uintptr_t>(__builtin_frame_address(0));  // NOLINT(cppcoreguidelines-pro-type-reinterpret-cast): an address compared, never dereferenced
+  const std::uintptr_t low = stack_low_end();
+  unsigned long long free_bytes = 0U;
+  if (low != 0U && low < here) {
+    free_bytes = here - low;
+  } else {
+    // The thread's stack is unknown: RLIMIT_STACK, of which the callers may use half.
+    rlimit limit{};
+    if (::getrlimit(RLIMIT_STACK, &limit) != 0) {
+      return 0;
+    }
+    free_bytes = limit.rlim_cur == RLIM_INFINITY ? static_cast<unsigned long long>(kMaxPrefaultStackKb) * 2048U
+                                                 : static_cast<unsigned long long>(limit.rlim_cur) / 2U;
+  }
+  const auto free_kb = static_cast<long long>(free_bytes / 1024U);
+  if (free_kb <= kPrefaultStackMarginKb) {
+    return 0;
+  }
+  return free_kb - kPrefaultStackMarginKb < kMaxPrefaultStackKb ? free_kb - kPrefaultStackMarginKb
+                                                                : kMaxPrefaultStackKb;
+}
 
 RtReport apply_rt_settings(const RtSettings& settings) noexcept {
   RtReport report;
@@ -92,8 +144,13 @@ RtReport apply_rt_settings(const RtSettings& settings) noexcept {
     }
   }
   if (settings.prefault_stack_kb > 0) {
-    prefault_stack(static_cast<std::size_t>(settings.prefault_stack_kb) * 1024U);
-    report.stack_prefaulted = true;
+    const long long max_kb = max_prefault_stack_kb();
+    if (settings.prefault_stack_kb <= max_kb) {
+      prefault_stack(static_cast<std::size_t>(settings.prefault_stack_kb) * 1024U);
+      report.stack_prefaulted = true;
+    } else {
+      note_prefault_refused(report, settings.prefault_stack_kb, max_kb);
+    }
   }
   if (settings.cpu_latency_us >= 0) {
     report.cpu_latency = CpuLatencyRequest(open_cpu_latency_request(report, settings.cpu_latency_us));

@@ -109,12 +109,51 @@ bool parse_number(const char* text, double& out) noexcept {
 }
 
 bool parse_unsigned(const char* text, unsigned long long& out) noexcept {
+  return parse_unsigned_in(text, 0U, ~0ULL, out);
+}
+
+bool parse_unsigned_in(const char* text, unsigned long long lo, unsigned long long hi,
+                       unsigned long long& out) noexcept {
   if (text == nullptr || *text == '\0') {
     return false;
   }
   const char* end = text + std::strlen(text);
-  const auto parsed = std::from_chars(text, end, out);
-  return parsed.ec == std::errc() && parsed.ptr == end;
+  unsigned long long value = 0U;
+  const auto parsed = std::from_chars(text, end, value);  // no sign, no spaces; out of range is an error
+  if (parsed.ec != std::errc() || parsed.ptr != end || value < lo || value > hi) {
+    return false;
+  }
+  out = value;
+  return true;
+}
+
+bool parse_number_in(const char* text, double lo, double hi, double& out) noexcept {
+  double value = 0.0;
+  if (!parse_number(text, value) || !(value >= lo && value <= hi)) {  // parse_number: finite only
+    return false;
+  }
+  out = value;
+  return true;
+}
+
+bool unsigned_option(const Args& args, const char* command, const char* name, unsigned long long lo,
+                     unsigned long long hi, unsigned long long& out) noexcept {
+  const char* text = args.value(name);
+  if (text == nullptr || parse_unsigned_in(text, lo, hi, out)) {
+    return true;
+  }
+  std::fprintf(stderr, "tcpest %s: --%s: expected an integer in %llu..%llu, got '%s'\n", command, name, lo, hi, text);
+  return false;
+}
+
+bool number_option(const Args& args, const char* command, const char* name, double lo, double hi,
+                   double& out) noexcept {
+  const char* text = args.value(name);
+  if (text == nullptr || parse_number_in(text, lo, hi, out)) {
+    return true;
+  }
+  std::fprintf(stderr, "tcpest %s: --%s: expected a number in %g..%g, got '%s'\n", command, name, lo, hi, text);
+  return false;
 }
 
 bool parse_number_list(const char* text, double* out, std::size_t count) noexcept {

@@ -49,5 +49,23 @@ bool parse_number_list(const char* text, double* out, std::size_t count) noexcep
 bool parse_number(const char* text, double& out) noexcept;
 bool parse_unsigned(const char* text, unsigned long long& out) noexcept;
 
+// Range-checked numbers: a whole text that is a non-negative integer (no
+// sign, no spaces) / a finite number, accepted only in [lo, hi]. `out` is
+// written only on success. Every option value is converted through these,
+// with the range its use can take, so that no later conversion to a
+// narrower type can wrap, overflow or be undefined.
+bool parse_unsigned_in(const char* text, unsigned long long lo, unsigned long long hi,
+                       unsigned long long& out) noexcept;
+bool parse_number_in(const char* text, double lo, double hi, double& out) noexcept;
+
+// The option `--name` of `args`, when given, range-checked as above into
+// `out` (which keeps its default when the option is absent). On a bad value
+// prints "tcpest COMMAND: --NAME: expected an integer in LO..HI, got 'TEXT'"
+// to stderr and returns false (the command then exits with kExitUsage).
+bool unsigned_option(const Args& args, const char* command, const char* name, unsigned long long lo,
+                     unsigned long long hi, unsigned long long& out) noexcept;
+bool number_option(const Args& args, const char* command, const char* name, double lo, double hi,
+                   double& out) noexcept;
+
 }  // namespace cli
 }  // namespace tcpest

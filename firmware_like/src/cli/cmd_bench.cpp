@@ -209,11 +209,11 @@ int cmd_bench(int argc, char** argv) {
   unsigned long long dataset = 40U;
   unsigned long long period_us = 40000U;
   double seconds = 20.0;
-  if ((args.value("frames") != nullptr && (!parse_unsigned(args.value("frames"), frames) || frames == 0U)) ||
-      (args.value("dataset") != nullptr && (!parse_unsigned(args.value("dataset"), dataset) || dataset == 0U || dataset > 10000U)) ||
-      (args.value("period-us") != nullptr && (!parse_unsigned(args.value("period-us"), period_us) || period_us < 1000U)) ||
-      (args.value("jitter-seconds") != nullptr && (!parse_number(args.value("jitter-seconds"), seconds) || seconds < 0.0))) {
-    std::fprintf(stderr, "tcpest bench: bad option value (see --help)\n");
+  // The ranges of loop.frames and loop.period_us (docs/loop.md); a day of jitter at most.
+  if (!unsigned_option(args, "bench", "frames", 1U, 1000000000000ULL, frames) ||
+      !unsigned_option(args, "bench", "dataset", 1U, 10000U, dataset) ||
+      !unsigned_option(args, "bench", "period-us", 1000U, 10000000U, period_us) ||
+      !number_option(args, "bench", "jitter-seconds", 0.0, 86400.0, seconds)) {
     return kExitUsage;
   }
   const std::atomic<bool>* stop = install_stop_signals();

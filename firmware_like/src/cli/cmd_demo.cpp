@@ -39,7 +39,7 @@ constexpr OptionSpec kOptions[] = {
     {"frames", "N", "frames of the sequence (default 250: 10 s at 25 Hz)"},
     {"seed", "S", "seed of the motion sequence and the rendering (default 7)"},
     {"bus", "BUS", "vcan0 | IFACE | sim (default: vcan0 if it exists, else the simulated bus)"},
-    {"overlay-every", "N", "write an overlay every N frames (default 25)"},
+    {"overlay-every", "N", "write an overlay every N frames (default 25; 0 = none)"},
 };
 constexpr std::size_t kOptionCount = sizeof kOptions / sizeof kOptions[0];
 
@@ -358,6 +358,9 @@ bool write_latency_svg(const char* path, const std::vector<Sample>& samples) {
   return std::fclose(f) == 0;
 }
 
+// The longest sequence the demo renders (and so the largest overlay period).
+constexpr unsigned long long kMaxDemoFrames = 100000U;
+
 // The demo's options.
 struct DemoOptions {
   const char* out_dir = "tcpest-demo";
@@ -370,11 +373,9 @@ struct DemoOptions {
 // (reported).
 int parse_demo_options(const Args& args, DemoOptions& o) noexcept {
   o.out_dir = args.value("out") != nullptr ? args.value("out") : "tcpest-demo";
-  if ((args.value("frames") != nullptr &&
-       (!parse_unsigned(args.value("frames"), o.frames) || o.frames == 0U || o.frames > 100000U)) ||
-      (args.value("seed") != nullptr && !parse_unsigned(args.value("seed"), o.seed)) ||
-      (args.value("overlay-every") != nullptr && !parse_unsigned(args.value("overlay-every"), o.overlay_every))) {
-    std::fprintf(stderr, "tcpest demo: --frames, --seed, --overlay-every: expected non-negative integers\n");
+  if (!unsigned_option(args, "demo", "frames", 1U, kMaxDemoFrames, o.frames) ||
+      !unsigned_option(args, "demo", "seed", 0U, ~0ULL, o.seed) ||
+      !unsigned_option(args, "demo", "overlay-every", 0U, kMaxDemoFrames, o.overlay_every)) {
     return kExitUsage;
   }
   return kExitOk;
@@ -588,12 +589,9 @@ int cmd_demo(int argc, char** argv) {
   const loop::CycleOutcome outcome = rig.executive->run(stop);
   robot.drain();
   const bool csv_ok = std::fclose(csv) == 0 && !observer.csv_failed();
-  if (rig.logging) {
-    static_cast<void>(rig.log.flush());  // checked by close() in the rig's destructor path below
-  }
-
   const bool svg_ok = report_run(rig, robot, samples, paths);
-  if (!csv_ok || !svg_ok) {
+  const bool log_ok = rig.finish_log(stdout);
+  if (!csv_ok || !svg_ok || !log_ok) {
     std::fprintf(stderr, "tcpest demo: some outputs could not be written\n");
     return kExitFailure;
   }

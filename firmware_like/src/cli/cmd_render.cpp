@@ -36,7 +36,7 @@ constexpr OptionSpec kOptions[] = {
     kInstrumentConfigOption,
     {"set", "NAME", "lab | hard | seq | single"},
     {"n", "N", "number of images (lab/hard: first N of the 294 grid poses; seq: frames; default 294 / 100)"},
-    {"start", "I", "first index (lab/hard: grid index; seq: frame), default 0"},
+    {"start", "I", "first index (lab/hard: grid index 0..293; seq: frame 0..1000000), default 0"},
     {"seed", "S", "random seed (play, prior, scene, noise); default 1"},
     {"out", "DIR", "output directory (created if missing)"},
     {"r", "R", "single: x_ch,y_ch,psi,mu,lambda,phi,theta (mm and rad)"},
@@ -175,31 +175,27 @@ bool parse_set_kind(const char* name, SetKind& set) noexcept {
 }
 
 // --n, --start, --seed, --quality, --supersample and --fps with their
-// defaults and ranges (lab/hard: n clipped to the grid). Returns kExitOk or
-// kExitUsage (reported).
+// defaults and ranges (lab/hard: --start inside the grid, n clipped to it).
+// Returns kExitOk or kExitUsage (reported).
 int parse_numeric_options(const Args& args, RenderOptions& o) noexcept {
+  constexpr unsigned long long kMaxImages = 1000000U;
   o.n = (o.set == SetKind::Seq) ? 100U : static_cast<unsigned long long>(render::kLabGridSize);
-  if ((args.value("n") != nullptr && !parse_unsigned(args.value("n"), o.n)) ||
-      (args.value("start") != nullptr && !parse_unsigned(args.value("start"), o.start)) ||
-      (args.value("seed") != nullptr && !parse_unsigned(args.value("seed"), o.seed)) ||
-      (args.value("quality") != nullptr && !parse_unsigned(args.value("quality"), o.quality)) ||
-      (args.value("supersample") != nullptr && !parse_unsigned(args.value("supersample"), o.supersample)) ||
-      (args.value("fps") != nullptr && !parse_number(args.value("fps"), o.fps))) {
-    std::fprintf(stderr, "tcpest render: --n, --start, --seed, --quality, --supersample take non-negative integers, "
-                         "--fps a number\n");
+  if (!unsigned_option(args, "render", "n", 1U, kMaxImages, o.n) ||
+      !unsigned_option(args, "render", "start", 0U, kMaxImages, o.start) ||
+      !unsigned_option(args, "render", "seed", 0U, ~0ULL, o.seed) ||
+      !unsigned_option(args, "render", "quality", 1U, 100U, o.quality) ||
+      !unsigned_option(args, "render", "supersample", 1U, 8U, o.supersample) ||
+      !number_option(args, "render", "fps", 0.001, 1000.0, o.fps)) {
     return kExitUsage;
   }
-  if (o.quality < 1U || o.quality > 100U || o.supersample < 1U || o.supersample > 8U ||
-      !(o.fps > 0.0 && o.fps <= 1000.0) || o.n > 1000000U || o.start > 1000000U) {
-    std::fprintf(stderr, "tcpest render: out of range: --quality 1..100, --supersample 1..8, --fps (0, 1000], "
-                         "--n and --start <= 1000000\n");
-    return kExitUsage;
-  }
-  if ((o.set == SetKind::Lab || o.set == SetKind::Hard) &&
-      o.start + o.n > static_cast<unsigned long long>(render::kLabGridSize)) {
-    o.n = (o.start >= static_cast<unsigned long long>(render::kLabGridSize))
-              ? 0U
-              : static_cast<unsigned long long>(render::kLabGridSize) - o.start;
+  if (o.set == SetKind::Lab || o.set == SetKind::Hard) {
+    const auto grid = static_cast<unsigned long long>(render::kLabGridSize);
+    if (o.start >= grid) {
+      std::fprintf(stderr, "tcpest render: --start: the %s set has %llu images, expected 0..%llu, got %llu\n",
+                   o.set_name, grid, grid - 1U, o.start);
+      return kExitUsage;
+    }
+    o.n = std::min(o.n, grid - o.start);
   }
   return kExitOk;
 }

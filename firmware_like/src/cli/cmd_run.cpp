@@ -59,6 +59,24 @@ class StatusLine final : public loop::CycleObserver {
   std::int64_t next_ns_;
 };
 
+// How a run that was not interrupted ended: 0, or (reported) 3 when the
+// recording was too damaged to go on, 1 when the camera was lost and not
+// recovered (a live camera; a replay's input is at fault: 3).
+int end_of_run_code(const LoopRig& rig) noexcept {
+  const char* stopped = rig.source->stop_reason();
+  if (stopped != nullptr) {
+    std::fprintf(stderr, "tcpest run: source %s: %s: stopped\n", rig.config.loop.source, stopped);
+    return kExitConfig;
+  }
+  const loop::LoopStats& s = rig.executive->stats();
+  if (s.camera_lost_events > s.camera_recoveries) {
+    std::fprintf(stderr, "tcpest run: source %s: lost (no usable frame in %d consecutive cycles) and not recovered\n",
+                 rig.config.loop.source, rig.config.loop.camera_lost_after);
+    return rig.source->live() ? kExitFailure : kExitConfig;
+  }
+  return kExitOk;
+}
+
 }  // namespace
 
 int cmd_run(int argc, char** argv) {
@@ -92,8 +110,7 @@ int cmd_run(int argc, char** argv) {
   request.quiet = args.flag("quiet");
   if (args.value("frames") != nullptr) {
     unsigned long long frames = 0U;
-    if (!parse_unsigned(args.value("frames"), frames)) {
-      std::fprintf(stderr, "tcpest run: --frames: expected a non-negative integer\n");
+    if (!unsigned_option(args, "run", "frames", 0U, 1000000000000ULL, frames)) {  // loop.frames' range
       return kExitUsage;
     }
     request.frames = static_cast<long long>(frames);
@@ -120,7 +137,12 @@ int cmd_run(int argc, char** argv) {
   const loop::CycleOutcome outcome = rig.executive->run(stop);
   std::printf("tcpest run: %s\n", outcome == loop::CycleOutcome::kInterrupted ? "stopped by signal" : "finished");
   print_summary(stdout, *rig.executive);
-  return outcome == loop::CycleOutcome::kInterrupted ? kExitInterrupted : kExitOk;
+  const bool log_complete = rig.finish_log(stdout);
+  int exit_code = outcome == loop::CycleOutcome::kInterrupted ? kExitInterrupted : end_of_run_code(rig);
+  if (!log_complete) {
+    exit_code = kExitFailure;  // a write failed (docs/cli.md)
+  }
+  return exit_code;
 }
 
 }  // namespace cli

@@ -63,16 +63,13 @@ int cmd_study(int argc, char** argv) {
   double noise_levels[3] = {0.0, 0.5, 1.0};
   int noise_count = 3;
   if (args.value("noise") != nullptr) {
-    if (!parse_number(args.value("noise"), noise_levels[0]) || !(noise_levels[0] >= 0.0) ||
-        noise_levels[0] > 100.0) {
-      std::fprintf(stderr, "tcpest study: --noise must be a number of pixels in [0, 100]\n");
+    if (!number_option(args, "study", "noise", 0.0, 100.0, noise_levels[0])) {  // pixels
       return kExitUsage;
     }
     noise_count = 1;
   }
   unsigned long long seed = 1U;
-  if (args.value("seed") != nullptr && !parse_unsigned(args.value("seed"), seed)) {
-    std::fprintf(stderr, "tcpest study: --seed must be a non-negative integer\n");
+  if (!unsigned_option(args, "study", "seed", 0U, ~0ULL, seed)) {
     return kExitUsage;
   }
   static ModelSetup setup;

@@ -233,6 +233,42 @@ bool load_marked_frames(const char* path, bool require_mask, std::vector<Frame>&
   return true;
 }
 
+// The marked pixels of a frame from its true configuration `r`: points of
+// the middle markers' surface, away from the stripe ends, facing the camera,
+// projected (the shaft or grasper may hide parts of the end markers). Each
+// becomes a tiny polygon (a pixel square).
+void mark_true_pixels(const ModelSetup& setup, const solver::PoseVector& r, Frame& frame) {
+  const solver::PoseFrames pf = setup.instrument.frames(r);
+  const auto& g = setup.instrument.geometry();
+  for (int m = 1; m + 1 < solver::kNumMarkers; ++m) {
+    const vision::PixelClass cls = g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue
+                                       ? vision::PixelClass::Blue
+                                       : vision::PixelClass::Yellow;
+    const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
+    const double s1 = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
+    for (int i = 0; i <= 24; ++i) {
+      const double s_mm = s0 + (s1 - s0) * (0.25 + 0.5 * i / 24.0);
+      const solver::CentrelineFrame c = setup.instrument.centreline(pf, s_mm);
+      for (int a = 0; a < 120; ++a) {
+        const double angle = 2.0 * solver::kPi * a / 120.0;
+        const solver::Vec3 normal = dmath::cos(angle) * c.normal + dmath::sin(angle) * c.binormal;
+        const solver::Vec3 x = c.position + g.radius_mm * normal;
+        if (normal.dot(x.normalized()) > -0.35) {
+          continue;  // grazing or turned away: near the silhouette
+        }
+        solver::Vec2 px;
+        if (!setup.camera.project(x, px)) {
+          continue;
+        }
+        frame.pixels.push_back(MarkedPixel{static_cast<int>(std::lround(px.x())), static_cast<int>(std::lround(px.y())), cls});
+      }
+    }
+  }
+}
+
+// The frames of a rendered dataset, marked from their sidecars' true
+// configurations. Unreadable sidecars and sidecars without a configuration
+// are skipped, each named, and counted in a line at the end.
 bool load_sidecars(const char* dir, const ModelSetup& setup, std::vector<Frame>& frames) {
   std::vector<std::string> names;
   DIR* d = opendir(dir);
@@ -248,51 +284,35 @@ bool load_sidecars(const char* dir, const ModelSetup& setup, std::vector<Frame>&
   }
   static_cast<void>(closedir(d));  // read-only
   std::sort(names.begin(), names.end());
+  std::size_t used = 0U;
+  std::size_t unreadable = 0U;
+  std::size_t without_pose = 0U;
   for (const std::string& name : names) {
-    const auto s = render::read_sidecar_file((std::string(dir) + "/" + name).c_str());
+    const std::string path = std::string(dir) + "/" + name;
+    const auto s = render::read_sidecar_file(path.c_str());
     if (!s.ok()) {
+      char message[768];
+      s.error().format(message, sizeof message);
+      std::fprintf(stderr, "tcpest train-colors: unreadable sidecar %s (skipped)\n", message);
+      ++unreadable;
       continue;
     }
     const render::Sidecar& sc = s.value();
-    Frame frame;
-    frame.image = std::string(dir) + "/" + sc.image;
     if (!sc.instrument.has_r) {
+      std::fprintf(stderr, "tcpest train-colors: sidecar %s has no true configuration (skipped)\n", path.c_str());
+      ++without_pose;
       continue;
     }
-    // Marked pixels from the true configuration: points of the middle markers'
-    // surface, away from the stripe ends, facing the camera, projected (the
-    // shaft or grasper may hide parts of the end markers). Each becomes a
-    // tiny polygon (a pixel square).
-    const solver::PoseFrames pf = setup.instrument.frames(sc.instrument.r);
-    const auto& g = setup.instrument.geometry();
-    for (int m = 1; m + 1 < solver::kNumMarkers; ++m) {
-      const vision::PixelClass cls = g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue
-                                         ? vision::PixelClass::Blue
-                                         : vision::PixelClass::Yellow;
-      const double s0 = g.boundaries_mm[static_cast<std::size_t>(m)];
-      const double s1 = g.boundaries_mm[static_cast<std::size_t>(m) + 1U];
-      for (int i = 0; i <= 24; ++i) {
-        const double s_mm = s0 + (s1 - s0) * (0.25 + 0.5 * i / 24.0);
-        const solver::CentrelineFrame c = setup.instrument.centreline(pf, s_mm);
-        for (int a = 0; a < 120; ++a) {
-          const double angle = 2.0 * solver::kPi * a / 120.0;
-          const solver::Vec3 normal = dmath::cos(angle) * c.normal + dmath::sin(angle) * c.binormal;
-          const solver::Vec3 x = c.position + g.radius_mm * normal;
-          if (normal.dot(x.normalized()) > -0.35) {
-            continue;  // grazing or turned away: near the silhouette
-          }
-          solver::Vec2 px;
-          if (!setup.camera.project(x, px)) {
-            continue;
-          }
-          frame.pixels.push_back(MarkedPixel{static_cast<int>(std::lround(px.x())), static_cast<int>(std::lround(px.y())), cls});
-        }
-      }
-    }
+    Frame frame;
+    frame.image = std::string(dir) + "/" + sc.image;
+    mark_true_pixels(setup, sc.instrument.r, frame);
     if (!frame.pixels.empty()) {
       frames.push_back(frame);
+      ++used;
     }
   }
+  std::fprintf(stderr, "tcpest train-colors: sidecars in %s: %zu used, %zu unreadable, %zu without a configuration\n",
+               dir, used, unreadable, without_pose);
   return true;
 }
 
@@ -313,8 +333,7 @@ int load_all_frames(const Args& args, std::vector<Frame>& frames) {
     return kExitConfig;
   }
   unsigned long long max_frames = ~0ULL;
-  if (args.value("max") != nullptr && !parse_unsigned(args.value("max"), max_frames)) {
-    std::fprintf(stderr, "tcpest train-colors: --max needs a non-negative integer\n");
+  if (!unsigned_option(args, "train-colors", "max", 0U, ~0ULL, max_frames)) {
     return kExitUsage;
   }
   if (frames.size() > max_frames) {

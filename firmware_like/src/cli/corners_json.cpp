@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "tcpest/common/json.hpp"
+#include "tcpest/common/json_escape.hpp"
 
 namespace tcpest {
 namespace cli {
@@ -34,6 +35,16 @@ class Writer {
     }
     out_[used_++] = c;
     out_[used_] = '\0';
+  }
+  // `text` as the contents of a JSON string (json_escape.hpp).
+  void escaped(const char* text) noexcept {
+    if (used_ >= capacity_) {
+      ok_ = false;
+      return;
+    }
+    bool complete = false;
+    used_ += json::escape_string(text, out_ + used_, capacity_ - used_, &complete);
+    ok_ = ok_ && complete;
   }
   void integer(long value) noexcept {
     char buffer[32];
@@ -167,17 +178,7 @@ bool format_solve_json(const solver::SolveSummary& summary, const solver::PoseVe
 bool format_error_json(const char* message, unsigned long line, char* out, std::size_t capacity) noexcept {
   Writer w(out, capacity);
   w.text("{\"error\": \"");
-  // Our messages are plain ASCII; escape the two characters JSON forbids raw.
-  for (const char* p = message; *p != '\0'; ++p) {
-    if (*p == '"' || *p == '\\') {
-      w.put('\\');
-      w.put(*p);
-    } else if (static_cast<unsigned char>(*p) < 0x20U) {
-      w.put(' ');
-    } else {
-      w.put(*p);
-    }
-  }
+  w.escaped(message);  // messages may quote the input: any bytes
   w.text("\", \"line\": ");
   w.integer(static_cast<long>(line));
   w.text("}\n");

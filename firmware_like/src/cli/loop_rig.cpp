@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstring>
 #include <new>
 
@@ -34,6 +35,7 @@ int camera_exit_code(hal::CameraError e) noexcept {
     case hal::CameraError::kTruncated:
     case hal::CameraError::kWrongSize:
     case hal::CameraError::kUnsupported:
+    case hal::CameraError::kEndOfStream:  // an empty recording
       return kExitConfig;
     default:
       return kExitFailure;
@@ -118,6 +120,7 @@ int LoopRig::open_source() noexcept {
     return kExitOk;
   }
   hal::CameraError error = hal::CameraError::kNone;
+  char detail[192] = {};  // why a file is refused, when the source says
   if (std::strncmp(spec, "/dev/video", 10) == 0) {
     hal::V4l2Options options;
     options.width = w;
@@ -140,7 +143,7 @@ int LoopRig::open_source() noexcept {
     options.height = h;
     options.loop = config.loop.replay_loop;
     if (ends_with(spec, ".y4m")) {
-      auto opened = hal::Y4mSource::open(spec, options);
+      auto opened = hal::Y4mSource::open(spec, options, detail, sizeof detail);
       if (opened.ok()) {
         source = std::move(opened.value());
       } else {
@@ -159,6 +162,8 @@ int LoopRig::open_source() noexcept {
     if (error == hal::CameraError::kWrongSize) {
       std::fprintf(stderr, "tcpest %s: source %s: frames are not %dx%d, the calibrated camera's size\n",
                    request.command, spec, w, h);
+    } else if (detail[0] != '\0') {
+      std::fprintf(stderr, "tcpest %s: source %s: %s: %s\n", request.command, spec, hal::to_string(error), detail);
     } else {
       std::fprintf(stderr, "tcpest %s: source %s: %s\n", request.command, spec, hal::to_string(error));
     }
@@ -208,6 +213,7 @@ int LoopRig::open_bus(const char* log_path) noexcept {
       return kExitConfig;
     }
     logging = true;
+    static_cast<void>(std::snprintf(log_file, sizeof log_file, "%s", log_path));  // for messages: truncation is harmless
   }
   node.reset(new (std::nothrow) loop::CanNodePort(clock, *bus, sim_bus.get(), logging ? &log : nullptr, log_interface));
   if (!node) {
@@ -259,6 +265,24 @@ int LoopRig::open_all(const RigRequest& r) noexcept {
     code = build();
   }
   return code;
+}
+
+bool LoopRig::finish_log(std::FILE* out) noexcept {
+  if (!logging) {
+    return true;
+  }
+  static_cast<void>(log.close());  // its failure is in the counts below
+  logging = false;
+  const std::uint64_t errors = log.write_errors();
+  std::fprintf(out, "candump log %s: %llu lines, lost %llu, write errors %llu\n", log_file,
+               static_cast<unsigned long long>(log.lines_written()), static_cast<unsigned long long>(log.lines_lost()),
+               static_cast<unsigned long long>(errors));
+  if (errors == 0U) {
+    return true;
+  }
+  std::fprintf(stderr, "tcpest %s: candump log %s: %llu write error(s), the first: %s; the log is incomplete\n",
+               request.command, log_file, static_cast<unsigned long long>(errors), std::strerror(log.first_errno()));
+  return false;
 }
 
 void print_steps(std::FILE* out, const loop::Executive& executive) noexcept {

@@ -55,6 +55,11 @@ class LoopRig {
   int build() noexcept;
   // All four.
   int open_all(const RigRequest& request) noexcept;
+  // Closes the candump log, if there is one, and prints its line to `out`
+  // (lines, and the write errors with the first one's reason, also on
+  // stderr). False when a write or the close failed: the log is incomplete
+  // and the command exits 1 (docs/cli.md).
+  bool finish_log(std::FILE* out) noexcept;
 
   RigRequest request{};
   ModelSetup models{};
@@ -66,6 +71,7 @@ class LoopRig {
   std::unique_ptr<hal::SocketCanBus> socket_bus;
   hal::CandumpLogWriter log;
   bool logging = false;
+  char log_file[320] = {};  // the candump log's path, when logging
   char bus_label[320] = {};
   std::unique_ptr<loop::CanNodePort> node;
   std::unique_ptr<loop::FeaturePipeline> pipeline;

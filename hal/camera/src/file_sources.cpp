@@ -361,15 +361,91 @@ Status<CameraError> JpegFileSource::reopen() noexcept {
 
 // ---------------------------------------------------------------------- Y4M
 
-Result<Y4mHeader, CameraError> parse_y4m_header(const char* line, std::size_t length) noexcept {
+namespace {
+
+// Writes why a Y4M file is refused (a printf format and its values) into
+// `detail`, when given; returns `error`.
+template <typename... Values>
+CameraError explain(char* detail, std::size_t capacity, CameraError error, const char* format,
+                    Values... values) noexcept {
+  static_assert(sizeof...(Values) > 0U, "a plain message goes through \"%s\"");
+  if (detail != nullptr && capacity > 0U) {
+    static_cast<void>(std::snprintf(detail, capacity, format, values...));  // a message: truncation is harmless
+  }
+  return error;
+}
+
+// The colour spaces taken: 8 bits per sample, with chroma. The 4:2:0 siting
+// variants read alike (nearest sample).
+bool parse_colour_space(const char* value, std::size_t length, ChromaLayout& layout) noexcept {
+  struct Known {
+    const char* tag;
+    ChromaLayout layout;
+  };
+  constexpr Known kKnown[] = {{"420", ChromaLayout::k420},      {"420jpeg", ChromaLayout::k420},
+                              {"420mpeg2", ChromaLayout::k420}, {"420paldv", ChromaLayout::k420},
+                              {"422", ChromaLayout::k422},      {"444", ChromaLayout::k444}};
+  for (const Known& known : kKnown) {
+    if (std::strlen(known.tag) == length && std::strncmp(value, known.tag, length) == 0) {
+      layout = known.layout;
+      return true;
+    }
+  }
+  return false;
+}
+
+// One header tag (its letter, then `value` of `length` bytes) into `header`.
+CameraError parse_header_tag(char tag, const char* value, std::size_t length, Y4mHeader& header, char* detail,
+                             std::size_t capacity) noexcept {
+  const int shown = static_cast<int>(std::min<std::size_t>(length, 32U));
+  switch (tag) {
+    case 'W':
+    case 'H':
+      if (!parse_int(value, length, tag == 'W' ? header.width : header.height)) {
+        return explain(detail, capacity, CameraError::kCorrupt, "bad header tag '%c%.*s'", tag, shown, value);
+      }
+      break;
+    case 'F': {
+      const char* colon = static_cast<const char*>(std::memchr(value, ':', length));
+      if (colon == nullptr || !parse_int(value, static_cast<std::size_t>(colon - value), header.rate_num) ||
+          !parse_int(colon + 1, length - static_cast<std::size_t>(colon - value) - 1U, header.rate_den)) {
+        return explain(detail, capacity, CameraError::kCorrupt, "bad header tag 'F%.*s'", shown, value);
+      }
+      break;
+    }
+    case 'I':
+      header.interlaced = length > 0U && value[0] != 'p' && value[0] != '?';
+      break;
+    case 'C':
+      if (!parse_colour_space(value, length, header.layout)) {
+        return explain(detail, capacity, CameraError::kUnsupported,
+                       "colour space 'C%.*s' not supported (8-bit 4:2:0, 4:2:2 or 4:4:4 only: C420, C420jpeg, "
+                       "C420mpeg2, C420paldv, C422, C444)",
+                       shown, value);
+      }
+      break;
+    case 'X':
+      if (length == 15U && std::strncmp(value, "COLORRANGE=FULL", 15U) == 0) {
+        header.range = YuvRange::kFull;
+      }
+      break;
+    default:
+      break;  // A (aspect) and unknown tags do not change the pixels
+  }
+  return CameraError::kNone;
+}
+
+}  // namespace
+
+Result<Y4mHeader, CameraError> parse_y4m_header(const char* line, std::size_t length, char* detail,
+                                                std::size_t detail_capacity) noexcept {
   using R = Result<Y4mHeader, CameraError>;
   constexpr char kMagic[] = "YUV4MPEG2";
   constexpr std::size_t kMagicLen = sizeof kMagic - 1U;
   if (line == nullptr || length < kMagicLen || std::strncmp(line, kMagic, kMagicLen) != 0) {
-    return R::failure(CameraError::kCorrupt);
+    return R::failure(explain(detail, detail_capacity, CameraError::kCorrupt, "%s", "not a YUV4MPEG2 header"));
   }
-  Y4mHeader header;
-  bool chroma_given = false;
+  Y4mHeader header;  // no C tag: 4:2:0, the format's default
   std::size_t i = kMagicLen;
   while (i < length) {
     while (i < length && line[i] == ' ') {
@@ -382,59 +458,19 @@ Result<Y4mHeader, CameraError> parse_y4m_header(const char* line, std::size_t le
     if (end == i) {
       break;
     }
-    const char tag = line[i];
-    const char* value = line + i + 1;
-    const std::size_t value_len = end - i - 1U;
-    switch (tag) {
-      case 'W':
-        if (!parse_int(value, value_len, header.width)) {
-          return R::failure(CameraError::kCorrupt);
-        }
-        break;
-      case 'H':
-        if (!parse_int(value, value_len, header.height)) {
-          return R::failure(CameraError::kCorrupt);
-        }
-        break;
-      case 'F': {
-        const char* colon = static_cast<const char*>(std::memchr(value, ':', value_len));
-        if (colon == nullptr || !parse_int(value, static_cast<std::size_t>(colon - value), header.rate_num) ||
-            !parse_int(colon + 1, value_len - static_cast<std::size_t>(colon - value) - 1U, header.rate_den)) {
-          return R::failure(CameraError::kCorrupt);
-        }
-        break;
-      }
-      case 'I':
-        header.interlaced = value_len > 0U && value[0] != 'p' && value[0] != '?';
-        break;
-      case 'C':
-        chroma_given = true;
-        if (value_len >= 3U && std::strncmp(value, "420", 3U) == 0) {
-          header.layout = ChromaLayout::k420;  // jpeg, mpeg2, paldv: siting ignored (nearest sample)
-        } else if (value_len == 3U && std::strncmp(value, "422", 3U) == 0) {
-          header.layout = ChromaLayout::k422;
-        } else if (value_len == 3U && std::strncmp(value, "444", 3U) == 0) {
-          header.layout = ChromaLayout::k444;
-        } else if (value_len == 4U && std::strncmp(value, "mono", 4U) == 0) {
-          header.layout = ChromaLayout::kMono;
-        } else {
-          return R::failure(CameraError::kUnsupported);  // 411, 444alpha, high bit depths
-        }
-        break;
-      case 'X':
-        if (value_len == 15U && std::strncmp(value, "COLORRANGE=FULL", 15U) == 0) {
-          header.range = YuvRange::kFull;
-        }
-        break;
-      default:
-        break;  // A (aspect) and unknown tags do not change the pixels
+    const CameraError e = parse_header_tag(line[i], line + i + 1, end - i - 1U, header, detail, detail_capacity);
+    if (e != CameraError::kNone) {
+      return R::failure(e);
     }
     i = end;
   }
-  static_cast<void>(chroma_given);  // no C tag: 4:2:0, the format's default
-  if (header.width <= 0 || header.height <= 0 || header.width > 16384 || header.height > 16384 ||
-      header.rate_num < 0 || header.rate_den <= 0) {
-    return R::failure(CameraError::kCorrupt);
+  if (header.width <= 0 || header.height <= 0 || header.width > 16384 || header.height > 16384) {
+    return R::failure(explain(detail, detail_capacity, CameraError::kCorrupt,
+                              "frame size %dx%d outside 1..16384 (W and H tags)", header.width, header.height));
+  }
+  if (header.rate_num < 0 || header.rate_den <= 0) {
+    return R::failure(explain(detail, detail_capacity, CameraError::kCorrupt, "bad frame rate %d:%d (F tag)",
+                              header.rate_num, header.rate_den));
   }
   return R::success(header);
 }
@@ -445,7 +481,8 @@ double Y4mSource::rate_hz() const noexcept {
   return header_.rate_den > 0 ? static_cast<double>(header_.rate_num) / static_cast<double>(header_.rate_den) : 0.0;
 }
 
-Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path, const ReplayOptions& options) noexcept {
+Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path, const ReplayOptions& options,
+                                                                char* detail, std::size_t detail_capacity) noexcept {
   using R = Result<std::unique_ptr<Y4mSource>, CameraError>;
   if (path == nullptr) {
     return R::failure(CameraError::kBadArgument);
@@ -477,9 +514,10 @@ Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path
     line[length++] = static_cast<char>(c);
   }
   if (!complete) {
-    return R::failure(length == 0U ? CameraError::kTruncated : CameraError::kCorrupt);
+    return R::failure(explain(detail, detail_capacity, length == 0U ? CameraError::kTruncated : CameraError::kCorrupt,
+                              "%s", length == 0U ? "empty file" : "no complete YUV4MPEG2 header line"));
   }
-  const auto header = parse_y4m_header(line, length);
+  const auto header = parse_y4m_header(line, length, detail, detail_capacity);
   if (!header.ok()) {
     return R::failure(header.error());
   }
@@ -489,6 +527,11 @@ Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path
     return R::failure(CameraError::kWrongSize);
   }
   source->data_offset_ = static_cast<long long>(length) + 1;
+  struct stat st {};
+  if (::fstat(source->fd_, &st) == 0 && S_ISREG(st.st_mode) && static_cast<long long>(st.st_size) <= source->data_offset_) {
+    return R::failure(explain(detail, detail_capacity, CameraError::kEndOfStream, "%s",
+                              "no frame after the header (an empty stream)"));
+  }
   source->frame_bytes_ = planar_frame_bytes(source->header_.width, source->header_.height, source->header_.layout);
   source->frame_.reset(new (std::nothrow) std::uint8_t[source->frame_bytes_]);
   if (!source->frame_) {
@@ -497,6 +540,71 @@ Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path
   std::memset(source->frame_.get(), 0, source->frame_bytes_);  // pre-fault
   source->loop_ = options.loop;
   return R::success(std::move(source));
+}
+
+Status<CameraError> Y4mSource::skip_frame_parameters() noexcept {
+  std::size_t skipped = 0U;
+  std::uint8_t c = 0U;
+  do {
+    const auto got = read_fully(fd_, &c, 1U);
+    if (!got.ok()) {
+      return Status<CameraError>::failure(got.error());
+    }
+    if (got.value() == 0U) {
+      return Status<CameraError>::failure(CameraError::kTruncated);
+    }
+    ++skipped;
+  } while (c != '\n' && skipped < kMaxHeaderLine);
+  return c == '\n' ? ok_status<CameraError>() : Status<CameraError>::failure(CameraError::kCorrupt);
+}
+
+// Looks for the next "FRAME" tag (followed by ' ' or '\n') from byte `from`
+// on, in at most kY4mResyncFrames frame sizes, and leaves the stream at its
+// 'F'. The frame being read is lost either way (kCorrupt); when no tag is
+// found the source stops. The frame buffer is the scratch space.
+Status<CameraError> Y4mSource::resync(long long from) noexcept {
+  constexpr char kTag[] = "FRAME";
+  constexpr std::size_t kTagLength = sizeof kTag - 1U;
+  const std::size_t limit = kY4mResyncFrames * (frame_bytes_ + kMaxHeaderLine);
+  if (::lseek(fd_, static_cast<off_t>(from), SEEK_SET) < 0) {
+    return Status<CameraError>::failure(from_errno(errno));
+  }
+  std::size_t scanned = 0U;
+  std::size_t matched = 0U;
+  // Each pass reads at least one byte or returns: bounded by `limit`.
+  while (scanned < limit) {
+    const auto got = read_fully(fd_, frame_.get(), std::min(frame_bytes_, limit - scanned));
+    if (!got.ok()) {
+      return Status<CameraError>::failure(got.error());
+    }
+    if (got.value() == 0U) {
+      return Status<CameraError>::failure(CameraError::kCorrupt);  // the data ends: the next read says so
+    }
+    for (std::size_t i = 0U; i < got.value(); ++i) {
+      const std::uint8_t c = frame_[i];
+      if (matched == kTagLength) {
+        if (c == ' ' || c == '\n') {
+          const long long tag_at = from + static_cast<long long>(scanned + i) - static_cast<long long>(kTagLength);
+          if (::lseek(fd_, static_cast<off_t>(tag_at), SEEK_SET) < 0) {
+            return Status<CameraError>::failure(from_errno(errno));
+          }
+          return Status<CameraError>::failure(CameraError::kCorrupt);
+        }
+        matched = 0U;
+      }
+      if (c == static_cast<std::uint8_t>(kTag[matched])) {
+        ++matched;
+      } else {
+        matched = c == static_cast<std::uint8_t>(kTag[0]) ? 1U : 0U;
+      }
+    }
+    scanned += got.value();
+  }
+  stopped_ = true;
+  static_cast<void>(std::snprintf(stop_reason_, sizeof stop_reason_,
+                                  "damaged stream: no FRAME tag in the %zu bytes from byte %lld on", limit,
+                                  from));  // a message: truncation is harmless
+  return Status<CameraError>::failure(CameraError::kCorrupt);
 }
 
 Status<CameraError> Y4mSource::read_frame() noexcept {
@@ -512,27 +620,22 @@ Status<CameraError> Y4mSource::read_frame() noexcept {
   if (got.value() < sizeof tag) {
     return Status<CameraError>::failure(CameraError::kTruncated);
   }
-  if (std::memcmp(tag, "FRAME", 5U) != 0) {
-    return Status<CameraError>::failure(CameraError::kCorrupt);
-  }
-  if (tag[5] != '\n') {
-    if (tag[5] != ' ') {
-      return Status<CameraError>::failure(CameraError::kCorrupt);
+  if (std::memcmp(tag, "FRAME", 5U) != 0 || (tag[5] != '\n' && tag[5] != ' ')) {
+    // Not a frame tag: look for the next one from the byte after this one's start.
+    const off_t at = ::lseek(fd_, 0, SEEK_CUR);
+    if (at < 0) {
+      return Status<CameraError>::failure(from_errno(errno));
     }
-    std::size_t skipped = 0U;
-    std::uint8_t c = 0U;
-    do {
-      got = read_fully(fd_, &c, 1U);
-      if (!got.ok()) {
-        return Status<CameraError>::failure(got.error());
+    return resync(static_cast<long long>(at) - static_cast<long long>(sizeof tag) + 1);
+  }
+  if (tag[5] == ' ') {
+    const auto skipped = skip_frame_parameters();
+    if (!skipped.ok()) {
+      if (skipped.error() != CameraError::kCorrupt) {
+        return skipped;
       }
-      if (got.value() == 0U) {
-        return Status<CameraError>::failure(CameraError::kTruncated);
-      }
-      ++skipped;
-    } while (c != '\n' && skipped < kMaxHeaderLine);
-    if (c != '\n') {
-      return Status<CameraError>::failure(CameraError::kCorrupt);
+      const off_t at = ::lseek(fd_, 0, SEEK_CUR);  // a parameter line longer than any header: damaged
+      return at < 0 ? Status<CameraError>::failure(from_errno(errno)) : resync(static_cast<long long>(at));
     }
   }
   got = read_fully(fd_, frame_.get(), frame_bytes_);
@@ -551,6 +654,9 @@ Status<CameraError> Y4mSource::acquire(const MutableImageView& out, FrameInfo& i
   }
   if (out.width != header_.width || out.height != header_.height) {
     return Status<CameraError>::failure(CameraError::kWrongSize);
+  }
+  if (stopped_) {
+    return Status<CameraError>::failure(CameraError::kEndOfStream);  // damaged: replaying it again would not help
   }
   info.timestamp_ns = monotonic_now_ns();
   auto status = read_frame();
@@ -573,6 +679,8 @@ Status<CameraError> Y4mSource::reopen() noexcept {
   if (::lseek(fd_, static_cast<off_t>(data_offset_), SEEK_SET) < 0) {
     return Status<CameraError>::failure(from_errno(errno));
   }
+  stopped_ = false;
+  stop_reason_[0] = '\0';
   return ok_status<CameraError>();
 }
 

@@ -247,6 +247,156 @@ TEST(Y4mSource, A422ClipWithFrameParameters) {
   EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kTruncated);
 }
 
+// Only 8-bit colour is taken; every other colour space is refused with its
+// tag named (C420p10 used to be read as 8-bit 4:2:0: wrong frame size, garbage).
+TEST(Y4mHeader, RefusesHighBitDepthMonoAndUnknownColourSpacesNamingTheTag) {
+  const char* refused[] = {"C420p10", "C420p12", "C420p16", "C444p10", "C422p10", "Cmono", "Cmono16",
+                           "C444alpha", "C411", "C420jpegx", "C"};
+  for (const char* tag : refused) {
+    const std::string line = std::string("YUV4MPEG2 W64 H48 F25:1 ") + tag;
+    char detail[192] = {};
+    const auto h = parse_y4m_header(line.c_str(), line.size(), detail, sizeof detail);
+    ASSERT_FALSE(h.ok()) << tag;
+    EXPECT_EQ(h.error(), CameraError::kUnsupported) << tag;
+    EXPECT_NE(std::strstr(detail, (std::string("'") + tag + "'").c_str()), nullptr) << tag << ": " << detail;
+  }
+  const struct {
+    const char* tag;
+    ChromaLayout layout;
+  } taken[] = {{"C420", ChromaLayout::k420},      {"C420jpeg", ChromaLayout::k420}, {"C420mpeg2", ChromaLayout::k420},
+               {"C420paldv", ChromaLayout::k420}, {"C422", ChromaLayout::k422},     {"C444", ChromaLayout::k444}};
+  for (const auto& t : taken) {
+    const std::string line = std::string("YUV4MPEG2 W64 H48 F25:1 ") + t.tag;
+    const auto h = parse_y4m_header(line.c_str(), line.size());
+    ASSERT_TRUE(h.ok()) << t.tag;
+    EXPECT_EQ(h.value().layout, t.layout) << t.tag;
+  }
+}
+
+// A 16x8 4:2:0 clip of `frames` frames, as bytes: the header, then each
+// "FRAME\n" and its planes (frame i's bytes all 40 + i).
+std::vector<std::uint8_t> y4m_clip(int frames, std::size_t& header_bytes, std::size_t& frame_bytes) {
+  const std::string header = "YUV4MPEG2 W16 H8 F25:1 Ip C420jpeg\n";
+  frame_bytes = planar_frame_bytes(16, 8, ChromaLayout::k420);
+  header_bytes = header.size();
+  std::vector<std::uint8_t> file(header.begin(), header.end());
+  for (int f = 0; f < frames; ++f) {
+    const std::string tag = "FRAME\n";
+    file.insert(file.end(), tag.begin(), tag.end());
+    file.insert(file.end(), frame_bytes, static_cast<std::uint8_t>(40 + f));
+  }
+  return file;
+}
+
+// A damaged frame tag ("FRAMX") used to consume 6 bytes per try: tens of
+// thousands of dropped frames from one bad byte. Now the frame is dropped
+// once and the stream resynchronises on the next FRAME tag.
+TEST(Y4mSource, ADamagedFrameTagDropsOneFrameAndResynchronises) {
+  const std::string dir = temp_dir("y4mframx");
+  std::size_t header_bytes = 0U;
+  std::size_t frame_bytes = 0U;
+  std::vector<std::uint8_t> file = y4m_clip(3, header_bytes, frame_bytes);
+  file[header_bytes + 4U] = 'X';  // FRAME -> FRAMX, the first frame's tag
+  write_bytes(dir + "/clip.y4m", file);
+  auto source = Y4mSource::open((dir + "/clip.y4m").c_str(), ReplayOptions{});
+  ASSERT_TRUE(source.ok());
+  Image out(16, 8);
+  FrameInfo info;
+  {
+    test::AllocationScope scope;
+    EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kCorrupt);
+    EXPECT_EQ(scope.count(), 0U);
+  }
+  EXPECT_EQ(source.value()->stop_reason(), nullptr);
+  Image expected(16, 8);
+  for (int f = 1; f < 3; ++f) {
+    ASSERT_TRUE(source.value()->acquire(out.view, info).ok()) << f;
+    std::vector<std::uint8_t> planes(frame_bytes, static_cast<std::uint8_t>(40 + f));
+    planar_yuv_to_rgb(planes.data(), 16, 8, ChromaLayout::k420, YuvRange::kLimited, expected.view);
+    EXPECT_EQ(out.bytes, expected.bytes) << f;
+  }
+  EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kEndOfStream);
+}
+
+// A frame one byte short: its read takes the next tag's first byte, the next
+// tag is then misread, and the stream finds the tag that follows.
+TEST(Y4mSource, AShortFrameDropsTheNextFrameNotTheRestOfTheStream) {
+  const std::string dir = temp_dir("y4mshort");
+  std::size_t header_bytes = 0U;
+  std::size_t frame_bytes = 0U;
+  std::vector<std::uint8_t> file = y4m_clip(4, header_bytes, frame_bytes);
+  file.erase(file.begin() + static_cast<std::ptrdiff_t>(header_bytes + 6U));  // frame 0 one byte short
+  write_bytes(dir + "/clip.y4m", file);
+  auto source = Y4mSource::open((dir + "/clip.y4m").c_str(), ReplayOptions{});
+  ASSERT_TRUE(source.ok());
+  Image out(16, 8);
+  FrameInfo info;
+  int good = 0;
+  int dropped = 0;
+  for (int i = 0; i < 10; ++i) {
+    const auto got = source.value()->acquire(out.view, info);
+    if (!got.ok() && got.error() == CameraError::kEndOfStream) {
+      break;
+    }
+    (got.ok() ? good : dropped) += 1;
+  }
+  EXPECT_EQ(good, 3);  // frame 0 (misread, its planes are all alike), frames 2 and 3
+  EXPECT_EQ(dropped, 1);
+  EXPECT_EQ(source.value()->stop_reason(), nullptr);
+}
+
+// A valid header and then junk: one dropped frame, then the source stops
+// (end of stream, also when looping) and says why; it used to drop a frame
+// per 6 bytes of junk. The search is bounded: a FRAME tag further than
+// kY4mResyncFrames frame sizes away is not looked for.
+TEST(Y4mSource, JunkAfterTheHeaderStopsTheSourceWithAReason) {
+  const std::string dir = temp_dir("y4mjunk");
+  std::size_t header_bytes = 0U;
+  std::size_t frame_bytes = 0U;
+  std::vector<std::uint8_t> file = y4m_clip(0, header_bytes, frame_bytes);
+  for (std::size_t i = 0; i < (kY4mResyncFrames + 1U) * (frame_bytes + 1024U); ++i) {
+    file.push_back(static_cast<std::uint8_t>('A' + i % 7U));
+  }
+  const std::vector<std::uint8_t> one_frame = y4m_clip(1, header_bytes, frame_bytes);
+  file.insert(file.end(), one_frame.begin() + static_cast<std::ptrdiff_t>(header_bytes), one_frame.end());
+  write_bytes(dir + "/junk.y4m", file);
+  ReplayOptions options;
+  options.loop = true;
+  auto source = Y4mSource::open((dir + "/junk.y4m").c_str(), options);
+  ASSERT_TRUE(source.ok());
+  Image out(16, 8);
+  FrameInfo info;
+  EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kCorrupt);
+  ASSERT_NE(source.value()->stop_reason(), nullptr);
+  EXPECT_NE(std::strstr(source.value()->stop_reason(), "no FRAME tag"), nullptr) << source.value()->stop_reason();
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kEndOfStream);
+  }
+  // Starting again (the loop's retry) clears the stop; the junk stops it again.
+  ASSERT_TRUE(source.value()->reopen().ok());
+  EXPECT_EQ(source.value()->stop_reason(), nullptr);
+  EXPECT_EQ(source.value()->acquire(out.view, info).error(), CameraError::kCorrupt);
+  EXPECT_NE(source.value()->stop_reason(), nullptr);
+}
+
+TEST(Y4mSource, AHeaderOnlyFileIsAnEmptySourceSaidSo) {
+  const std::string dir = temp_dir("y4mempty");
+  std::size_t header_bytes = 0U;
+  std::size_t frame_bytes = 0U;
+  write_bytes(dir + "/empty.y4m", y4m_clip(0, header_bytes, frame_bytes));
+  char detail[192] = {};
+  const auto opened = Y4mSource::open((dir + "/empty.y4m").c_str(), ReplayOptions{}, detail, sizeof detail);
+  ASSERT_FALSE(opened.ok());
+  EXPECT_EQ(opened.error(), CameraError::kEndOfStream);
+  EXPECT_NE(std::strstr(detail, "no frame"), nullptr) << detail;
+  write_bytes(dir + "/p10.y4m", std::vector<std::uint8_t>{'Y', 'U', 'V', '4', 'M', 'P', 'E', 'G', '2', ' ', 'W', '2', ' ',
+                                                          'H', '2', ' ', 'C', '4', '2', '0', 'p', '1', '0', '\n'});
+  const auto p10 = Y4mSource::open((dir + "/p10.y4m").c_str(), ReplayOptions{}, detail, sizeof detail);
+  ASSERT_FALSE(p10.ok());
+  EXPECT_EQ(p10.error(), CameraError::kUnsupported);
+  EXPECT_NE(std::strstr(detail, "'C420p10'"), nullptr) << detail;
+}
+
 TEST(JpegFileSource, DirectorySortedWithACorruptFileDropped) {
   const std::string dir = temp_dir("jpg");
   const int w = 40;

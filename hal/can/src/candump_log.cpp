@@ -52,7 +52,18 @@ Status<CanBusError> CandumpLogWriter::open(const char* path, const char* interfa
   std::memcpy(interface_name_, interface_name, std::strlen(interface_name));
   used_ = 0U;
   lines_ = 0U;
+  buffered_lines_ = 0U;
+  lines_lost_ = 0U;
+  write_errors_ = 0U;
+  first_errno_ = 0;
   return ok_status<CanBusError>();
+}
+
+void CandumpLogWriter::count_error(int error_number) noexcept {
+  if (write_errors_ == 0U) {
+    first_errno_ = error_number;
+  }
+  ++write_errors_;
 }
 
 Status<CanBusError> CandumpLogWriter::write(const can::Frame& frame, std::int64_t timestamp_us) noexcept {
@@ -72,6 +83,7 @@ Status<CanBusError> CandumpLogWriter::write(const can::Frame& frame, std::int64_
   }
   used_ += length;
   ++lines_;
+  ++buffered_lines_;
   return ok_status<CanBusError>();
 }
 
@@ -88,12 +100,16 @@ Status<CanBusError> CandumpLogWriter::flush() noexcept {
         continue;
       }
       const int error_number = errno;
-      used_ = 0U;
+      used_ = 0U;  // those lines are lost: counted, not retried
+      lines_lost_ += buffered_lines_;
+      buffered_lines_ = 0U;
+      count_error(error_number);
       return Status<CanBusError>::failure(error_from_errno(error_number));
     }
     done += static_cast<std::size_t>(written);
   }
   used_ = 0U;
+  buffered_lines_ = 0U;
   return ok_status<CanBusError>();
 }
 
@@ -105,6 +121,9 @@ Status<CanBusError> CandumpLogWriter::close() noexcept {
   const int result = ::close(fd_);
   const int error_number = errno;
   fd_ = -1;
+  if (result < 0) {
+    count_error(error_number);  // also after a failed flush: both are lost data
+  }
   if (!flushed) {
     return flushed;
   }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -79,6 +80,43 @@ TEST(CandumpLogWriter, OpenFailureIsAnErrorValue) {
   CandumpLogWriter writer;
   EXPECT_FALSE(writer.open("/nonexistent-dir/x.log", "vcan0").ok());
   EXPECT_EQ(writer.open("/tmp/x.log", "a-name-that-is-too-long").error(), CanBusError::kInvalidArgument);
+}
+
+// Every failed write(2) is counted with its errno, also the one close()'s
+// flush makes (a short run's lines are all still buffered then): a full
+// disk used to lose the whole log with nothing counted.
+TEST(CandumpLogWriter, WriteErrorsAreCountedAlsoAtClose) {
+  if (::access("/dev/full", W_OK) != 0) {
+    GTEST_SKIP() << "no /dev/full here";
+  }
+  CandumpLogWriter writer;
+  ASSERT_TRUE(writer.open("/dev/full", "sim0").ok());
+  can::Frame f;
+  f.id = 0x190;
+  f.length = 8;
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(writer.write(f, 1000000LL * i).ok());  // buffered: no write(2) yet
+  }
+  EXPECT_EQ(writer.write_errors(), 0U);
+  const auto closed = writer.close();
+  ASSERT_FALSE(closed.ok());
+  EXPECT_EQ(writer.write_errors(), 1U);
+  EXPECT_EQ(writer.first_errno(), ENOSPC);
+  EXPECT_EQ(writer.lines_written(), 20U);
+  EXPECT_EQ(writer.lines_lost(), 20U);
+  // A long run: every failed flush of the buffer counts; write() says so to its caller.
+  ASSERT_TRUE(writer.open("/dev/full", "sim0").ok());
+  EXPECT_EQ(writer.write_errors(), 0U);  // a new file, a new count
+  int failed_writes = 0;
+  for (int i = 0; i < 500; ++i) {
+    failed_writes += writer.write(f, 1000000LL * i).ok() ? 0 : 1;
+  }
+  EXPECT_GT(failed_writes, 0);
+  EXPECT_EQ(writer.write_errors(), static_cast<std::uint64_t>(failed_writes));
+  EXPECT_FALSE(writer.close().ok());
+  EXPECT_EQ(writer.write_errors(), static_cast<std::uint64_t>(failed_writes) + 1U);
+  EXPECT_EQ(writer.first_errno(), ENOSPC);
+  EXPECT_EQ(writer.lines_lost(), writer.lines_written());  // nothing reached the file
 }
 
 }  // namespace

@@ -3,6 +3,9 @@
 // CPU affinity, pre-faulted stack, CPU wake-up latency request. Every item
 // that cannot be had (no privilege, no such CPU, no such device) is reported
 // once, in the returned report, and the loop runs without it: none is fatal.
+// A stack pre-fault larger than the calling thread's stack can take would
+// crash the process: the configuration refuses it (config.cpp, with
+// max_prefault_stack_kb()), and apply_rt_settings() skips it (reported).
 #pragma once
 
 #include <cstddef>
@@ -41,14 +44,27 @@ struct RtReport {
   bool pinned = false;
   bool stack_prefaulted = false;
   CpuLatencyRequest cpu_latency;  // held while the report lives, or until released
-  static constexpr std::size_t kMaxMessages = 4U;  // one per item that can fail
+  static constexpr std::size_t kMaxMessages = 5U;  // one per item that can fail
   static constexpr std::size_t kMessageLength = 160U;
   char messages[kMaxMessages][kMessageLength] = {};
   std::size_t message_count = 0U;
 };
 
+// rt.prefault_stack_kb's upper bound, whatever the stack.
+constexpr long long kMaxPrefaultStackKb = 65536;
+// The stack left unused below a pre-fault: signal frames and the calls made
+// while the pre-faulted block is live.
+constexpr long long kPrefaultStackMarginKb = 64;
+
+// The largest rt.prefault_stack_kb the calling thread can pre-fault safely:
+// the stack still free below the caller (its size from the thread's
+// attributes, for the main thread RLIMIT_STACK) less kPrefaultStackMarginKb,
+// at most kMaxPrefaultStackKb; 0 when nothing can be. Start-up only.
+long long max_prefault_stack_kb() noexcept;
+
 // Applies the settings to the calling thread (and process, for mlockall and
-// the CPU latency request).
+// the CPU latency request). A stack pre-fault beyond max_prefault_stack_kb()
+// is not done (reported).
 RtReport apply_rt_settings(const RtSettings& settings) noexcept;
 
 }  // namespace loop

@@ -78,11 +78,25 @@ struct Y4mHeader {
 };
 
 // Parses the stream header line (without its '\n'): "YUV4MPEG2 W720 H576 F25:1 Ip A1:1 C420jpeg ...".
-Result<Y4mHeader, CameraError> parse_y4m_header(const char* line, std::size_t length) noexcept;
+// Colour spaces taken: 8-bit 4:2:0 (C420, C420jpeg, C420mpeg2, C420paldv),
+// C422 and C444; any other C tag (high bit depths such as C420p10, mono,
+// alpha, 4:1:1) is kUnsupported. On failure `detail` (when given) says what
+// was wrong, naming the tag.
+Result<Y4mHeader, CameraError> parse_y4m_header(const char* line, std::size_t length, char* detail = nullptr,
+                                                std::size_t detail_capacity = 0U) noexcept;
+
+// A damaged stream (a frame tag that is not "FRAME"): the frame is dropped
+// (kCorrupt) and the next "FRAME" tag is looked for in at most this many
+// frame sizes after it; without one the source stops (stop_reason()).
+constexpr std::size_t kY4mResyncFrames = 2U;
 
 class Y4mSource final : public FrameSource {
  public:
-  static Result<std::unique_ptr<Y4mSource>, CameraError> open(const char* path, const ReplayOptions& options) noexcept;
+  // `detail` (optional) says why the file is refused: the header's fault, or
+  // a file that holds no frame after its header (kEndOfStream).
+  static Result<std::unique_ptr<Y4mSource>, CameraError> open(const char* path, const ReplayOptions& options,
+                                                              char* detail = nullptr,
+                                                              std::size_t detail_capacity = 0U) noexcept;
   ~Y4mSource() override;
   Y4mSource(const Y4mSource&) = delete;
   Y4mSource& operator=(const Y4mSource&) = delete;
@@ -96,11 +110,14 @@ class Y4mSource final : public FrameSource {
   bool live() const noexcept override { return false; }
   Status<CameraError> acquire(const MutableImageView& out, FrameInfo& info) noexcept override;
   Status<CameraError> reopen() noexcept override;
+  const char* stop_reason() const noexcept override { return stopped_ ? stop_reason_ : nullptr; }
   const Y4mHeader& header() const noexcept { return header_; }
 
  private:
   Y4mSource() noexcept = default;
   Status<CameraError> read_frame() noexcept;
+  Status<CameraError> skip_frame_parameters() noexcept;
+  Status<CameraError> resync(long long from) noexcept;
 
   int fd_ = -1;
   Y4mHeader header_{};
@@ -109,6 +126,8 @@ class Y4mSource final : public FrameSource {
   std::size_t frame_bytes_ = 0U;
   std::uint32_t sequence_ = 0U;
   bool loop_ = false;
+  bool stopped_ = false;      // damaged beyond resynchronisation: kEndOfStream until reopen()
+  char stop_reason_[160] = {};
 };
 
 // Writes RGB frames as a YUV4MPEG2 C420jpeg file (full-range, as ffmpeg's

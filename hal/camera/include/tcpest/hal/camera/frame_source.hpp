@@ -54,6 +54,11 @@ class FrameSource {
   // After kDeviceLost: try to open the device again (the loop calls this at a
   // slow rate while degraded). Replay sources start again from the first frame.
   virtual Status<CameraError> reopen() noexcept = 0;
+
+  // Why the source ended before the end of its data (a damaged recording it
+  // could not find its way through: acquire() then says kEndOfStream), or
+  // nullptr when it did not. reopen() clears it.
+  virtual const char* stop_reason() const noexcept { return nullptr; }
 };
 
 // Monotonic time for sources that stamp frames themselves (replay, sim).

@@ -2,6 +2,9 @@
 //   (1700000000.123456) vcan0 190#0102030405060708
 // so that any run can be replayed with `canplayer -I file` and read with the
 // usual can-utils. Buffered in a fixed 4 KB block, written with write(2).
+// A failed write(2) or close(2) (a full disk) is returned to the caller that
+// caused it, and counted: callers that log on the side and go on (the CAN
+// node) leave the count to whoever reports the run.
 #pragma once
 
 #include <array>
@@ -38,7 +41,14 @@ class CandumpLogWriter {
   Status<CanBusError> flush() noexcept;
   // Flushes and closes; safe to call twice.
   Status<CanBusError> close() noexcept;
+  // Lines accepted (buffered) since open(); not all reached the file when write_errors() > 0.
   std::uint64_t lines_written() const noexcept { return lines_; }
+  // Failed write(2) and close(2) calls since open(), and the errno of the
+  // first (0: none). A failed write loses the lines buffered then (all of
+  // them counted in lines_lost(), also those a short write had written).
+  std::uint64_t write_errors() const noexcept { return write_errors_; }
+  int first_errno() const noexcept { return first_errno_; }
+  std::uint64_t lines_lost() const noexcept { return lines_lost_; }
 
  private:
   int fd_ = -1;
@@ -46,6 +56,12 @@ class CandumpLogWriter {
   std::array<char, 4096> buffer_{};
   std::size_t used_ = 0U;
   std::uint64_t lines_ = 0U;
+  std::uint64_t buffered_lines_ = 0U;  // lines in buffer_
+  std::uint64_t lines_lost_ = 0U;
+  std::uint64_t write_errors_ = 0U;
+  int first_errno_ = 0;
+
+  void count_error(int error_number) noexcept;
 };
 
 }  // namespace hal
