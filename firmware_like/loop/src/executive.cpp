@@ -343,6 +343,7 @@ bool Executive::step_acquire() noexcept {
   const auto got = parts_.source->acquire(frame_view_, info_);
   if (got.ok()) {
     not_ready_run_ = 0;
+    dropped_run_ = 0;
     ++stats_->frames;
     record_.have_frame = true;
     record_.frame_sequence = info_.sequence;
@@ -368,6 +369,10 @@ bool Executive::step_acquire() noexcept {
   } else {
     // A corrupt, truncated or wrongly sized frame: one dropped frame.
     ++stats_->frame_errors;
+    if (++dropped_run_ >= config_.loop.camera_lost_after) {
+      camera_lost_ = true;                 // only damaged frames: the camera is lost too
+      finished_ = !parts_.source->live();  // a replay would replay its damage after reopen(): it ends here
+    }
     if (track_.frame_failed()) {
       on_track_dropped();
     }
@@ -501,6 +506,7 @@ void Executive::step_housekeeping() noexcept {
     if (camera_lost_ && parts_.source->reopen().ok()) {
       camera_lost_ = false;
       not_ready_run_ = 0;
+      dropped_run_ = 0;
       ++stats_->camera_recoveries;
       node.set_fault(Fault::kCameraTimeout, false, 0U);
     }

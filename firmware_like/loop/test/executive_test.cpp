@@ -282,6 +282,63 @@ TEST(Executive, AnUnreadableFrameIsDroppedCountedAndTheLoopGoesOn) {
   EXPECT_EQ(rig.node.publication(0).status, EstimateStatus::kValid);
 }
 
+// Consecutive dropped frames are a lost camera, as consecutive cycles
+// without a frame are (loop.camera_lost_after): said on the bus; a replay
+// then ends (reopen() would replay the same damage), a live camera is
+// retried. A shorter run of drops is not.
+TEST(Executive, ConsecutiveDroppedFramesAreALostCamera) {
+  Rig rig(100U);
+  std::vector<std::pair<int, hal::CameraError>> bad;
+  for (int i = 10; i < 200; ++i) {
+    bad.emplace_back(i, i < 12 ? hal::CameraError::kTruncated : hal::CameraError::kCorrupt);
+  }
+  bad.emplace_back(5, hal::CameraError::kCorrupt);
+  GlitchyReplay glitchy(*rig.source, bad);
+  rig.build(&glitchy);
+  const int lost_after = rig.config.loop.camera_lost_after;
+  ASSERT_TRUE(run_cycles(*rig.loop, 10 + lost_after - 1));
+  EXPECT_FALSE(rig.loop->last().camera_lost);
+  ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  EXPECT_TRUE(rig.loop->last().camera_lost);
+  EXPECT_TRUE(rig.node.fault_active(Fault::kCameraTimeout));
+  EXPECT_EQ(rig.loop->stats().camera_lost_events, 1U);
+  EXPECT_EQ(rig.loop->stats().frame_errors, static_cast<std::uint64_t>(lost_after) + 1U);
+  EXPECT_EQ(rig.loop->run_cycle(), CycleOutcome::kFinished);
+}
+
+// A live camera that gives only damaged frames is lost and retried.
+class DamagedCamera final : public WrappedSource {
+ public:
+  explicit DamagedCamera(hal::SimCamera& inner) : WrappedSource(inner) {}
+  const char* kind() const noexcept override { return "damaged"; }
+  bool live() const noexcept override { return true; }
+  Status<hal::CameraError> acquire(const MutableImageView& out, hal::FrameInfo& info) noexcept override {
+    return damaged ? Status<hal::CameraError>::failure(hal::CameraError::kCorrupt) : inner_.acquire(out, info);
+  }
+  Status<hal::CameraError> reopen() noexcept override {
+    ++reopen_attempts;
+    return ok_status<hal::CameraError>();
+  }
+  bool damaged = false;
+  int reopen_attempts = 0;
+};
+
+TEST(Executive, ALiveCameraGivingOnlyDamagedFramesIsLostAndRetried) {
+  Rig rig(100U);
+  DamagedCamera camera(*rig.source);
+  rig.build(&camera);
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
+  camera.damaged = true;
+  ASSERT_TRUE(run_cycles(*rig.loop, rig.config.loop.camera_lost_after));
+  EXPECT_TRUE(rig.loop->last().camera_lost);
+  camera.damaged = false;
+  ASSERT_TRUE(run_cycles(*rig.loop, 40));  // 40 ms fallback period: past retry_ms
+  EXPECT_GE(camera.reopen_attempts, 1);
+  EXPECT_FALSE(rig.loop->last().camera_lost);
+  EXPECT_EQ(rig.loop->stats().camera_recoveries, 1U);
+}
+
+
 // A live camera that disappears and comes back.
 class FlakyCamera final : public WrappedSource {
  public:

@@ -10,6 +10,7 @@
 #include "cli/setup.hpp"
 #include "cli/vision_run.hpp"
 #include "tcpest/can_iface/messages.hpp"
+#include "tcpest/common/json_escape.hpp"
 #include "tcpest/hal/can/candump_log.hpp"
 #include "tcpest/render/image_io.hpp"
 
@@ -118,6 +119,21 @@ void log_can_frames(EstimateRun& run, const EstimateResult& result) {
   }
 }
 
+// An image that gives no estimate: its JSON line (the name escaped, a
+// longer one cut at a character, never mid-escape), and for the sequence a
+// failed frame, as the loop counts a dropped one.
+void refuse_image(EstimateRun& run, const char* path, const char* reason) {
+  run.pipeline.frame_failed();
+  if (run.can_log != nullptr) {
+    log_can_frames(run, EstimateResult{});
+  }
+  if (run.json) {
+    char image[4096];
+    static_cast<void>(json::escape_string(path, image, sizeof image));  // cut when longer: still valid JSON
+    std::printf("{\"image\": \"%s\", \"status\": \"none\", \"error\": \"%s\"}\n", image, reason);
+  }
+}
+
 // One image: read, estimated and reported (a line, or a JSON object), its
 // overlay written. False when the image cannot be read or its size is not
 // the calibration's (reported; the run goes on).
@@ -126,18 +142,13 @@ bool estimate_image(EstimateRun& run, const char* path) {
   ImageView view;
   if (!run.reader.read(path, run.pixels, view, error, sizeof error)) {
     std::fprintf(stderr, "tcpest estimate: %s: %s\n", path, error);
-    if (run.json) {
-      std::printf("{\"image\": \"%s\", \"status\": \"none\", \"error\": \"unreadable image\"}\n", path);
-    }
+    refuse_image(run, path, "unreadable image");
     return false;
   }
   if (view.width != run.setup.camera.width() || view.height != run.setup.camera.height()) {
     std::fprintf(stderr, "tcpest estimate: %s: image is %dx%d, the calibration %dx%d\n", path, view.width,
                  view.height, run.setup.camera.width(), run.setup.camera.height());
-    if (run.json) {
-      std::printf("{\"image\": \"%s\", \"status\": \"none\", \"error\": \"image size differs from calibration\"}\n",
-                  path);
-    }
+    refuse_image(run, path, "image size differs from calibration");
     return false;
   }
   const EstimateResult result = run.pipeline.process(view, run.prior);

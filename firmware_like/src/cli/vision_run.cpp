@@ -10,6 +10,7 @@
 
 #include "cli/args.hpp"
 #include "cli/commands.hpp"
+#include "tcpest/common/json_escape.hpp"
 #include "tcpest/vision/overlay.hpp"
 
 namespace tcpest {
@@ -293,6 +294,12 @@ void EstimatePipeline::reset_sequence() noexcept {
   estimator_->drop_track();
 }
 
+void EstimatePipeline::frame_failed() noexcept {
+  if (track_->frame_failed()) {
+    estimator_->drop_track();
+  }
+}
+
 namespace {
 // Times the estimator's steps on the wall clock (reported, never decided on).
 class StepTimer final : public vision::StepObserver {
@@ -495,17 +502,8 @@ void format_estimate_json(const char* image, const EstimateResult& result, const
     }
   };
   advance(std::snprintf(out + used, capacity - used, "{\"image\": \""));
-  // The image path as a JSON string (quotes, backslashes and controls escaped).
-  for (const char* c = image; *c != '\0' && used + 8U < capacity; ++c) {
-    const auto byte = static_cast<unsigned char>(*c);
-    if (*c == '"' || *c == '\\') {
-      advance(std::snprintf(out + used, capacity - used, "\\%c", *c));
-    } else if (byte < 0x20U) {
-      advance(std::snprintf(out + used, capacity - used, "\\u%04x", static_cast<unsigned>(byte)));
-    } else {
-      advance(std::snprintf(out + used, capacity - used, "%c", *c));
-    }
-  }
+  // The image path as a JSON string (a longer one cut at a character, never mid-escape).
+  advance(static_cast<int>(json::escape_string(image, out + used, capacity - used > 8U ? capacity - used - 8U : 1U)));
   advance(std::snprintf(out + used, capacity - used, "\", \"status\": \"%s\"", to_string(result.status)));
   if (result.status != solver::EstimateQuality::None) {
     advance(std::snprintf(out + used, capacity - used, ", \"tcp\": [%.4f, %.4f, %.4f], \"r\": [", result.tcp.x(),

@@ -102,6 +102,9 @@ class EstimatePipeline {
   // One frame of a sequence. `prior_joints` (lambda, phi, theta) may be null.
   EstimateResult process(const ImageView& image, const double* prior_joints) noexcept;
   void reset_sequence() noexcept;
+  // A frame of the sequence that could not be read: it counts towards the
+  // track's drop, as a dropped frame does in the loop.
+  void frame_failed() noexcept;
   const vision::FeatureExtractor& extractor() const noexcept { return estimator_->extractor(); }
   const ModelSetup& setup() const noexcept { return setup_; }
   // The loop's configuration the pipeline was made with.

@@ -194,6 +194,7 @@ class Executive {
   // Health.
   bool camera_lost_ = false;
   int not_ready_run_ = 0;
+  int dropped_run_ = 0;  // consecutive dropped (corrupt, truncated, wrongly sized) frames
   bool bus_lost_ = false;
   std::int64_t next_retry_ns_ = 0;
   bool overrun_reported_ = false;
