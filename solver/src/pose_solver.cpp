@@ -61,6 +61,20 @@ bool is_converged(SolveStatus status) noexcept {
          status == SolveStatus::ConvergedCostChange;
 }
 
+SolveStatus to_solve_status(LmStatus status) noexcept {
+  switch (status) {
+    case LmStatus::ConvergedGradient: return SolveStatus::ConvergedGradient;
+    case LmStatus::ConvergedStep: return SolveStatus::ConvergedStep;
+    case LmStatus::ConvergedCostChange: return SolveStatus::ConvergedCostChange;
+    case LmStatus::MaxIterations: return SolveStatus::MaxIterations;
+    case LmStatus::NonFiniteResidual: return SolveStatus::NonFiniteResidual;
+    case LmStatus::NonFiniteJacobian: return SolveStatus::NonFiniteJacobian;
+    case LmStatus::SingularSystem: return SolveStatus::SingularSystem;
+    case LmStatus::InvalidInput: return SolveStatus::InvalidInput;
+  }
+  return SolveStatus::InvalidInput;
+}
+
 bool valid(const SolverOptions& o) noexcept {
   const bool finite = std::isfinite(o.gradient_tolerance) && std::isfinite(o.step_tolerance) &&
                       std::isfinite(o.cost_change_tolerance) && std::isfinite(o.initial_damping);
@@ -257,7 +271,7 @@ SolveSummary PoseSolver::solve(const CornerObservation& observed, SolveMode mode
     summary.status = SolveStatus::TooFewCorners;  // the residual refused the start; r is unchanged
     return summary;
   }
-  summary.status = outcome.status;
+  summary.status = to_solve_status(outcome.status);
   summary.iterations = outcome.iterations;
   summary.initial_cost = outcome.initial_cost;
   summary.final_cost = outcome.final_cost;

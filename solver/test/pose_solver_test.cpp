@@ -463,14 +463,14 @@ TEST(LevenbergMarquardt, NonFiniteJacobian) {
   LevenbergMarquardt<2, 2> lm;
   NanJacobian f;
   Eigen::Vector2d x(1.0, 2.0);
-  EXPECT_EQ(lm.minimise(f, x, SolverOptions{}).status, SolveStatus::NonFiniteJacobian);
+  EXPECT_EQ(lm.minimise(f, x, SolverOptions{}).status, LmStatus::NonFiniteJacobian);
 }
 
 TEST(LevenbergMarquardt, SingularSystem) {
   LevenbergMarquardt<2, 1> lm;
   RankOneHuge f;
   Eigen::Vector2d x(0.0, 0.0);
-  EXPECT_EQ(lm.minimise(f, x, SolverOptions{}).status, SolveStatus::SingularSystem);
+  EXPECT_EQ(lm.minimise(f, x, SolverOptions{}).status, LmStatus::SingularSystem);
 }
 
 TEST(LevenbergMarquardt, StepsOutsideTheDomainAreRejected) {
@@ -480,15 +480,31 @@ TEST(LevenbergMarquardt, StepsOutsideTheDomainAreRejected) {
   const LmOutcome out = lm.minimise(f, x, SolverOptions{});
   EXPECT_LT(x[0], 2.5);
   EXPECT_GT(x[0], 2.0);
-  EXPECT_NE(out.status, SolveStatus::InvalidInput);
+  EXPECT_NE(out.status, LmStatus::InvalidInput);
   EXPECT_LT(out.final_cost, out.initial_cost);
+}
+
+// The minimisation's endings are the pose solve's, one for one, and
+// converged exactly when they are.
+TEST(LevenbergMarquardt, EveryEndingMapsOntoThePoseSolveStatus) {
+  const LmStatus all[] = {LmStatus::ConvergedGradient, LmStatus::ConvergedStep,   LmStatus::ConvergedCostChange,
+                          LmStatus::MaxIterations,     LmStatus::NonFiniteResidual, LmStatus::NonFiniteJacobian,
+                          LmStatus::SingularSystem,    LmStatus::InvalidInput};
+  for (const LmStatus s : all) {
+    const SolveStatus pose = to_solve_status(s);
+    const bool lm_converged =
+        s == LmStatus::ConvergedGradient || s == LmStatus::ConvergedStep || s == LmStatus::ConvergedCostChange;
+    EXPECT_EQ(is_converged(pose), lm_converged) << to_string(pose);
+  }
+  EXPECT_EQ(to_solve_status(LmStatus::SingularSystem), SolveStatus::SingularSystem);
+  EXPECT_EQ(to_solve_status(LmStatus::InvalidInput), SolveStatus::InvalidInput);
 }
 
 TEST(LevenbergMarquardt, StartOutsideTheDomainIsInvalidInput) {
   LevenbergMarquardt<1, 1> lm;
   Domain f;
   Eigen::Matrix<double, 1, 1> x(3.0);
-  EXPECT_EQ(lm.minimise(f, x, SolverOptions{}).status, SolveStatus::InvalidInput);
+  EXPECT_EQ(lm.minimise(f, x, SolverOptions{}).status, LmStatus::InvalidInput);
 }
 
 TEST(SolveStatusNames, EveryStatusHasANameAndASentence) {

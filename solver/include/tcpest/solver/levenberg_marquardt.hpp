@@ -24,27 +24,19 @@
 namespace tcpest {
 namespace solver {
 
-// Every way a solve ends. The first three are the converged ones.
-enum class SolveStatus : std::uint8_t {
-  ConvergedGradient,      // max |J^T r| <= gradient_tolerance
-  ConvergedStep,          // |dx| <= step_tolerance * (|x| + step_tolerance)
-  ConvergedCostChange,    // a step lowered (or would by the model lower) the cost by <= cost_change_tolerance * cost
-  MaxIterations,          // options.max_iterations trial steps without converging
-  NonFiniteResidual,      // a residual or the cost at the start is NaN/inf
-  NonFiniteJacobian,      // the Jacobian (or J^T J, J^T r) at the start is NaN/inf
-  SingularSystem,         // the damped normal equations could not be solved
-  TooFewCorners,          // fewer than 4 usable corners (empty mask included)
-  NonFiniteCorner,        // a visible measured corner is NaN/inf
-  CornerFarOutsideImage,  // a visible measured corner lies far outside the image
-  InvalidInput,           // bad options or a non-finite start
+// Every way a minimisation ends. The first three are the converged ones.
+// Problem-specific refusals (the pose solver's corner checks) are the
+// problem's own statuses, not this header's.
+enum class LmStatus : std::uint8_t {
+  ConvergedGradient,    // max |J^T r| <= gradient_tolerance
+  ConvergedStep,        // |dx| <= step_tolerance * (|x| + step_tolerance)
+  ConvergedCostChange,  // a step lowered (or would by the model lower) the cost by <= cost_change_tolerance * cost
+  MaxIterations,        // options.max_iterations trial steps without converging
+  NonFiniteResidual,    // a residual or the cost at the start is NaN/inf
+  NonFiniteJacobian,    // the Jacobian (or J^T J, J^T r) at the start is NaN/inf
+  SingularSystem,       // the damped normal equations could not be solved
+  InvalidInput,         // bad options, a non-finite start, or a start outside the function's domain
 };
-constexpr int kNumSolveStatuses = 11;
-
-// Stable snake_case name (JSON output), e.g. "converged_gradient".
-const char* to_string(SolveStatus status) noexcept;
-// One sentence for people.
-const char* describe(SolveStatus status) noexcept;
-bool is_converged(SolveStatus status) noexcept;
 
 // A hard cap on any options.max_iterations: the worst case of a solve is
 // bounded by it whatever the caller asks.
@@ -62,7 +54,7 @@ struct SolverOptions {
 bool valid(const SolverOptions& options) noexcept;
 
 struct LmOutcome {
-  SolveStatus status = SolveStatus::InvalidInput;
+  LmStatus status = LmStatus::InvalidInput;
   int iterations = 0;         // trial steps evaluated (accepted or rejected)
   double initial_cost = 0.0;  // 0.5 |r(x0)|^2
   double final_cost = 0.0;    // 0.5 |r(x)|^2 at the returned x
@@ -82,22 +74,22 @@ class LevenbergMarquardt {
   LmOutcome minimise(Function& f, Params& x, const SolverOptions& options) noexcept {
     LmOutcome out;
     if (!valid(options) || !x.allFinite()) {
-      out.status = SolveStatus::InvalidInput;
+      out.status = LmStatus::InvalidInput;
       return out;
     }
     if (!f(x, residuals_, &jacobian_)) {
-      out.status = SolveStatus::InvalidInput;
+      out.status = LmStatus::InvalidInput;
       return out;
     }
     double cost = 0.5 * residuals_.squaredNorm();
     out.initial_cost = cost;
     out.final_cost = cost;
     if (!residuals_.allFinite() || !std::isfinite(cost)) {
-      out.status = SolveStatus::NonFiniteResidual;
+      out.status = LmStatus::NonFiniteResidual;
       return out;
     }
     if (!jacobian_.allFinite() || !update_normal_equations(f, x)) {
-      out.status = SolveStatus::NonFiniteJacobian;
+      out.status = LmStatus::NonFiniteJacobian;
       return out;
     }
     double damping = options.initial_damping;
@@ -105,7 +97,7 @@ class LevenbergMarquardt {
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
       out.iterations = iteration;
       if (gradient_.template lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) {
-        out.status = SolveStatus::ConvergedGradient;
+        out.status = LmStatus::ConvergedGradient;
         return out;
       }
       // Marquardt's scaling, clamped as tiny_solver does so that a parameter
@@ -117,16 +109,16 @@ class LevenbergMarquardt {
       }
       llt_.compute(damped_);
       if (llt_.info() != Eigen::Success) {
-        out.status = SolveStatus::SingularSystem;
+        out.status = LmStatus::SingularSystem;
         return out;
       }
       step_ = llt_.solve(-gradient_);
       if (!step_.allFinite()) {
-        out.status = SolveStatus::SingularSystem;
+        out.status = LmStatus::SingularSystem;
         return out;
       }
       if (step_.norm() <= options.step_tolerance * (x.norm() + options.step_tolerance)) {
-        out.status = SolveStatus::ConvergedStep;
+        out.status = LmStatus::ConvergedStep;
         return out;
       }
       // Decrease the quadratic model promises for this step. When even that
@@ -134,7 +126,7 @@ class LevenbergMarquardt {
       // evaluation: converged by cost change at the current x.
       const double predicted = -(step_.dot(gradient_) + 0.5 * step_.dot(normal_ * step_));
       if (predicted <= options.cost_change_tolerance * cost) {
-        out.status = SolveStatus::ConvergedCostChange;
+        out.status = LmStatus::ConvergedCostChange;
         return out;
       }
       out.iterations = iteration + 1;
@@ -155,11 +147,11 @@ class LevenbergMarquardt {
         out.final_cost = cost;
         if (!update_normal_equations(f, x)) {
           // A finite J whose J^T J overflows: no sound step can follow.
-          out.status = SolveStatus::NonFiniteJacobian;
+          out.status = LmStatus::NonFiniteJacobian;
           return out;
         }
         if (actual <= options.cost_change_tolerance * previous_cost) {
-          out.status = SolveStatus::ConvergedCostChange;
+          out.status = LmStatus::ConvergedCostChange;
           return out;
         }
         const double ratio = (predicted > 0.0) ? actual / predicted : 0.0;
@@ -173,7 +165,7 @@ class LevenbergMarquardt {
       }
     }
     out.iterations = options.max_iterations;
-    out.status = SolveStatus::MaxIterations;
+    out.status = LmStatus::MaxIterations;
     return out;
   }
 

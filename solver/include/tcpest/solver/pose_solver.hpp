@@ -32,6 +32,32 @@ enum class SolveMode : std::uint8_t {
 };
 const char* to_string(SolveMode mode) noexcept;
 
+// Every way a pose solve ends: the minimisation's (LmStatus, in the same
+// order and meaning) and the pose problem's own refusals of its corners.
+// The first three are the converged ones.
+enum class SolveStatus : std::uint8_t {
+  ConvergedGradient,      // max |J^T r| <= gradient_tolerance
+  ConvergedStep,          // |dx| <= step_tolerance * (|x| + step_tolerance)
+  ConvergedCostChange,    // a step lowered (or would by the model lower) the cost by <= cost_change_tolerance * cost
+  MaxIterations,          // options.max_iterations trial steps without converging
+  NonFiniteResidual,      // a residual or the cost at the start is NaN/inf
+  NonFiniteJacobian,      // the Jacobian (or J^T J, J^T r) at the start is NaN/inf
+  SingularSystem,         // the damped normal equations could not be solved
+  TooFewCorners,          // fewer than 4 usable corners (empty mask included)
+  NonFiniteCorner,        // a visible measured corner is NaN/inf
+  CornerFarOutsideImage,  // a visible measured corner lies far outside the image
+  InvalidInput,           // bad options or a non-finite start
+};
+constexpr int kNumSolveStatuses = 11;
+
+// Stable snake_case name (JSON output), e.g. "converged_gradient".
+const char* to_string(SolveStatus status) noexcept;
+// One sentence for people.
+const char* describe(SolveStatus status) noexcept;
+bool is_converged(SolveStatus status) noexcept;
+// The minimisation's ending as the pose solve's.
+SolveStatus to_solve_status(LmStatus status) noexcept;
+
 // Measured corners in pixels, indexed k = 2 j + side; only `visible` ones are used.
 struct CornerObservation {
   std::array<Vec2, kNumCorners> pixel{};
