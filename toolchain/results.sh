@@ -3,14 +3,20 @@
 # defaults, the same `tcpest run` uses) scored on both data sources side by
 # side -- our renderer's sets at fixed seeds and the independent frames in
 # ../shared/data/independent -- and the loop's cycle times on a sequence of
-# each. Writes OUT/results.md (default build/results; docs/results.md is its
-# output, committed). A few minutes on two cores.
+# each. Writes OUT/results.md (default build/results); with --docs also
+# docs/results.md, the committed page. A few minutes on two cores.
 #
+#   toolchain/results.sh --docs      (regenerates docs/results.md)
 #   toolchain/results.sh [OUT]
 #   CONFIG=candidate.yaml toolchain/results.sh OUT   (a candidate configuration: its loop: section, for both commands)
 #   TCPEST=path/to/tcpest EVALUATE_ARGS="--fallback-seeds 1" toolchain/results.sh OUT   (another build or setting)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+docs=0
+if [ "${1:-}" = "--docs" ]; then
+  docs=1
+  shift
+fi
 out="${1:-build/results}"
 tcpest="${TCPEST:-build/default/firmware_like/tcpest}"
 independent="${INDEPENDENT_DIR:-../shared/data/independent}"
@@ -27,7 +33,8 @@ if [ ! -d "$independent" ]; then
 fi
 mkdir -p "$out"
 
-# Our renderer's sets: the documented seeds (lab 77, hard 78, sequence 79).
+# Our renderer's sets: the documented seeds (lab 77, hard 78, sequence 79,
+# lab with the independent set's HD camera 82).
 frames="${OWN_FRAMES:-294}"
 [ -d "$out/own_lab" ] || "$tcpest" render --set lab --n "$frames" --seed 77 --out "$out/own_lab" --quiet
 [ -d "$out/own_hard" ] || "$tcpest" render --set hard --n "$frames" --seed 78 --out "$out/own_hard" --quiet
@@ -35,6 +42,7 @@ frames="${OWN_FRAMES:-294}"
 
 pal="$independent/cams/pal.yaml"
 hd="$independent/cams/hd.yaml"
+[ -d "$out/own_hd" ] || "$tcpest" render --set lab --n 60 --seed 82 --calib "$hd" --out "$out/own_hd" --quiet
 evaluate() {  # NAME CALIB DIR [ARGS...]
   local name="$1" calib="$2" dir="$3"
   shift 3
@@ -49,6 +57,7 @@ evaluate ind_lab "$pal" "$independent/pal_lab"
 evaluate ind_hard "$pal" "$independent/pal_hard"
 evaluate ind_real "$pal" "$independent/pal_real"
 evaluate ind_seq "$pal" "$independent/pal_seq" --no-prior
+evaluate own_hd "$hd" "$out/own_hd"
 evaluate ind_hd "$hd" "$independent/hd_lab"
 
 # The loop itself on a sequence of each source (no encoders, as fast as it goes).
@@ -62,3 +71,7 @@ run ind_seq "$pal" "$independent/pal_seq"
 
 python3 toolchain/results_table.py "$out" >"$out/results.md"
 echo "results: $out/results.md"
+if [ "$docs" -eq 1 ]; then
+  cp "$out/results.md" docs/results.md
+  echo "results: docs/results.md"
+fi
