@@ -25,6 +25,38 @@ bool read_number(const yaml::Document& doc, const char* path, double& out, Diagn
   return true;
 }
 
+// `value`, the element `what` of the field `path`, within lo..hi (`unit`);
+// false with the field, the value and the range named.
+bool check_range(const yaml::Document& doc, const char* path, const char* what, double value, double lo, double hi,
+                 const char* unit, Diagnostic& error) noexcept {
+  if (value >= lo && value <= hi) {
+    return true;
+  }
+  char message[128] = {};
+  static_cast<void>(std::snprintf(message, sizeof message, "%s = %g is outside its plausible range %g..%g %s", what,
+                                  value, lo, hi, unit));  // truncation is fine
+  error = doc.error_at(doc.find(path), path, message);
+  return false;
+}
+
+// The intrinsics read from the file within their plausible ranges
+// (camera.hpp, docs/model.md); false with the element named.
+bool check_intrinsic_ranges(const yaml::Document& doc, const CameraIntrinsics& k, Diagnostic& error) noexcept {
+  const char* matrix = "camera_matrix.data";
+  const char* dist = "distortion_coefficients.data";
+  const double w = k.width;
+  const double h = k.height;
+  return check_range(doc, matrix, "fx", k.fx, kMinFocalPx, kMaxFocalPx, "px", error) &&
+         check_range(doc, matrix, "fy", k.fy, kMinFocalPx, kMaxFocalPx, "px", error) &&
+         check_range(doc, matrix, "cx", k.cx, -w, 2.0 * w, "px (within one image width of the image)", error) &&
+         check_range(doc, matrix, "cy", k.cy, -h, 2.0 * h, "px (within one image height of the image)", error) &&
+         check_range(doc, dist, "k1", k.k1, -kMaxRadialCoefficient, kMaxRadialCoefficient, "", error) &&
+         check_range(doc, dist, "k2", k.k2, -kMaxRadialCoefficient, kMaxRadialCoefficient, "", error) &&
+         check_range(doc, dist, "p1", k.p1, -kMaxTangentialCoefficient, kMaxTangentialCoefficient, "", error) &&
+         check_range(doc, dist, "p2", k.p2, -kMaxTangentialCoefficient, kMaxTangentialCoefficient, "", error) &&
+         check_range(doc, dist, "k3", k.k3, -kMaxRadialCoefficient, kMaxRadialCoefficient, "", error);
+}
+
 // A matrix's `rows`/`cols`, when given, must be the expected size; false
 // with the field named.
 bool check_size(const yaml::Document& doc, const char* matrix, long long rows, long long cols,
@@ -150,11 +182,11 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
   if (!height.ok()) {
     return CameraResult::failure(height.error());
   }
-  if (width.value() <= 0 || width.value() > 16384) {
-    return CameraResult::failure(doc.error_at(doc.find("image_width"), "image_width", "must be 1..16384"));
+  if (width.value() <= 0 || width.value() > kMaxImageSide) {
+    return CameraResult::failure(doc.error_at(doc.find("image_width"), "image_width", "must be 1..16384 px"));
   }
-  if (height.value() <= 0 || height.value() > 16384) {
-    return CameraResult::failure(doc.error_at(doc.find("image_height"), "image_height", "must be 1..16384"));
+  if (height.value() <= 0 || height.value() > kMaxImageSide) {
+    return CameraResult::failure(doc.error_at(doc.find("image_height"), "image_height", "must be 1..16384 px"));
   }
   k.width = static_cast<int>(width.value());
   k.height = static_cast<int>(height.value());
@@ -187,7 +219,7 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
   }
 
   Diagnostic distortion_error;
-  if (!read_distortion(doc, k, distortion_error)) {
+  if (!read_distortion(doc, k, distortion_error) || !check_intrinsic_ranges(doc, k, distortion_error)) {
     return CameraResult::failure(distortion_error);
   }
 
