@@ -187,6 +187,41 @@ TEST(ConfigIo, GeometryDefaultsAndErrors) {
   EXPECT_EQ(too_fat.error().line, 2U);
 }
 
+// Finite but absurd geometry values are refused at their key with the
+// plausible range named.
+TEST(ConfigIo, RefusesAbsurdButFiniteGeometry) {
+  struct Absurd {
+    const char* text;
+    const char* field;
+    const char* named;
+  };
+  const Absurd cases[] = {
+      {"instrument:\n  lambda_max_mm: 1e300\n", "instrument.lambda_max_mm",
+       "1e+300 is outside its plausible range (0, 1000] mm"},
+      {"instrument:\n  lambda_min_mm: -5\n", "instrument.lambda_min_mm", "-5 is outside its plausible range [0, 1000] mm"},
+      {"instrument:\n  bend_length_mm: 1e-320\n  radius_mm: 0\n", "instrument.radius_mm", "(0, 1000] mm"},
+      {"instrument:\n  tcp_offset_mm: 5000\n", "instrument.tcp_offset_mm", "(0, 1000] mm"},
+      {"instrument:\n  theta_max_deg: 1e308\n", "instrument.theta_max_deg", "(0, 360] deg"},
+      {"channel_nominal:\n  x_ch_mm: -1e9\n", "channel_nominal.x_ch_mm", "[-1000, 1000] mm"},
+      {"channel_nominal:\n  psi_deg: 400\n", "channel_nominal.psi_deg", "[-360, 360] deg"},
+      {"play_penalty:\n  position_k: 1e300\n", "play_penalty.position_k", "[0, 1e+06]"},
+      {"play_penalty:\n  angle_scale_deg: 0\n", "play_penalty.angle_scale_deg", "(0, 360] deg"},
+  };
+  for (const Absurd& c : cases) {
+    ASSERT_TRUE(scratch().parse(c.text, std::strlen(c.text), "cfg.yaml").ok()) << c.text;
+    const auto read = read_instrument_config(scratch());
+    ASSERT_FALSE(read.ok()) << c.text;
+    EXPECT_STREQ(read.error().file, "cfg.yaml");
+    EXPECT_GT(read.error().line, 1U) << c.text;
+    EXPECT_STREQ(read.error().field, c.field) << c.text;
+    EXPECT_NE(std::strstr(read.error().message, c.named), nullptr) << read.error().message;
+  }
+  // The geometry's own consistency still holds within the ranges.
+  const char* empty_range = "instrument:\n  lambda_min_mm: 60\n  lambda_max_mm: 60\n";
+  ASSERT_TRUE(scratch().parse(empty_range, std::strlen(empty_range), "cfg.yaml").ok());
+  EXPECT_FALSE(read_instrument_config(scratch()).ok());
+}
+
 TEST(ConfigIo, MarkerColoursAreFiveBlueOrYellow) {
   const char* swapped = "instrument:\n  marker_colors: [yellow, blue, yellow, blue, yellow]\n";
   ASSERT_TRUE(scratch().parse(swapped, std::strlen(swapped), "cfg.yaml").ok());
