@@ -317,6 +317,43 @@ TEST(SolveStream, BadCornerValuesGetAStatusLine) {
       << text;
 }
 
+// A prior far outside the model's bounds is refused with its own status
+// (it used to come back as converged_step echoing the prior); twelve
+// identical corners, fitted only by an instrument pushed far past
+// lambda_max, give no estimate.
+TEST(SolveStream, AbsurdPriorAndImpossibleCornersGiveNoEstimate) {
+  const ModelSetup setup = default_setup();
+  solver::PoseVector truth;
+  truth << -13.3, 6.2, solver::deg_to_rad(10.0), 0.0, 22.0, 0.4, 0.9;
+  solver::CornerSet c;
+  setup.instrument.corners(setup.camera, truth, c);
+  const std::string absurd = corners_line(c, ", \"prior\": [30, 1e308, 1e308]");
+  const std::string beyond = corners_line(c, ", \"prior\": [61, 0.4, 0.9]");
+  std::string same = "{\"corners\": [";
+  for (int k = 0; k < solver::kNumCorners; ++k) {
+    same += (k == 0) ? "[359.5, 287.5]" : ", [359.5, 287.5]";
+  }
+  same += "]}";
+  std::FILE* in = std::tmpfile();
+  std::FILE* out = std::tmpfile();
+  ASSERT_NE(in, nullptr);
+  ASSERT_NE(out, nullptr);
+  std::fprintf(in, "%s\n%s\n%s\n", absurd.c_str(), beyond.c_str(), same.c_str());
+  std::rewind(in);
+  const double prior[3] = {30.0, 0.0, 0.0};
+  const SolveStreamResult result = solve_stream(in, out, setup, solver::SolveMode::Adaptive, prior);
+  const std::string text = read_all(out);
+  std::fclose(in);
+  std::fclose(out);
+  EXPECT_EQ(result.solved, 3U) << text;
+  EXPECT_EQ(text.find("converged"), std::string::npos) << text;
+  EXPECT_EQ(text.find("1e+308"), std::string::npos) << text;
+  const std::size_t second = text.find('\n') + 1U;
+  EXPECT_EQ(text.rfind("{\"status\": \"start_outside_bounds\", \"tcp\": null, \"r\": null", 0), 0U) << text;
+  EXPECT_EQ(text.find("{\"status\": \"start_outside_bounds\", \"tcp\": null", second), second) << text;
+  EXPECT_NE(text.find("\"tcp\": null", text.find('\n', second)), std::string::npos) << text;
+}
+
 TEST(PlayStudy, OneNoiseLevelGivesConsistentStatistics) {
   const ModelSetup setup = default_setup();
   static PlayStudyResult result;

@@ -92,6 +92,18 @@ bool all_finite(const CameraIntrinsics& k) noexcept {
   return true;
 }
 
+bool focal_plausible(double f) noexcept { return f >= kMinFocalPx && f <= kMaxFocalPx; }
+
+bool distortion_plausible(const CameraIntrinsics& k) noexcept {
+  const double radial[] = {k.k1, k.k2, k.k3};
+  for (double v : radial) {
+    if (!(std::fabs(v) <= kMaxRadialCoefficient)) {
+      return false;
+    }
+  }
+  return std::fabs(k.p1) <= kMaxTangentialCoefficient && std::fabs(k.p2) <= kMaxTangentialCoefficient;
+}
+
 }  // namespace
 
 CameraIntrinsics default_pal_camera() noexcept {
@@ -111,8 +123,9 @@ const char* to_string(CameraError e) noexcept {
   switch (e) {
     case CameraError::BadImageSize: return "image width and height must be between 1 and 16384 pixels";
     case CameraError::NonFiniteValue: return "a camera parameter is not a finite number";
-    case CameraError::BadFocalLength: return "focal lengths fx and fy must be positive (singular camera matrix)";
-    case CameraError::BadPrincipalPoint: return "principal point lies far outside the image";
+    case CameraError::BadFocalLength: return "focal lengths fx and fy must be 1..1e5 pixels";
+    case CameraError::BadPrincipalPoint: return "principal point must lie within one image width/height of the image";
+    case CameraError::BadDistortion: return "distortion coefficients must be |k1|, |k2|, |k3| <= 100, |p1|, |p2| <= 1";
     case CameraError::NoValidRegion: return "the distortion model leaves no projectable region";
   }
   return "unknown camera error";
@@ -120,21 +133,23 @@ const char* to_string(CameraError e) noexcept {
 
 Result<CameraModel, CameraError> CameraModel::create(const CameraIntrinsics& intrinsics) noexcept {
   using R = Result<CameraModel, CameraError>;
-  constexpr int kMaxSide = 16384;
-  if (intrinsics.width <= 0 || intrinsics.height <= 0 || intrinsics.width > kMaxSide ||
-      intrinsics.height > kMaxSide) {
+  if (intrinsics.width <= 0 || intrinsics.height <= 0 || intrinsics.width > kMaxImageSide ||
+      intrinsics.height > kMaxImageSide) {
     return R::failure(CameraError::BadImageSize);
   }
   if (!all_finite(intrinsics)) {
     return R::failure(CameraError::NonFiniteValue);
   }
-  if (!(intrinsics.fx > 0.0) || !(intrinsics.fy > 0.0)) {
+  if (!focal_plausible(intrinsics.fx) || !focal_plausible(intrinsics.fy)) {
     return R::failure(CameraError::BadFocalLength);
   }
   const double w = intrinsics.width;
   const double h = intrinsics.height;
   if (intrinsics.cx < -w || intrinsics.cx > 2.0 * w || intrinsics.cy < -h || intrinsics.cy > 2.0 * h) {
     return R::failure(CameraError::BadPrincipalPoint);
+  }
+  if (!distortion_plausible(intrinsics)) {
+    return R::failure(CameraError::BadDistortion);
   }
   CameraModel m;
   m.k_ = intrinsics;

@@ -25,6 +25,38 @@ bool read_number(const yaml::Document& doc, const char* path, double& out, Diagn
   return true;
 }
 
+// `value`, the element `what` of the field `path`, within lo..hi (`unit`);
+// false with the field, the value and the range named.
+bool check_range(const yaml::Document& doc, const char* path, const char* what, double value, double lo, double hi,
+                 const char* unit, Diagnostic& error) noexcept {
+  if (value >= lo && value <= hi) {
+    return true;
+  }
+  char message[128] = {};
+  static_cast<void>(std::snprintf(message, sizeof message, "%s = %g is outside its plausible range %g..%g %s", what,
+                                  value, lo, hi, unit));  // truncation is fine
+  error = doc.error_at(doc.find(path), path, message);
+  return false;
+}
+
+// The intrinsics read from the file within their plausible ranges
+// (camera.hpp, docs/model.md); false with the element named.
+bool check_intrinsic_ranges(const yaml::Document& doc, const CameraIntrinsics& k, Diagnostic& error) noexcept {
+  const char* matrix = "camera_matrix.data";
+  const char* dist = "distortion_coefficients.data";
+  const double w = k.width;
+  const double h = k.height;
+  return check_range(doc, matrix, "fx", k.fx, kMinFocalPx, kMaxFocalPx, "px", error) &&
+         check_range(doc, matrix, "fy", k.fy, kMinFocalPx, kMaxFocalPx, "px", error) &&
+         check_range(doc, matrix, "cx", k.cx, -w, 2.0 * w, "px (within one image width of the image)", error) &&
+         check_range(doc, matrix, "cy", k.cy, -h, 2.0 * h, "px (within one image height of the image)", error) &&
+         check_range(doc, dist, "k1", k.k1, -kMaxRadialCoefficient, kMaxRadialCoefficient, "", error) &&
+         check_range(doc, dist, "k2", k.k2, -kMaxRadialCoefficient, kMaxRadialCoefficient, "", error) &&
+         check_range(doc, dist, "p1", k.p1, -kMaxTangentialCoefficient, kMaxTangentialCoefficient, "", error) &&
+         check_range(doc, dist, "p2", k.p2, -kMaxTangentialCoefficient, kMaxTangentialCoefficient, "", error) &&
+         check_range(doc, dist, "k3", k.k3, -kMaxRadialCoefficient, kMaxRadialCoefficient, "", error);
+}
+
 // A matrix's `rows`/`cols`, when given, must be the expected size; false
 // with the field named.
 bool check_size(const yaml::Document& doc, const char* matrix, long long rows, long long cols,
@@ -150,11 +182,11 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
   if (!height.ok()) {
     return CameraResult::failure(height.error());
   }
-  if (width.value() <= 0 || width.value() > 16384) {
-    return CameraResult::failure(doc.error_at(doc.find("image_width"), "image_width", "must be 1..16384"));
+  if (width.value() <= 0 || width.value() > kMaxImageSide) {
+    return CameraResult::failure(doc.error_at(doc.find("image_width"), "image_width", "must be 1..16384 px"));
   }
-  if (height.value() <= 0 || height.value() > 16384) {
-    return CameraResult::failure(doc.error_at(doc.find("image_height"), "image_height", "must be 1..16384"));
+  if (height.value() <= 0 || height.value() > kMaxImageSide) {
+    return CameraResult::failure(doc.error_at(doc.find("image_height"), "image_height", "must be 1..16384 px"));
   }
   k.width = static_cast<int>(width.value());
   k.height = static_cast<int>(height.value());
@@ -187,7 +219,7 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
   }
 
   Diagnostic distortion_error;
-  if (!read_distortion(doc, k, distortion_error)) {
+  if (!read_distortion(doc, k, distortion_error) || !check_intrinsic_ranges(doc, k, distortion_error)) {
     return CameraResult::failure(distortion_error);
   }
 
@@ -252,6 +284,36 @@ bool read_marker_colors(const yaml::Document& doc, InstrumentGeometry& g, Diagno
   return true;
 }
 
+// A number of the instrument file with its plausible range: lo..hi, or
+// lo excluded when `lo_open`.
+struct RangedField {
+  const char* path;
+  double* target;
+  double lo;
+  double hi;
+  bool lo_open;
+  const char* unit;
+};
+
+// Reads an optional number and checks its range; false with the field and
+// the range named.
+bool read_ranged(const yaml::Document& doc, const RangedField& f, Diagnostic& error) noexcept {
+  double value = *f.target;
+  if (!read_number(doc, f.path, value, error)) {
+    return false;
+  }
+  const bool above_lo = f.lo_open ? value > f.lo : value >= f.lo;
+  if (!above_lo || !(value <= f.hi)) {
+    char message[128] = {};
+    static_cast<void>(std::snprintf(message, sizeof message, "%g is outside its plausible range %s%g, %g] %s", value,
+                                    f.lo_open ? "(" : "[", f.lo, f.hi, f.unit));  // truncation is fine
+    error = doc.error_at(doc.find(f.path), f.path, message);
+    return false;
+  }
+  *f.target = value;
+  return true;
+}
+
 // A geometry the file describes but validate() rejects, placed at the key
 // that is wrong.
 Diagnostic geometry_error_at(const yaml::Document& doc, GeometryError why) noexcept {
@@ -262,7 +324,8 @@ Diagnostic geometry_error_at(const yaml::Document& doc, GeometryError why) noexc
     case GeometryError::BadPenalty: field = "play_penalty"; break;
     case GeometryError::BadJointRange: field = "instrument.theta_max_deg"; break;
     case GeometryError::NonFiniteValue:
-    case GeometryError::NonPositiveLength: break;
+    case GeometryError::NonPositiveLength:
+    case GeometryError::OutOfRange: break;  // the fields' own ranges are checked as they are read
   }
   return doc.error_at(doc.find(field), field, to_string(why));
 }
@@ -276,30 +339,30 @@ Result<InstrumentGeometry, Diagnostic> read_instrument_config(const yaml::Docume
   double psi_deg = rad_to_deg(g.nominal_psi_rad);
   double mu_deg = rad_to_deg(g.nominal_mu_rad);
   double angle_scale_deg = rad_to_deg(g.penalty.angle_scale_rad);
-  struct Field {
-    const char* path;
-    double* target;
+  // The plausible ranges of instrument.hpp in the file's units.
+  constexpr double kLength = kMaxGeometryLengthMm;
+  constexpr double kAngleDeg = rad_to_deg(kMaxGeometryAngleRad);
+  constexpr double kStiffness = kMaxPenaltyStiffness;
+  const RangedField fields[] = {
+      {"instrument.bend_length_mm", &g.bend_length_mm, 0.0, kLength, true, "mm"},
+      {"instrument.radius_mm", &g.radius_mm, 0.0, kLength, true, "mm"},
+      {"instrument.tcp_offset_mm", &g.tcp_offset_mm, 0.0, kLength, true, "mm"},
+      {"instrument.shaft_radius_mm", &g.shaft_radius_mm, 0.0, kLength, true, "mm"},
+      {"instrument.grasper_radius_mm", &g.grasper_radius_mm, 0.0, kLength, true, "mm"},
+      {"instrument.theta_max_deg", &theta_max_deg, 0.0, kAngleDeg, true, "deg"},
+      {"instrument.lambda_min_mm", &g.lambda_min_mm, 0.0, kLength, false, "mm"},
+      {"instrument.lambda_max_mm", &g.lambda_max_mm, 0.0, kLength, true, "mm"},
+      {"channel_nominal.x_ch_mm", &g.nominal_x_ch_mm, -kLength, kLength, false, "mm"},
+      {"channel_nominal.y_ch_mm", &g.nominal_y_ch_mm, -kLength, kLength, false, "mm"},
+      {"channel_nominal.psi_deg", &psi_deg, -kAngleDeg, kAngleDeg, false, "deg"},
+      {"channel_nominal.mu_deg", &mu_deg, -kAngleDeg, kAngleDeg, false, "deg"},
+      {"play_penalty.position_k", &g.penalty.position_k, 0.0, kStiffness, false, ""},
+      {"play_penalty.position_scale_mm", &g.penalty.position_scale_mm, 0.0, kLength, true, "mm"},
+      {"play_penalty.angle_k", &g.penalty.angle_k, 0.0, kStiffness, false, ""},
+      {"play_penalty.angle_scale_deg", &angle_scale_deg, 0.0, kAngleDeg, true, "deg"},
   };
-  const Field fields[] = {
-      {"instrument.bend_length_mm", &g.bend_length_mm},
-      {"instrument.radius_mm", &g.radius_mm},
-      {"instrument.tcp_offset_mm", &g.tcp_offset_mm},
-      {"instrument.shaft_radius_mm", &g.shaft_radius_mm},
-      {"instrument.grasper_radius_mm", &g.grasper_radius_mm},
-      {"instrument.theta_max_deg", &theta_max_deg},
-      {"instrument.lambda_min_mm", &g.lambda_min_mm},
-      {"instrument.lambda_max_mm", &g.lambda_max_mm},
-      {"channel_nominal.x_ch_mm", &g.nominal_x_ch_mm},
-      {"channel_nominal.y_ch_mm", &g.nominal_y_ch_mm},
-      {"channel_nominal.psi_deg", &psi_deg},
-      {"channel_nominal.mu_deg", &mu_deg},
-      {"play_penalty.position_k", &g.penalty.position_k},
-      {"play_penalty.position_scale_mm", &g.penalty.position_scale_mm},
-      {"play_penalty.angle_k", &g.penalty.angle_k},
-      {"play_penalty.angle_scale_deg", &angle_scale_deg},
-  };
-  for (const Field& f : fields) {
-    if (!read_number(doc, f.path, *f.target, error)) {
+  for (const RangedField& f : fields) {
+    if (!read_ranged(doc, f, error)) {
       return GeometryResult::failure(error);
     }
   }

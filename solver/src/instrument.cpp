@@ -98,6 +98,27 @@ bool finite_geometry(const InstrumentGeometry& g) noexcept {
   return true;
 }
 
+// Every value within its plausible range (instrument.hpp). The signs the
+// other checks need (positive lengths, k >= 0) are theirs; this bounds sizes.
+bool plausible_geometry(const InstrumentGeometry& g) noexcept {
+  const double lengths[] = {g.bend_length_mm,   g.radius_mm,       g.tcp_offset_mm,      g.shaft_radius_mm,
+                            g.grasper_radius_mm, g.nominal_x_ch_mm, g.nominal_y_ch_mm,    g.lambda_min_mm,
+                            g.lambda_max_mm,     g.penalty.position_scale_mm};
+  for (double v : lengths) {
+    if (!(std::fabs(v) <= kMaxGeometryLengthMm)) {
+      return false;
+    }
+  }
+  const double angles[] = {g.nominal_psi_rad, g.nominal_mu_rad, g.theta_max_rad, g.penalty.angle_scale_rad};
+  for (double v : angles) {
+    if (!(std::fabs(v) <= kMaxGeometryAngleRad)) {
+      return false;
+    }
+  }
+  return g.lambda_min_mm >= 0.0 && g.penalty.position_k <= kMaxPenaltyStiffness &&
+         g.penalty.angle_k <= kMaxPenaltyStiffness;
+}
+
 }  // namespace
 
 Mat3 rotation_x(double a) noexcept { return rotation_x_cs(dmath::cos(a), dmath::sin(a)); }
@@ -143,6 +164,7 @@ const char* to_string(GeometryError e) noexcept {
     case GeometryError::RadiusTooLarge: return "tube radius too large for the tightest bend (R must be < L / theta_max)";
     case GeometryError::BadPenalty: return "penalty k must be >= 0 and its scale a > 0";
     case GeometryError::BadJointRange: return "theta_max must be positive and lambda_min < lambda_max";
+    case GeometryError::OutOfRange: return "a geometry value lies outside its plausible range (docs/model.md)";
   }
   return "unknown geometry error";
 }
@@ -175,6 +197,9 @@ Status<GeometryError> validate(const InstrumentGeometry& g) noexcept {
   if (!(g.penalty.position_k >= 0.0) || !(g.penalty.angle_k >= 0.0) || !(g.penalty.position_scale_mm > 0.0) ||
       !(g.penalty.angle_scale_rad > 0.0)) {
     return S::failure(GeometryError::BadPenalty);
+  }
+  if (!plausible_geometry(g)) {
+    return S::failure(GeometryError::OutOfRange);
   }
   return S::success(Unit{});
 }

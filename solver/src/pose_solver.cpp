@@ -35,6 +35,8 @@ const char* to_string(SolveStatus status) noexcept {
     case SolveStatus::NonFiniteCorner: return "non_finite_corner";
     case SolveStatus::CornerFarOutsideImage: return "corner_far_outside_image";
     case SolveStatus::InvalidInput: return "invalid_input";
+    case SolveStatus::StartOutsideBounds: return "start_outside_bounds";
+    case SolveStatus::OutsideModelBounds: return "outside_model_bounds";
   }
   return "unknown";
 }
@@ -52,6 +54,8 @@ const char* describe(SolveStatus status) noexcept {
     case SolveStatus::NonFiniteCorner: return "a visible corner is NaN or infinite";
     case SolveStatus::CornerFarOutsideImage: return "a visible corner lies far outside the image";
     case SolveStatus::InvalidInput: return "invalid solver options or start configuration";
+    case SolveStatus::StartOutsideBounds: return "the start lies outside the model's bounds";
+    case SolveStatus::OutsideModelBounds: return "the solve ended outside the instrument's joint range (not converged)";
   }
   return "unknown status";
 }
@@ -80,6 +84,17 @@ bool valid(const SolverOptions& o) noexcept {
                       std::isfinite(o.cost_change_tolerance) && std::isfinite(o.initial_damping);
   return finite && o.max_iterations >= 1 && o.max_iterations <= kMaxIterationsCap && o.gradient_tolerance >= 0.0 &&
          o.step_tolerance >= 0.0 && o.cost_change_tolerance >= 0.0 && o.initial_damping > 0.0;
+}
+
+bool estimate_within_bounds(const InstrumentGeometry& g, const PoseVector& r) noexcept {
+  return r[kLambda] >= g.lambda_min_mm && r[kLambda] <= g.lambda_max_mm && std::fabs(r[kTheta]) <= g.theta_max_rad;
+}
+
+bool start_within_bounds(const InstrumentGeometry& g, const PoseVector& r) noexcept {
+  constexpr double kFullTurn = 2.0 * kPi;
+  return estimate_within_bounds(g, r) && std::fabs(r[kPhi]) <= kMaxStartPhiRad &&
+         std::fabs(r[kXch]) <= kMaxGeometryLengthMm && std::fabs(r[kYch]) <= kMaxGeometryLengthMm &&
+         std::fabs(r[kPsi]) <= kFullTurn && std::fabs(r[kMu]) <= kFullTurn;
 }
 
 const char* to_string(SolveMode mode) noexcept {
@@ -208,6 +223,10 @@ bool PoseSolver::check_input(const CornerObservation& observed, const PoseVector
     summary.status = SolveStatus::InvalidInput;
     return false;
   }
+  if (!start_within_bounds(model_.geometry(), r)) {
+    summary.status = SolveStatus::StartOutsideBounds;
+    return false;
+  }
   const double width = static_cast<double>(camera_.width());
   const double height = static_cast<double>(camera_.height());
   const double margin_u = kFarOutsideImageFraction * width;
@@ -276,6 +295,10 @@ SolveSummary PoseSolver::solve(const CornerObservation& observed, SolveMode mode
   summary.initial_cost = outcome.initial_cost;
   summary.final_cost = outcome.final_cost;
   finish((mode == SolveMode::Adaptive) ? adaptive_lm_.residuals() : fixed_lm_.residuals(), summary);
+  const bool has_end = is_converged(summary.status) || summary.status == SolveStatus::MaxIterations;
+  if (has_end && !estimate_within_bounds(model_.geometry(), r)) {
+    summary.status = SolveStatus::OutsideModelBounds;  // r is where it ended, for diagnosis
+  }
   return summary;
 }
 

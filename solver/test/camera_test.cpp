@@ -53,6 +53,36 @@ TEST(Camera, RefusesBadIntrinsics) {
   EXPECT_EQ(CameraModel::create(k).error(), CameraError::BadImageSize);
 }
 
+// Finite but absurd intrinsics are refused by the model itself, not only by
+// the file loader.
+TEST(Camera, RefusesAbsurdButFiniteIntrinsics) {
+  const double focal[] = {1e308, 1e-300, 0.5, 1.0001e5};
+  for (double f : focal) {
+    CameraIntrinsics k = default_pal_camera();
+    k.fx = f;
+    EXPECT_EQ(CameraModel::create(k).error(), CameraError::BadFocalLength) << f;
+    k = default_pal_camera();
+    k.fy = f;
+    EXPECT_EQ(CameraModel::create(k).error(), CameraError::BadFocalLength) << f;
+  }
+  CameraIntrinsics k = default_pal_camera();
+  k.k1 = 1e10;
+  EXPECT_EQ(CameraModel::create(k).error(), CameraError::BadDistortion);
+  k = default_pal_camera();
+  k.k3 = -100.5;
+  EXPECT_EQ(CameraModel::create(k).error(), CameraError::BadDistortion);
+  k = default_pal_camera();
+  k.p2 = 1.5;
+  EXPECT_EQ(CameraModel::create(k).error(), CameraError::BadDistortion);
+  k = default_pal_camera();
+  k.cx = 1e308;
+  EXPECT_EQ(CameraModel::create(k).error(), CameraError::BadPrincipalPoint);
+  k = default_pal_camera();
+  k.fx = 1.0;
+  k.fy = kMaxFocalPx;
+  EXPECT_TRUE(CameraModel::create(k).ok());
+}
+
 TEST(Camera, JacobianMatchesCentralDifferences) {
   const auto cam = CameraModel::create(vectors_camera());
   ASSERT_TRUE(cam.ok());

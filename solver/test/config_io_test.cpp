@@ -121,6 +121,46 @@ TEST(ConfigIo, RefusesDamagedMatricesItDoesNotUse) {
   }
 }
 
+// Finite but absurd calibrations (a mistyped exponent, a wrong file) are
+// refused with the element and its plausible range named.
+TEST(ConfigIo, RefusesAbsurdButFiniteCalibrations) {
+  struct Absurd {
+    const char* from;
+    const char* to;
+    const char* field;
+    const char* named;  // the element and its range in the message
+  };
+  const Absurd cases[] = {
+      {"[400, 0, 359.5", "[1e308, 0, 359.5", "camera_matrix.data", "fx = 1e+308 is outside its plausible range 1..100000 px"},
+      {"[400, 0, 359.5", "[1e-300, 0, 359.5", "camera_matrix.data", "fx = 1e-300 is outside its plausible range 1..100000"},
+      {"0, 400, 287.5", "0, 0.5, 287.5", "camera_matrix.data", "fy = 0.5 is outside its plausible range 1..100000"},
+      {"0, 359.5, 0", "0, 1e6, 0", "camera_matrix.data", "cx = 1e+06 is outside its plausible range -720..1440"},
+      {"400, 287.5, 0", "400, -600, 0", "camera_matrix.data", "cy = -600 is outside its plausible range -576..1152"},
+      {"[-0.32, 0.11, 0, 0, 0]", "[1e10, 0.11, 0, 0, 0]", "distortion_coefficients.data",
+       "k1 = 1e+10 is outside its plausible range -100..100"},
+      {"[-0.32, 0.11, 0, 0, 0]", "[-0.32, -101, 0, 0, 0]", "distortion_coefficients.data", "k2 = -101"},
+      {"[-0.32, 0.11, 0, 0, 0]", "[-0.32, 0.11, 2, 0, 0]", "distortion_coefficients.data",
+       "p1 = 2 is outside its plausible range -1..1"},
+      {"[-0.32, 0.11, 0, 0, 0]", "[-0.32, 0.11, 0, 0, 1e300]", "distortion_coefficients.data", "k3 = 1e+300"},
+  };
+  for (const Absurd& c : cases) {
+    std::string text(kGood);
+    const std::size_t at = text.find(c.from);
+    ASSERT_NE(at, std::string::npos) << c.from;
+    text.replace(at, std::strlen(c.from), c.to);
+    const auto cam = camera_from(text.c_str());
+    ASSERT_FALSE(cam.ok()) << text;
+    EXPECT_STREQ(cam.error().file, "cam.yaml");
+    EXPECT_GT(cam.error().line, 0U) << text;
+    EXPECT_STREQ(cam.error().field, c.field) << text;
+    EXPECT_NE(std::strstr(cam.error().message, c.named), nullptr) << cam.error().message;
+  }
+  // The edges of the ranges are accepted.
+  std::string edge(kGood);
+  edge.replace(edge.find("[-0.32, 0.11, 0, 0, 0]"), 22, "[-100, 100, 1, -1, 0]");
+  EXPECT_TRUE(camera_from(edge.c_str()).ok());
+}
+
 TEST(ConfigIo, GeometryDefaultsAndErrors) {
   const char* empty = "other_section:\n  anything: 1\n";
   ASSERT_TRUE(scratch().parse(empty, std::strlen(empty), "cfg.yaml").ok());
@@ -145,6 +185,41 @@ TEST(ConfigIo, GeometryDefaultsAndErrors) {
   ASSERT_FALSE(too_fat.ok());
   EXPECT_STREQ(too_fat.error().field, "instrument.radius_mm");
   EXPECT_EQ(too_fat.error().line, 2U);
+}
+
+// Finite but absurd geometry values are refused at their key with the
+// plausible range named.
+TEST(ConfigIo, RefusesAbsurdButFiniteGeometry) {
+  struct Absurd {
+    const char* text;
+    const char* field;
+    const char* named;
+  };
+  const Absurd cases[] = {
+      {"instrument:\n  lambda_max_mm: 1e300\n", "instrument.lambda_max_mm",
+       "1e+300 is outside its plausible range (0, 1000] mm"},
+      {"instrument:\n  lambda_min_mm: -5\n", "instrument.lambda_min_mm", "-5 is outside its plausible range [0, 1000] mm"},
+      {"instrument:\n  bend_length_mm: 1e-320\n  radius_mm: 0\n", "instrument.radius_mm", "(0, 1000] mm"},
+      {"instrument:\n  tcp_offset_mm: 5000\n", "instrument.tcp_offset_mm", "(0, 1000] mm"},
+      {"instrument:\n  theta_max_deg: 1e308\n", "instrument.theta_max_deg", "(0, 360] deg"},
+      {"channel_nominal:\n  x_ch_mm: -1e9\n", "channel_nominal.x_ch_mm", "[-1000, 1000] mm"},
+      {"channel_nominal:\n  psi_deg: 400\n", "channel_nominal.psi_deg", "[-360, 360] deg"},
+      {"play_penalty:\n  position_k: 1e300\n", "play_penalty.position_k", "[0, 1e+06]"},
+      {"play_penalty:\n  angle_scale_deg: 0\n", "play_penalty.angle_scale_deg", "(0, 360] deg"},
+  };
+  for (const Absurd& c : cases) {
+    ASSERT_TRUE(scratch().parse(c.text, std::strlen(c.text), "cfg.yaml").ok()) << c.text;
+    const auto read = read_instrument_config(scratch());
+    ASSERT_FALSE(read.ok()) << c.text;
+    EXPECT_STREQ(read.error().file, "cfg.yaml");
+    EXPECT_GT(read.error().line, 1U) << c.text;
+    EXPECT_STREQ(read.error().field, c.field) << c.text;
+    EXPECT_NE(std::strstr(read.error().message, c.named), nullptr) << read.error().message;
+  }
+  // The geometry's own consistency still holds within the ranges.
+  const char* empty_range = "instrument:\n  lambda_min_mm: 60\n  lambda_max_mm: 60\n";
+  ASSERT_TRUE(scratch().parse(empty_range, std::strlen(empty_range), "cfg.yaml").ok());
+  EXPECT_FALSE(read_instrument_config(scratch()).ok());
 }
 
 TEST(ConfigIo, MarkerColoursAreFiveBlueOrYellow) {

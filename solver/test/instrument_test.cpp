@@ -311,6 +311,33 @@ TEST(Instrument, RefusesAbsurdGeometry) {
   EXPECT_TRUE(validate(InstrumentGeometry{}).ok());
 }
 
+// Finite values no instrument has are refused by validate() itself, not
+// only by the file loader.
+TEST(Instrument, RefusesAbsurdButFiniteGeometry) {
+  InstrumentGeometry g;
+  g.lambda_max_mm = 1e300;
+  EXPECT_EQ(validate(g).error(), GeometryError::OutOfRange);
+  g = InstrumentGeometry{};
+  g.lambda_min_mm = -1.0;
+  EXPECT_EQ(validate(g).error(), GeometryError::OutOfRange);
+  g = InstrumentGeometry{};
+  g.nominal_x_ch_mm = -1e6;
+  EXPECT_EQ(validate(g).error(), GeometryError::OutOfRange);
+  g = InstrumentGeometry{};
+  g.nominal_psi_rad = 1e308;
+  EXPECT_EQ(validate(g).error(), GeometryError::OutOfRange);
+  g = InstrumentGeometry{};
+  g.penalty.angle_k = 1e9;
+  EXPECT_EQ(validate(g).error(), GeometryError::OutOfRange);
+  g = InstrumentGeometry{};
+  g.tcp_offset_mm = 1001.0;
+  EXPECT_EQ(validate(g).error(), GeometryError::OutOfRange);
+  g = InstrumentGeometry{};
+  g.lambda_max_mm = kMaxGeometryLengthMm;
+  g.nominal_mu_rad = -kMaxGeometryAngleRad;
+  EXPECT_TRUE(validate(g).ok());
+}
+
 }  // namespace
 }  // namespace solver
 }  // namespace tcpest

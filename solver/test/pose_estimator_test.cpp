@@ -102,6 +102,21 @@ TEST_F(PoseEstimatorTest, TooFewCornersIsNoneAndKeepsTheStart) {
   EXPECT_TRUE(e.r == p.prior);
 }
 
+// A start outside the model's bounds gives no estimate and keeps the start.
+TEST_F(PoseEstimatorTest, AStartOutsideTheBoundsIsNone) {
+  std::mt19937 rng(7);
+  PoseEstimator estimator(camera_, model_);
+  Problem p;
+  ASSERT_TRUE(draw_problem(rng, camera_, model_, false, 0.0, 8, p));
+  PoseVector start = p.prior;
+  start[kPhi] = 1e308;
+  start[kTheta] = 1e308;
+  const Estimate e = estimator.estimate(p.observed, SolveMode::Adaptive, start);
+  EXPECT_EQ(e.quality, EstimateQuality::None);
+  EXPECT_EQ(e.summary.status, SolveStatus::StartOutsideBounds);
+  EXPECT_TRUE(e.r == start);
+}
+
 // Five exact corners: the solve converges, but fewer than min_corners_valid.
 TEST_F(PoseEstimatorTest, FewCornersOrLargeResidualIsDegraded) {
   std::mt19937 rng(11);

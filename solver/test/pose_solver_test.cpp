@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "pose_problem.hpp"
+#include "tcpest/solver/pose_estimator.hpp"
 #include "tcpest/test/alloc_counter.hpp"
 
 namespace tcpest {
@@ -62,6 +63,7 @@ TEST_F(PoseSolverTest, AdaptiveBeatsFixedModelUnderPlay) {
   PoseSolver solver(camera_, model_);
   std::vector<double> adaptive_error;
   std::vector<double> fixed_error;
+  int outside = 0;
   for (int trial = 0; trial < 60; ++trial) {
     Problem p;
     ASSERT_TRUE(draw_problem(rng, camera_, model_, true, 0.5, 8, p));
@@ -70,7 +72,10 @@ TEST_F(PoseSolverTest, AdaptiveBeatsFixedModelUnderPlay) {
     const SolveSummary a = solver.solve(p.observed, SolveMode::Adaptive, r_adaptive);
     const SolveSummary f = solver.solve(p.observed, SolveMode::FixedModel, r_fixed);
     EXPECT_TRUE(is_converged(a.status)) << to_string(a.status);
-    EXPECT_TRUE(is_converged(f.status)) << to_string(f.status);
+    // Held at the wrong channel pose, the fixed model sometimes fits the
+    // corners best with a bend past theta_max: not an estimate.
+    EXPECT_TRUE(is_converged(f.status) || f.status == SolveStatus::OutsideModelBounds) << to_string(f.status);
+    outside += (f.status == SolveStatus::OutsideModelBounds) ? 1 : 0;
     // FixedModel holds r_m at r*_m.
     EXPECT_EQ(r_fixed[kXch], model_.geometry().nominal_x_ch_mm);
     EXPECT_EQ(r_fixed[kMu], model_.geometry().nominal_mu_rad);
@@ -83,6 +88,7 @@ TEST_F(PoseSolverTest, AdaptiveBeatsFixedModelUnderPlay) {
   const double fixed_median = fixed_error[fixed_error.size() / 2];
   EXPECT_LT(adaptive_median, 2.0);
   EXPECT_LT(adaptive_median, fixed_median);
+  EXPECT_LE(outside, 6);
 }
 
 TEST_F(PoseSolverTest, WorksWithAnySubsetOfAtLeastFourCorners) {
@@ -409,6 +415,70 @@ TEST_F(StatusTest, InvalidInput) {
   PoseVector r = noisy_.prior;
   r[kLambda] = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(solver.solve(noisy_.observed, SolveMode::Adaptive, r).status, SolveStatus::InvalidInput);
+}
+
+// A finite but absurd start (phi = theta = 1e308, sin and cos of which mean
+// nothing, and a step tolerance relative to |x| that is met at once) is
+// refused, not reported as converged where it started.
+TEST_F(StatusTest, StartOutsideTheModelsBoundsIsRefused) {
+  PoseSolver solver(camera_, model_);
+  const InstrumentGeometry& g = model_.geometry();
+  const PoseVector good = noisy_.prior;
+  PoseVector bad[8] = {good, good, good, good, good, good, good, good};
+  bad[0][kPhi] = 1e308;
+  bad[0][kTheta] = 1e308;
+  bad[1][kLambda] = g.lambda_max_mm + 0.1;
+  bad[2][kLambda] = g.lambda_min_mm - 0.1;
+  bad[3][kTheta] = -(g.theta_max_rad + 1e-6);
+  bad[4][kPhi] = -(kMaxStartPhiRad + 1e-6);
+  bad[5][kXch] = 1e6;
+  bad[6][kMu] = 1e300;
+  bad[7][kLambda] = 1e308;
+  for (const PoseVector& start : bad) {
+    for (SolveMode mode : {SolveMode::Adaptive, SolveMode::FixedModel}) {
+      PoseVector r = start;
+      const SolveSummary s = solver.solve(noisy_.observed, mode, r);
+      if (mode == SolveMode::FixedModel && (start[kXch] != good[kXch] || start[kMu] != good[kMu])) {
+        EXPECT_TRUE(is_converged(s.status)) << start.transpose();  // r_m is replaced by r*_m
+        continue;
+      }
+      EXPECT_EQ(s.status, SolveStatus::StartOutsideBounds) << start.transpose();
+      EXPECT_FALSE(is_converged(s.status));
+      EXPECT_EQ(r[kLambda], start[kLambda]);
+      EXPECT_EQ(r[kPhi], start[kPhi]);
+    }
+  }
+}
+
+// Twelve identical corners are fitted best by an instrument pushed far
+// beyond its insertion range (lambda ~ 159 mm with lambda_max = 60 mm): that
+// is not a converged estimate, and the estimator gives none.
+TEST_F(StatusTest, AnEndOutsideTheJointRangeIsNotConverged) {
+  CornerObservation o;
+  for (std::size_t k = 0; k < o.visible.size(); ++k) {
+    o.visible[k] = true;
+    o.pixel[k] = Vec2(359.5, 287.5);
+  }
+  const InstrumentGeometry& g = model_.geometry();
+  for (SolveMode mode : {SolveMode::Adaptive, SolveMode::FixedModel}) {
+    PoseSolver solver(camera_, model_);
+    PoseVector r = g.nominal_pose(0.5 * (g.lambda_min_mm + g.lambda_max_mm), 0.0, 0.0);
+    const SolveSummary s = solver.solve(o, mode, r);
+    const bool inside = estimate_within_bounds(g, r);
+    EXPECT_TRUE(!is_converged(s.status) || inside) << to_string(s.status) << " " << r.transpose();
+    if (!inside) {
+      EXPECT_EQ(s.status, SolveStatus::OutsideModelBounds) << r.transpose();
+    }
+    PoseEstimator estimator(camera_, model_);
+    const Estimate e = estimator.estimate(o, mode, g.nominal_pose(30.0, 0.0, 0.0));
+    EXPECT_NE(e.quality, EstimateQuality::Valid) << to_string(e.summary.status);
+  }
+  // The bounds themselves: inclusive edges, symmetric in theta.
+  PoseVector edge = g.nominal_pose(g.lambda_max_mm, kMaxStartPhiRad, -g.theta_max_rad);
+  EXPECT_TRUE(estimate_within_bounds(g, edge));
+  EXPECT_TRUE(start_within_bounds(g, edge));
+  edge[kLambda] = std::nextafter(g.lambda_max_mm, 1e9);
+  EXPECT_FALSE(estimate_within_bounds(g, edge));
 }
 
 // NonFiniteJacobian and SingularSystem cannot be provoked through the pose

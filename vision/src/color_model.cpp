@@ -94,8 +94,9 @@ double ColorGaussian::distance(double a, double b) const noexcept {
 
 bool ColorGaussian::valid() const noexcept {
   const double det = cov_aa * cov_bb - cov_ab * cov_ab;
-  return std::isfinite(mean_a) && std::isfinite(mean_b) && std::isfinite(det) && cov_aa > 0.0 && cov_bb > 0.0 &&
-         det > 0.0 && std::isfinite(threshold) && threshold > 0.0;
+  return std::fabs(mean_a) <= kMaxColorMeanAbs && std::fabs(mean_b) <= kMaxColorMeanAbs && std::isfinite(det) &&
+         cov_aa > 0.0 && cov_aa <= kMaxColorVariance && cov_bb > 0.0 && cov_bb <= kMaxColorVariance && det > 0.0 &&
+         threshold > 0.0 && threshold <= kMaxColorThreshold;
 }
 
 PixelClass ColorModel::classify(std::uint8_t red, std::uint8_t green, std::uint8_t blue_value) const noexcept {
@@ -151,22 +152,49 @@ bool ColorModel::valid() const noexcept {
 
 namespace {
 
-bool read_gaussian(const json::Document& doc, std::size_t object, ColorGaussian& out, const char*& bad_field) noexcept {
+// `value` within lo..hi (lo excluded when `lo_open`); false with the range
+// written into `message`.
+bool in_range(double value, double lo, double hi, bool lo_open, char* message, std::size_t capacity) noexcept {
+  const bool above_lo = lo_open ? value > lo : value >= lo;
+  if (above_lo && value <= hi) {
+    return true;
+  }
+  static_cast<void>(std::snprintf(message, capacity, "%g is outside its plausible range %s%g, %g]", value,
+                                  lo_open ? "(" : "[", lo, hi));  // truncation is fine
+  return false;
+}
+
+// One class's Gaussian; false with the field and why in `bad_field`, `message`.
+bool read_gaussian(const json::Document& doc, std::size_t object, ColorGaussian& out, const char*& bad_field,
+                   char* message, std::size_t capacity) noexcept {
+  copy_text(message, capacity, "missing, not numbers, or not a valid Gaussian");
   const auto mean = doc.member(object, "mean_ab");
   double m[2] = {0.0, 0.0};
+  bad_field = "mean_ab";
   if (!mean.ok() || !doc.numbers(mean.value(), m, 2U).ok()) {
-    bad_field = "mean_ab";
+    return false;
+  }
+  if (!in_range(m[0], -kMaxColorMeanAbs, kMaxColorMeanAbs, false, message, capacity) ||
+      !in_range(m[1], -kMaxColorMeanAbs, kMaxColorMeanAbs, false, message, capacity)) {
     return false;
   }
   const auto cov = doc.member(object, "covariance_ab");
   double c[3] = {0.0, 0.0, 0.0};
+  bad_field = "covariance_ab";
   if (!cov.ok() || !doc.numbers(cov.value(), c, 3U).ok()) {
-    bad_field = "covariance_ab";
+    return false;
+  }
+  if (!in_range(c[0], 0.0, kMaxColorVariance, true, message, capacity) ||
+      !in_range(c[2], 0.0, kMaxColorVariance, true, message, capacity)) {
     return false;
   }
   const auto threshold = doc.member(object, "threshold_mahalanobis");
+  bad_field = "threshold_mahalanobis";
   if (!threshold.ok() || !doc.number(threshold.value()).ok()) {
-    bad_field = "threshold_mahalanobis";
+    return false;
+  }
+  out.threshold = doc.number(threshold.value()).value();
+  if (!in_range(out.threshold, 0.0, kMaxColorThreshold, true, message, capacity)) {
     return false;
   }
   out.mean_a = m[0];
@@ -174,12 +202,9 @@ bool read_gaussian(const json::Document& doc, std::size_t object, ColorGaussian&
   out.cov_aa = c[0];
   out.cov_ab = c[1];
   out.cov_bb = c[2];
-  out.threshold = doc.number(threshold.value()).value();
-  if (!out.valid()) {
-    bad_field = "covariance_ab";
-    return false;
-  }
-  return true;
+  bad_field = "covariance_ab";
+  copy_text(message, capacity, "not positive definite (cov_aa cov_bb - cov_ab^2 must be > 0)");
+  return out.valid();
 }
 
 }  // namespace
@@ -217,10 +242,11 @@ Result<ColorModel, Diagnostic> parse_color_model(const char* text, std::size_t l
       return R::failure(Diagnostic::make(file_name, 0U, names[i], "missing class object"));
     }
     const char* bad_field = "";
-    if (!read_gaussian(doc, object.value(), *targets[i], bad_field)) {
+    char message[128] = {};
+    if (!read_gaussian(doc, object.value(), *targets[i], bad_field, message, sizeof message)) {
       char field[96];
       static_cast<void>(std::snprintf(field, sizeof field, "%s.%s", names[i], bad_field));  // truncation is fine
-      return R::failure(Diagnostic::make(file_name, 0U, field, "missing, not numbers, or not a valid Gaussian"));
+      return R::failure(Diagnostic::make(file_name, 0U, field, message));
     }
   }
   if (!model.valid()) {

@@ -74,6 +74,46 @@ TEST(ColorModel, BadFilesAreErrorsNamingTheField) {
   }
 }
 
+// Finite but absurd numbers (a threshold of 1e308 accepts every colour) are
+// refused with the field and its plausible range named.
+TEST(ColorModel, RefusesAbsurdButFiniteValuesNamingTheRange) {
+  const std::string good =
+      "{\"format\": \"tcpest-colors-1\", \"blue\": {\"mean_ab\": [4, -45], \"covariance_ab\": [23, -16, 35], "
+      "\"threshold_mahalanobis\": 6}, \"yellow\": {\"mean_ab\": [-12, 59], \"covariance_ab\": [10, -28, 149], "
+      "\"threshold_mahalanobis\": 4.76}}";
+  ASSERT_TRUE(parse_color_model(good.c_str(), good.size(), "colors.json").ok());
+  struct Absurd {
+    const char* from;
+    const char* to;
+    const char* field;
+    const char* named;
+  };
+  const Absurd cases[] = {
+      {"\"threshold_mahalanobis\": 6}", "\"threshold_mahalanobis\": 1e308}", "blue.threshold_mahalanobis",
+       "1e+308 is outside its plausible range (0, 100]"},
+      {"\"threshold_mahalanobis\": 4.76}", "\"threshold_mahalanobis\": 100.5}", "yellow.threshold_mahalanobis",
+       "(0, 100]"},
+      {"\"threshold_mahalanobis\": 6}", "\"threshold_mahalanobis\": 0}", "blue.threshold_mahalanobis", "(0, 100]"},
+      {"[4, -45]", "[4, -1e300]", "blue.mean_ab", "[-200, 200]"},
+      {"[10, -28, 149]", "[10, -28, 1e200]", "yellow.covariance_ab", "(0, 100000]"},
+      {"[10, -28, 149]", "[10, -28, 50]", "yellow.covariance_ab", "positive definite"},
+  };
+  for (const Absurd& c : cases) {
+    std::string text = good;
+    const std::size_t at = text.find(c.from);
+    ASSERT_NE(at, std::string::npos) << c.from;
+    text.replace(at, std::strlen(c.from), c.to);
+    const auto parsed = parse_color_model(text.c_str(), text.size(), "colors.json");
+    ASSERT_FALSE(parsed.ok()) << text;
+    EXPECT_STREQ(parsed.error().file, "colors.json");
+    EXPECT_STREQ(parsed.error().field, c.field) << text;
+    EXPECT_NE(std::strstr(parsed.error().message, c.named), nullptr) << parsed.error().message;
+  }
+  // The shipped model lies well inside the ranges.
+  EXPECT_TRUE(default_color_model().valid());
+  EXPECT_LE(default_color_model().blue.threshold, ColorTrainer::kMaxThreshold);
+}
+
 TEST(ColorModel, ClassifiesItsOwnMeans) {
   const ColorModel m = default_color_model();
   // A saturated blue and yellow of the rendered markers.

@@ -15,13 +15,28 @@ namespace solver {
 // Only plumb_bob now; the enum leaves room for a fisheye (equidistant) model.
 enum class DistortionModel : std::uint8_t { PlumbBob };
 
+// Plausible ranges (docs/model.md, "Plausible ranges"): finite values outside
+// them are refused as a damaged or mistyped calibration.
 struct CameraIntrinsics {
-  int width = 0;   // pixels
-  int height = 0;  // pixels
-  double fx = 0.0, fy = 0.0, cx = 0.0, cy = 0.0;  // pixels
+  int width = 0;   // pixels, 1..kMaxImageSide
+  int height = 0;  // pixels, 1..kMaxImageSide
+  double fx = 0.0, fy = 0.0;  // pixels, kMinFocalPx..kMaxFocalPx
+  double cx = 0.0, cy = 0.0;  // pixels, within one image width (height) of the image: -W..2W (-H..2H)
   DistortionModel model = DistortionModel::PlumbBob;
-  double k1 = 0.0, k2 = 0.0, p1 = 0.0, p2 = 0.0, k3 = 0.0;
+  double k1 = 0.0, k2 = 0.0, k3 = 0.0;  // radial, |k| <= kMaxRadialCoefficient
+  double p1 = 0.0, p2 = 0.0;            // tangential, |p| <= kMaxTangentialCoefficient
 };
+
+constexpr int kMaxImageSide = 16384;
+// A focal length below 1 px or above 1e5 px (a field of view under 0.01 deg
+// on a 16384 px image) is no endoscope's.
+constexpr double kMinFocalPx = 1.0;
+constexpr double kMaxFocalPx = 1.0e5;
+// Calibrated radial coefficients of strong wide-angle lenses stay within a
+// few units; 100 leaves a wide margin. Tangential terms come from a lens
+// decentred by a fraction of the focal length: real ones are below 0.01.
+constexpr double kMaxRadialCoefficient = 100.0;
+constexpr double kMaxTangentialCoefficient = 1.0;
 
 // The default PAL camera of model.md (720 x 576).
 CameraIntrinsics default_pal_camera() noexcept;
@@ -29,8 +44,9 @@ CameraIntrinsics default_pal_camera() noexcept;
 enum class CameraError : std::uint8_t {
   BadImageSize,      // width or height not positive, or absurdly large
   NonFiniteValue,    // a NaN or infinite parameter
-  BadFocalLength,    // fx or fy not positive (zero focal length: singular camera matrix)
+  BadFocalLength,    // fx or fy outside kMinFocalPx..kMaxFocalPx
   BadPrincipalPoint, // principal point far outside the image
+  BadDistortion,     // a distortion coefficient outside its plausible range
   NoValidRegion,     // the distortion leaves no projectable region around the axis
 };
 const char* to_string(CameraError e) noexcept;

@@ -15,36 +15,44 @@ namespace solver {
 
 enum class MarkerColor : std::uint8_t { Blue, Yellow };
 
+// Plausible ranges of the geometry (docs/model.md, "Plausible ranges"):
+// finite values outside them are refused as a damaged or mistyped file.
+constexpr double kMaxGeometryLengthMm = 1000.0;  // lengths, radii, |positions|, lambda
+constexpr double kMaxGeometryAngleRad = 2.0 * kPi;  // |angles|, theta_max, the angle scale
+constexpr double kMaxPenaltyStiffness = 1.0e6;   // k of the play penalty (px^2, like the cost)
+
 // The cubic play penalty rho(u) = (k/3) |u/a|^3 of the paper's eq. 8.
 struct PenaltyParameters {
-  double position_k = 15.0;                   // for x_ch, y_ch
-  double position_scale_mm = 1.0;             // a
-  double angle_k = 2.0;                       // for psi, mu
-  double angle_scale_rad = deg_to_rad(1.0);   // a
+  double position_k = 15.0;                   // for x_ch, y_ch; 0..kMaxPenaltyStiffness
+  double position_scale_mm = 1.0;             // a; 0 < a <= kMaxGeometryLengthMm
+  double angle_k = 2.0;                       // for psi, mu; 0..kMaxPenaltyStiffness
+  double angle_scale_rad = deg_to_rad(1.0);   // a; 0 < a <= kMaxGeometryAngleRad
 };
 
+// Lengths: 0 < x <= kMaxGeometryLengthMm unless said otherwise.
 struct InstrumentGeometry {
   double bend_length_mm = 18.5;   // L
-  double radius_mm = 1.81;        // R, over the markers
+  double radius_mm = 1.81;        // R, over the markers; R < L / theta_max
   double tcp_offset_mm = 15.8;    // d_tcp, along the tip tangent
-  std::array<double, kNumBoundaries> boundaries_mm{{0.0, 3.7, 7.4, 11.1, 14.8, 18.5}};  // s_j
+  std::array<double, kNumBoundaries> boundaries_mm{{0.0, 3.7, 7.4, 11.1, 14.8, 18.5}};  // s_j, 0 = s_0 < .. < s_5 = L
   std::array<MarkerColor, kNumMarkers> marker_colors{
       {MarkerColor::Blue, MarkerColor::Yellow, MarkerColor::Blue, MarkerColor::Yellow, MarkerColor::Blue}};
   // Parts the solver does not use (rendering).
   double shaft_radius_mm = 1.75;
   double grasper_radius_mm = 1.5;
   // Nominal (CAD) channel pose r_m*, left channel.
-  double nominal_x_ch_mm = -13.3;
-  double nominal_y_ch_mm = 6.2;
-  double nominal_psi_rad = deg_to_rad(10.0);
-  double nominal_mu_rad = 0.0;
+  double nominal_x_ch_mm = -13.3;             // |x| <= kMaxGeometryLengthMm
+  double nominal_y_ch_mm = 6.2;               // |y| <= kMaxGeometryLengthMm
+  double nominal_psi_rad = deg_to_rad(10.0);  // |psi| <= kMaxGeometryAngleRad
+  double nominal_mu_rad = 0.0;                // |mu| <= kMaxGeometryAngleRad
   PenaltyParameters penalty{};
   // Joint range the instrument can reach (used to validate the geometry: the
-  // tube must not fold on itself at the tightest bend, and by consumers to
-  // flag absurd estimates).
-  double theta_max_rad = deg_to_rad(135.0);
-  double lambda_min_mm = 0.0;
-  double lambda_max_mm = 60.0;
+  // tube must not fold on itself at the tightest bend; by the solver, which
+  // refuses a start outside it and reports no convergence outside it; and by
+  // consumers to flag absurd estimates).
+  double theta_max_rad = deg_to_rad(135.0);  // 0 < theta_max <= kMaxGeometryAngleRad
+  double lambda_min_mm = 0.0;                // 0 <= lambda_min < lambda_max
+  double lambda_max_mm = 60.0;               // lambda_max <= kMaxGeometryLengthMm
 
   // r_m* followed by the given joints.
   PoseVector nominal_pose(double lambda_mm, double phi_rad, double theta_rad) const noexcept;
@@ -57,6 +65,7 @@ enum class GeometryError : std::uint8_t {
   RadiusTooLarge,         // R >= L / theta_max: the tube would fold on itself
   BadPenalty,             // penalty k negative or scale not positive
   BadJointRange,          // theta_max not positive or lambda range empty
+  OutOfRange,             // a finite value outside its plausible range (see above)
 };
 const char* to_string(GeometryError e) noexcept;
 Status<GeometryError> validate(const InstrumentGeometry& g) noexcept;

@@ -47,8 +47,10 @@ enum class SolveStatus : std::uint8_t {
   NonFiniteCorner,        // a visible measured corner is NaN/inf
   CornerFarOutsideImage,  // a visible measured corner lies far outside the image
   InvalidInput,           // bad options or a non-finite start
+  StartOutsideBounds,     // the start lies outside the model's bounds (see start_within_bounds)
+  OutsideModelBounds,     // the minimisation ended (converged or not) outside the model's bounds: no estimate
 };
-constexpr int kNumSolveStatuses = 11;
+constexpr int kNumSolveStatuses = 13;
 
 // Stable snake_case name (JSON output), e.g. "converged_gradient".
 const char* to_string(SolveStatus status) noexcept;
@@ -84,6 +86,22 @@ constexpr int kNumFixedModelParams = 3;
 // A visible corner more than this many image widths/heights outside the
 // image is refused (CornerFarOutsideImage): no detector reports such a point.
 constexpr double kFarOutsideImageFraction = 1.0;
+
+// The model's bounds, from the instrument geometry: lambda_min <= lambda <=
+// lambda_max and |theta| <= theta_max, the joint range the instrument
+// reaches. A start must also have |phi| <= kMaxStartPhiRad and an r_m with
+// |x_ch|, |y_ch| <= kMaxGeometryLengthMm and |psi|, |mu| <= 2 pi
+// (instrument.hpp's ranges).
+// phi counts modulo 2 pi, and a prior keeps the encoders' representation,
+// which may count whole turns: four turns either way are accepted. Beyond,
+// it is a unit or typing error (at 1e308, sin and cos mean nothing and the
+// step test relative to |x| is met at once).
+constexpr double kMaxStartPhiRad = 8.0 * kPi;
+bool start_within_bounds(const InstrumentGeometry& g, const PoseVector& r) noexcept;
+// The end of a solve: the joints within the instrument's range (lambda,
+// theta). Outside it the corners were fitted by a configuration the
+// instrument cannot take.
+bool estimate_within_bounds(const InstrumentGeometry& g, const PoseVector& r) noexcept;
 
 // The residual vector of eq. 8 and its Jacobian for a chosen set of corners:
 // rows 2k, 2k+1 = f_hat_k(r) - f_k for used corners (zero otherwise), rows

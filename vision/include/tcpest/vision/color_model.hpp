@@ -34,13 +34,22 @@ double srgb_code_to_linear(std::uint8_t code) noexcept;
 Lab linear_to_lab(double red, double green, double blue) noexcept;
 void lab_to_linear(const Lab& lab, double& red, double& green, double& blue) noexcept;
 
+// Plausible ranges of a model file (docs/model.md, "Plausible ranges"). The
+// a*b* of sRGB colours lie within about +-128; a variance above 1e5 (a
+// standard deviation of 316) spans more than the whole plane; a trained
+// threshold is at most ColorTrainer::kMaxThreshold (6), and beyond a
+// Mahalanobis distance of 100 every colour would belong to the class.
+constexpr double kMaxColorMeanAbs = 200.0;     // |mean a*|, |mean b*|
+constexpr double kMaxColorVariance = 1.0e5;    // cov_aa, cov_bb; |cov_ab| follows from det > 0
+constexpr double kMaxColorThreshold = 100.0;   // Mahalanobis distance, 0 < t <= 100
+
 struct ColorGaussian {
-  double mean_a = 0.0;
-  double mean_b = 0.0;
-  double cov_aa = 1.0;
-  double cov_ab = 0.0;
-  double cov_bb = 1.0;
-  double threshold = 3.0;  // Mahalanobis distance (not squared) accepted as this class
+  double mean_a = 0.0;     // |.| <= kMaxColorMeanAbs
+  double mean_b = 0.0;     // |.| <= kMaxColorMeanAbs
+  double cov_aa = 1.0;     // 0 < . <= kMaxColorVariance
+  double cov_ab = 0.0;     // cov_aa cov_bb - cov_ab^2 > 0
+  double cov_bb = 1.0;     // 0 < . <= kMaxColorVariance
+  double threshold = 3.0;  // Mahalanobis distance (not squared) accepted as this class, 0 < t <= kMaxColorThreshold
 
   // Mahalanobis distance of (a, b); a large number for an invalid covariance.
   double distance(double a, double b) const noexcept;
