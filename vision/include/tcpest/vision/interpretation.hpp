@@ -53,11 +53,11 @@ class Interpreter {
   // interpreter (OutOfMemory); it needs no other buffer.
   static Result<std::unique_ptr<Interpreter>, VisionError> create(const InterpretationConfig& config) noexcept;
 
-  // The interpretation of `regions` of highest score into `out` (reset
+  // The interpretation of `region_set` of highest score into `out` (reset
   // first); NoInstrument when no region can be labelled. `image`: the frame
   // the regions came from, whose luminance beyond the chain's ends gives
   // the orientation cue (orientation_weight; an invalid view: no cue).
-  Status<VisionError> interpret(const RegionSet& regions, const ImageView& image, const MarkerPriors& priors,
+  Status<VisionError> interpret(const RegionSet& region_set, const ImageView& image, const MarkerPriors& priors,
                                 Interpretation& out) const noexcept;
 
   const InterpretationConfig& config() const noexcept { return config_; }
