@@ -1433,7 +1433,7 @@ TEST(Pipeline, AValidSolveThatAgreesWithItsImageFitStaysValid) {
 // Motion blur smears the tip arc's colour change (blue to the grey
 // grasper) along the tube, and the blue margin's zero then lies where the
 // mix is about 65 % blue, short of the boundary by 15 % of the smear
-// (ExtractorConfig::refine_smear_tip_bias). Moved back by that share of the
+// (RefinerConfig::refine_smear_tip_bias). Moved back by that share of the
 // streak the image fit reads, the fit's boundaries agree again: hard frames
 // 64, 136 and 192 (each with motion blur) succeed only with the correction.
 TEST(Pipeline, TheTipArcUnderASmearIsReadAtTheBoundaryItself) {
