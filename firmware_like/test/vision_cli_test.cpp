@@ -481,9 +481,9 @@ TEST(VisionCommands, MeasuredCornersLeaveOutThePredictedOnes) {
   e.corners[1].confidence = 0.46;  // stage 4's, low but read
   EXPECT_EQ(measured_corner_count(e, config), 2);
   e.refined = true;
-  e.corners[1].confidence = config.refine_predicted_confidence;
+  e.corners[1].confidence = config.refiner.refine_predicted_confidence;
   e.corners[2].found = true;
-  e.corners[2].confidence = config.refine_predicted_confidence;
+  e.corners[2].confidence = config.refiner.refine_predicted_confidence;
   EXPECT_EQ(measured_corner_count(e, config), 1);
   e.corners[0].found = false;
   EXPECT_EQ(measured_corner_count(e, config), 0);

@@ -67,7 +67,7 @@ const Frame& hd_frame() {
 // classify_step: 0 = the auto rule (2 for 1920x1080), 1 = every pixel.
 std::unique_ptr<vision::FeatureExtractor> make_extractor(int classify_step = 0) {
   vision::ExtractorConfig config;
-  config.classify_step = classify_step;
+  config.regions.classify_step = classify_step;
   auto created = vision::FeatureExtractor::create(config, vision::default_color_model());
   std::unique_ptr<vision::FeatureExtractor> extractor = std::move(created.value());
   return extractor;

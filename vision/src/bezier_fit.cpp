@@ -1,5 +1,4 @@
-// The IRLS fit of a quadratic Bezier curve (bezier_fit.hpp), and the
-// curve's evaluation (features.hpp's Bezier).
+// The IRLS fit of a quadratic Bezier curve (bezier_fit.hpp).
 #include "bezier_fit.hpp"
 #include "tcpest/common/dmath.hpp"
 
@@ -158,18 +157,5 @@ bool fit_bezier(Border& border, double c, int iterations, int scale_iterations) 
 }
 
 }  // namespace detail
-
-Point Bezier::at(double t) const noexcept {
-  const double a = (1.0 - t) * (1.0 - t);
-  const double b = 2.0 * (1.0 - t) * t;
-  const double c = t * t;
-  return Point{a * p0.x + b * p1.x + c * p2.x, a * p0.y + b * p1.y + c * p2.y};
-}
-
-Point Bezier::derivative(double t) const noexcept {
-  return Point{2.0 * (1.0 - t) * (p1.x - p0.x) + 2.0 * t * (p2.x - p1.x),
-               2.0 * (1.0 - t) * (p1.y - p0.y) + 2.0 * t * (p2.y - p1.y)};
-}
-
 }  // namespace vision
 }  // namespace tcpest

@@ -4,7 +4,7 @@
 // allocation.
 #pragma once
 
-#include "tcpest/vision/features.hpp"
+#include "tcpest/vision/extraction.hpp"
 
 namespace tcpest {
 namespace vision {

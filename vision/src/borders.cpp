@@ -1,11 +1,12 @@
-// Stage 3: the borders (the paper's section 2.3). Stage 4 is in corners.cpp.
+// Stage 3: the borders (borders.hpp; the paper's section 2.3).
 #include <algorithm>
 #include <cmath>
+#include <new>
 
 #include "bezier_fit.hpp"
 #include "sampling.hpp"
 #include "tcpest/common/dmath.hpp"
-#include "tcpest/vision/features.hpp"
+#include "tcpest/vision/borders.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -182,22 +183,39 @@ bool gradient_edge(const ImageView& image, const Point& p, double nx, double ny,
 
 }  // namespace
 
-Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexcept {
-  Extraction& e = result_;
-  e.skeleton_count = 0;
-  e.borders[0] = Border{};
-  e.borders[1] = Border{};
-  const Interpretation& in = e.interpretation;
-  if (in.found_count < 2 || !image.valid() || image.width != width_ || image.height != height_) {
+Result<std::unique_ptr<BorderFitter>, VisionError> BorderFitter::create(const BordersConfig& config) noexcept {
+  using R = Result<std::unique_ptr<BorderFitter>, VisionError>;
+  if (config.skeleton_samples < 8 || config.skeleton_samples > static_cast<int>(kMaxSkeletonSamples) ||
+      config.irls_iterations < 1 || config.irls_iterations > 50 || config.irls_scale_iterations < 1 ||
+      config.irls_scale_iterations > config.irls_iterations || !(config.tukey_c > 0.0)) {
+    return R::failure(VisionError::BadParameter);
+  }
+  std::unique_ptr<BorderFitter> fitter(new (std::nothrow) BorderFitter());
+  if (fitter == nullptr) {
+    return R::failure(VisionError::OutOfMemory);
+  }
+  fitter->config_ = config;
+  return R::success(std::move(fitter));
+}
+
+Status<VisionError> BorderFitter::fit(const ImageView& image, const ClassImage& classes, const Interpretation& in,
+                                      std::array<Border, 2>& borders, std::array<Point, kMaxSkeletonSamples>& skeleton,
+                                      int& skeleton_count) const noexcept {
+  skeleton_count = 0;
+  borders[0] = Border{};
+  borders[1] = Border{};
+  if (in.found_count < 2 || !image.valid() || classes.data == nullptr || image.width != classes.width ||
+      image.height != classes.height) {
     return Status<VisionError>::failure(VisionError::BorderFitFailed);
   }
+  const int width = classes.width;
+  const int height = classes.height;
   Skeleton sk;
   if (!build_skeleton(in, config_.skeleton_extension, sk)) {
     return Status<VisionError>::failure(VisionError::BorderFitFailed);
   }
   const int samples = config_.skeleton_samples;
   const double smoothing = 0.5 * sk.length / static_cast<double>(sk.markers + 1U);
-  const std::uint8_t* classes = classes_.get();
   for (int i = 0; i < samples; ++i) {
     const double s = (static_cast<double>(i) + 0.5) * sk.length / static_cast<double>(samples);
     Point p, pa, pb;
@@ -213,16 +231,16 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
     }
     tx /= tl;
     ty /= tl;
-    if (e.skeleton_count < static_cast<int>(kMaxSkeletonSamples)) {
-      e.skeleton[static_cast<std::size_t>(e.skeleton_count)] = p;
-      ++e.skeleton_count;
+    if (skeleton_count < static_cast<int>(kMaxSkeletonSamples)) {
+      skeleton[static_cast<std::size_t>(skeleton_count)] = p;
+      ++skeleton_count;
     }
     // Side 1 (right, model.md) lies along (-ty, tx) in pixel coordinates.
     for (int side = 0; side < 2; ++side) {
       const double nx = side == 1 ? -ty : ty;
       const double ny = side == 1 ? tx : -tx;
       const double r_max = config_.edge_search_max * w + 2.0;
-      const double region_edge = region_edge_along(classes, width_, height_, p, nx, ny, r_max);
+      const double region_edge = region_edge_along(classes.data, width, height, p, nx, ny, r_max);
       // Near the labelled region's boundary when there is one, else the
       // whole window.
       double r0 = config_.edge_search_min * w;
@@ -236,17 +254,17 @@ Status<VisionError> FeatureExtractor::fit_borders(const ImageView& image) noexce
         continue;
       }
       r_edge += config_.edge_offset_px;
-      static_cast<void>(e.borders[static_cast<std::size_t>(side)].points.push_back(
+      static_cast<void>(borders[static_cast<std::size_t>(side)].points.push_back(
           EdgePoint{Point{p.x + r_edge * nx, p.y + r_edge * ny}, 1.0, 0.0}));  // capacity = max samples
     }
   }
   bool ok = true;
   for (std::size_t side = 0U; side < 2U; ++side) {
-    if (!fit_bezier(e.borders[side], config_.tukey_c, config_.irls_iterations, config_.irls_scale_iterations)) {
+    if (!fit_bezier(borders[side], config_.tukey_c, config_.irls_iterations, config_.irls_scale_iterations)) {
       ok = false;
     }
   }
-  if (!ok && !e.borders[0].valid && !e.borders[1].valid) {
+  if (!ok && !borders[0].valid && !borders[1].valid) {
     return Status<VisionError>::failure(VisionError::BorderFitFailed);
   }
   return ok_status<VisionError>();

@@ -7,7 +7,7 @@
 #include <array>
 #include <cstddef>
 
-#include "tcpest/vision/features.hpp"
+#include "tcpest/vision/extraction.hpp"
 
 namespace tcpest {
 namespace vision {

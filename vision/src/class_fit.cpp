@@ -189,9 +189,11 @@ bool descend(const Cost& residuals, solver::PoseVector& x) noexcept {
 }  // namespace
 
 void FeatureExtractor::compute_class_distances() noexcept {
+  const int width = regions_->width();
+  const int height = regions_->height();
   // Only where a distance below the cap can occur: the coloured regions'
   // bounding box grown by the cap. Outside it every distance is capped.
-  int x0 = width_, y0 = height_, x1 = -1, y1 = -1;
+  int x0 = width, y0 = height, x1 = -1, y1 = -1;
   for (const Region& region : result_.regions.regions) {
     x0 = std::min(x0, region.x_min);
     y0 = std::min(y0, region.y_min);
@@ -204,10 +206,10 @@ void FeatureExtractor::compute_class_distances() noexcept {
     return;
   }
   const int margin = static_cast<int>(kCapPx) + 2;
-  distance_box_ = {std::max(0, x0 - margin), std::max(0, y0 - margin), std::min(width_ - 1, x1 + margin),
-                   std::min(height_ - 1, y1 + margin)};
+  distance_box_ = {std::max(0, x0 - margin), std::max(0, y0 - margin), std::min(width - 1, x1 + margin),
+                   std::min(height - 1, y1 + margin)};
   const int bx0 = distance_box_[0], by0 = distance_box_[1], bx1 = distance_box_[2], by1 = distance_box_[3];
-  const auto w = static_cast<std::size_t>(width_);
+  const auto w = static_cast<std::size_t>(width);
   // Both colours in the same sweep: the class image is read once, and the
   // two distance images' dependency chains (each pixel on its left
   // neighbour) run side by side. Forward pass (left, up-left, up,
@@ -241,7 +243,7 @@ void FeatureExtractor::compute_class_distances() noexcept {
   };
   for (int y = by0; y <= by1; ++y) {
     const std::size_t row = static_cast<std::size_t>(y) * w;
-    const std::uint8_t* cls = classes_.get() + row;
+    const std::uint8_t* cls = regions_->class_image() + row;
     const bool has_up = y > by0;
     for (int x = bx0; x <= bx1; ++x) {
       const auto at = row + static_cast<std::size_t>(x);
@@ -281,7 +283,7 @@ double FeatureExtractor::class_distance_px(int colour, double x, double y) const
   const std::uint16_t* d = class_distance_[static_cast<std::size_t>(colour)].get();
   const auto v = [&](int xx, int yy) noexcept {
     return static_cast<double>(
-        d[static_cast<std::size_t>(yy) * static_cast<std::size_t>(width_) + static_cast<std::size_t>(xx)]);
+        d[static_cast<std::size_t>(yy) * static_cast<std::size_t>(regions_->width()) + static_cast<std::size_t>(xx)]);
   };
   const double value = (1.0 - fy) * ((1.0 - fx) * v(x0, y0) + fx * v(x0 + 1, y0)) +
                        fy * ((1.0 - fx) * v(x0, y0 + 1) + fx * v(x0 + 1, y0 + 1));
@@ -291,7 +293,7 @@ double FeatureExtractor::class_distance_px(int colour, double x, double y) const
 Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraModel& camera,
                                                           const solver::InstrumentModel& model, solver::PoseVector& r,
                                                           double& cost_px, bool channel_known) noexcept {
-  if (width_ < 2 || height_ < 2 || !r.allFinite()) {
+  if (regions_->width() < 2 || regions_->height() < 2 || !r.allFinite()) {
     return Status<VisionError>::failure(VisionError::BadImage);
   }
   if (!class_distance_ready_) {
@@ -303,7 +305,8 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   const double channel_mm = channel_known ? kKnownChannelSdMm : 3.0;
   const double channel_rad = channel_known ? kKnownChannelSdRad : 0.1;
   const double prior_sd[kParams] = {channel_mm, channel_mm, channel_rad, channel_rad, 5.0, 0.5, 0.5};
-  const Coverage coverage = coverage_points(result_.regions, classes_.get(), width_, height_);
+  const Coverage coverage =
+      coverage_points(result_.regions, regions_->class_image(), regions_->width(), regions_->height());
   // Every sample counts with a weight that grows from 0 where the surface
   // grazes the line of sight to 1 where it faces the camera: a smooth cost,
   // whatever the view (a tube seen end-on shows only grazing surface).
@@ -325,7 +328,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
       if (w <= 0.0 || !camera.project(point, p)) {
         continue;
       }
-      const int colour = colour_index(config_.marker_classes[static_cast<std::size_t>(m)]);
+      const int colour = colour_index(config_.interpretation.marker_classes[static_cast<std::size_t>(m)]);
       out[i] = w * std::min(class_distance_px(colour, p.x(), p.y()), cap_px);
       weight_sum += camera.in_image(p) ? w : 0.0;
       if (w > 0.5) {

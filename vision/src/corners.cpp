@@ -1,14 +1,14 @@
-// Stage 4: the apparent corners (the paper's section 2.3), and the four
-// stages run in a row (extract).
+// Stage 4: the apparent corners (corners.hpp; the paper's section 2.3).
 #include <algorithm>
 #include <cmath>
+#include <new>
 
 #include "bezier_fit.hpp"
 #include "boundary_arc.hpp"
 #include "profile_crossing.hpp"
 #include "sampling.hpp"
 #include "tcpest/common/dmath.hpp"
-#include "tcpest/vision/features.hpp"
+#include "tcpest/vision/corners.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -29,6 +29,11 @@ constexpr double kProfileT1 = 1.08;
 
 using ProfileRows = std::array<std::array<double, kMaxProfileSamples>, kProfileInsets>;
 using ProfileValid = std::array<std::array<bool, kMaxProfileSamples>, kProfileInsets>;
+
+// The colour of marker m (0-based) of the interpretation: its region's.
+PixelClass marker_class(const Interpretation& in, int m) noexcept {
+  return in.markers[static_cast<std::size_t>(m)].region.cls;
+}
 
 // The markers' mean half width across the tube (px) at the insets' depth:
 // 0.866 of the found regions' half minor axes (5 px without one).
@@ -111,17 +116,17 @@ void marker_params(const Interpretation& in, const Border& border, int samples, 
 // How boundary j (between markers j-1 and j, 0-based) shows along the
 // borders: an internal one as the yellow-minus-blue score's change, an end
 // one as its blue marker's margin's; want_sign: the change's sign from base
-// to tip. False at an end marker that is not blue (no margin profile).
-bool boundary_change(const ExtractorConfig& config, const Interpretation& in, int j, bool& use_margin,
-                     double& want_sign) noexcept {
+// to tip. False at an end marker that is not blue (no margin profile). The
+// markers first_marker..last_marker are all found (stage 2 labels a chain).
+bool boundary_change(const Interpretation& in, int j, bool& use_margin, double& want_sign) noexcept {
   const bool internal = j > in.first_marker && j <= in.last_marker;
   use_margin = false;
   if (internal) {
-    want_sign = config.marker_classes[static_cast<std::size_t>(j - 1)] == PixelClass::Blue ? 1.0 : -1.0;
+    want_sign = marker_class(in, j - 1) == PixelClass::Blue ? 1.0 : -1.0;
     return true;
   }
   const int m = (j == in.first_marker) ? j : j - 1;
-  if (config.marker_classes[static_cast<std::size_t>(m)] != PixelClass::Blue) {
+  if (marker_class(in, m) != PixelClass::Blue) {
     return false;
   }
   use_margin = true;
@@ -209,7 +214,7 @@ BoundaryCrossings read_crossings(const std::array<Border, 2>& borders, const Cor
 // the marker's side: beyond it the shaft or the grasper has another radius.
 // The global border where too few points or the fit fails; t: the corner's
 // parameter on the border kept.
-void refit_local_border(const Border& global, const ExtractorConfig& config, double end_sign, double half_width,
+void refit_local_border(const Border& global, const CornersConfig& config, double end_sign, double half_width,
                         Border& local, double& t) noexcept {
   local = Border{};
   const Point approx = global.curve.at(t);
@@ -247,7 +252,7 @@ void refit_local_border(const Border& global, const ExtractorConfig& config, dou
 // tangent to both borders at the corners (fit_boundary_arc), on the local
 // borders around them. A side's corner is kept (fitted[side]) within 3 half
 // widths + 3 px of its innermost crossing.
-void fit_arc_corners(const std::array<Border, 2>& borders, std::array<Border, 2>& local, const ExtractorConfig& config,
+void fit_arc_corners(const std::array<Border, 2>& borders, std::array<Border, 2>& local, const CornersConfig& config,
                      const BoundaryCrossings& cr, double end_sign, double half_width, std::array<Point, 2>& corner_px,
                      std::array<bool, 2>& fitted) noexcept {
   std::array<double, 2> t_corner{{cr.t[0][static_cast<std::size_t>(cr.first_q[0])],
@@ -288,18 +293,40 @@ Point extrapolated_corner(const Border& border, const BoundaryCrossings& cr,
 
 }  // namespace
 
-Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexcept {
-  Extraction& e = result_;
-  for (auto& c : e.corners) {
+Result<std::unique_ptr<CornerFinder>, VisionError> CornerFinder::create(const CornersConfig& config,
+                                                                        const ColorModel& colors) noexcept {
+  using R = Result<std::unique_ptr<CornerFinder>, VisionError>;
+  if (config.profile_samples < 16 || config.profile_samples > static_cast<int>(kMaxProfileSamples) ||
+      !colors.valid() || config.irls_iterations < 1 || config.irls_iterations > 50 ||
+      config.irls_scale_iterations < 1 || config.irls_scale_iterations > config.irls_iterations ||
+      !(config.tukey_c > 0.0)) {
+    return R::failure(VisionError::BadParameter);
+  }
+  std::unique_ptr<CornerFinder> finder(new (std::nothrow) CornerFinder());
+  if (finder == nullptr) {
+    return R::failure(VisionError::OutOfMemory);
+  }
+  finder->config_ = config;
+  finder->colors_ = colors;
+  finder->scratch_.reset(new (std::nothrow) Scratch());
+  if (finder->scratch_ == nullptr) {
+    return R::failure(VisionError::OutOfMemory);
+  }
+  return R::success(std::move(finder));
+}
+
+Status<VisionError> CornerFinder::find(const ImageView& image, const Interpretation& in,
+                                       const std::array<Border, 2>& borders, std::array<Corner, kNumCorners>& corners,
+                                       int& corner_count) noexcept {
+  for (auto& c : corners) {
     c = Corner{};
   }
-  e.corner_count = 0;
-  e.refined = false;
-  const Interpretation& in = e.interpretation;
-  if (in.found_count < 2 || (!e.borders[0].valid && !e.borders[1].valid)) {
+  corner_count = 0;
+  if (in.found_count < 2 || (!borders[0].valid && !borders[1].valid)) {
     return Status<VisionError>::failure(VisionError::NoInstrument);
   }
-  CornerProfiles profiles{profile_score_, profile_margin_, profile_valid_};
+  Scratch& scratch = *scratch_;
+  CornerProfiles profiles{scratch.score, scratch.margin, scratch.valid};
   profiles.samples = config_.profile_samples;
   profiles.dt = (kProfileT1 - kProfileT0) / static_cast<double>(profiles.samples - 1);
   // Insets: from just inside the border to a little past the tube's middle,
@@ -312,31 +339,31 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
         first_inset + (last_inset - first_inset) * static_cast<double>(q) / static_cast<double>(kProfileInsets - 1U);
   }
   for (std::size_t side = 0U; side < 2U; ++side) {
-    const Border& border = e.borders[side];
+    const Border& border = borders[side];
     if (!border.valid) {
       continue;
     }
     sample_border_profiles(image, colors_, border, side, profiles.insets, profiles.samples, profiles.dt,
-                           profile_score_[side], profile_margin_[side], profile_valid_[side]);
+                           scratch.score[side], scratch.margin[side], scratch.valid[side]);
     marker_params(in, border, profiles.samples, profiles.dt, profiles.marker_t[side]);
   }
   // Boundary j lies between markers j-1 and j (0-based markers).
   for (int j = in.first_marker; j <= in.last_marker + 1; ++j) {
     bool use_margin = false;
     double want_sign = 0.0;
-    if (!boundary_change(config_, in, j, use_margin, want_sign)) {
+    if (!boundary_change(in, j, use_margin, want_sign)) {
       continue;
     }
-    const BoundaryCrossings cr = read_crossings(e.borders, profiles, in, j, use_margin, want_sign);
+    const BoundaryCrossings cr = read_crossings(borders, profiles, in, j, use_margin, want_sign);
     std::array<Point, 2> corner_px{};
     std::array<bool, 2> fitted{{false, false}};
-    if (e.borders[0].valid && e.borders[1].valid && cr.first_q[0] >= 0 && cr.first_q[1] >= 0 && cr.arc_count >= 5U) {
+    if (borders[0].valid && borders[1].valid && cr.first_q[0] >= 0 && cr.first_q[1] >= 0 && cr.arc_count >= 5U) {
       const bool internal = j > in.first_marker && j <= in.last_marker;
       const double end_sign = !internal ? (j == in.first_marker ? 1.0 : -1.0) : 0.0;
-      fit_arc_corners(e.borders, local_borders_, config_, cr, end_sign, half_width, corner_px, fitted);
+      fit_arc_corners(borders, scratch.local_borders, config_, cr, end_sign, half_width, corner_px, fitted);
     }
     for (std::size_t side = 0U; side < 2U; ++side) {
-      const Border& border = e.borders[side];
+      const Border& border = borders[side];
       if (!border.valid || cr.first_q[side] < 0) {
         continue;
       }
@@ -349,38 +376,14 @@ Status<VisionError> FeatureExtractor::find_corners(const ImageView& image) noexc
         continue;  // weak or unfitted: more often misplaced than not
       }
       const int k = 2 * j + static_cast<int>(side);
-      Corner& c = e.corners[static_cast<std::size_t>(k)];
+      Corner& c = corners[static_cast<std::size_t>(k)];
       c.found = true;
       c.pixel = corner_px[side];
       c.confidence = confidence;
-      ++e.corner_count;
+      ++corner_count;
     }
   }
   return ok_status<VisionError>();
-}
-
-Status<VisionError> FeatureExtractor::extract(const ImageView& image, const MarkerPriors& priors) noexcept {
-  const auto s1 = find_regions(image);
-  if (!s1.ok()) {
-    return s1;
-  }
-  const auto s2 = interpret(priors);
-  if (!s2.ok()) {
-    return s2;
-  }
-  const auto s3 = fit_borders(image);
-  if (!s3.ok()) {
-    return s3;
-  }
-  return find_corners(image);
-}
-
-void corners_to_arrays(const Extraction& e, std::array<solver::Vec2, kNumCorners>& pixels,
-                       std::array<bool, kNumCorners>& present) noexcept {
-  for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
-    present[k] = e.corners[k].found;
-    pixels[k] = solver::Vec2(e.corners[k].pixel.x, e.corners[k].pixel.y);
-  }
 }
 
 }  // namespace vision

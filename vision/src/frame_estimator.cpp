@@ -45,12 +45,12 @@ Result<std::unique_ptr<FrameEstimator>, VisionError> FrameEstimator::create(cons
     return R::failure(VisionError::OutOfMemory);
   }
   ExtractorConfig extractor;
-  extractor.max_width = max_width > camera.width() ? max_width : camera.width();
-  extractor.max_height = max_height > camera.height() ? max_height : camera.height();
-  extractor.classify_step = config.classify_step;
+  extractor.regions.max_width = max_width > camera.width() ? max_width : camera.width();
+  extractor.regions.max_height = max_height > camera.height() ? max_height : camera.height();
+  extractor.regions.classify_step = config.classify_step;
   const auto& g = model.geometry();
   for (std::size_t m = 0U; m < static_cast<std::size_t>(kNumMarkers); ++m) {
-    extractor.marker_classes[m] =
+    extractor.interpretation.marker_classes[m] =
         g.marker_colors[m] == solver::MarkerColor::Blue ? PixelClass::Blue : PixelClass::Yellow;
   }
   auto created = FeatureExtractor::create(extractor, colors);
@@ -128,7 +128,7 @@ void FrameEstimator::apply_encoder_check(const FramePrior& prior, solver::Estima
 
 void FrameEstimator::report_corners(FrameEstimate& out) const noexcept {
   const Extraction& e = extractor_->result();
-  const double predicted = extractor_->config().refine_predicted_confidence;
+  const double predicted = extractor_->config().refiner.refine_predicted_confidence;
   for (std::size_t k = 0U; k < static_cast<std::size_t>(kNumCorners); ++k) {
     const Corner& c = e.corners[k];
     EstimatedCorner& r = out.corners[k];

@@ -198,7 +198,7 @@ ArcReadout read_fit_arcs(const Refiner& refiner, const ExtractorConfig& config, 
     const double half = solver::kPi - limb_half;
     int on_this = 0;
     for (int i = 0; i < kFitArcSamples; ++i) {
-      const double u = -config.refine_arc_span + 2.0 * config.refine_arc_span * i / (kFitArcSamples - 1.0);
+      const double u = -config.refiner.refine_arc_span + 2.0 * config.refiner.refine_arc_span * i / (kFitArcSamples - 1.0);
       const double a = base + solver::kPi + u * half;
       solver::Vec2 p;
       solver::Vec2 normal;
@@ -216,9 +216,9 @@ ArcReadout read_fit_arcs(const Refiner& refiner, const ExtractorConfig& config, 
       // (refine_streak_arc_retry).
       const double along_px = std::fabs(streak_px.dot(normal));
       const bool ramp = widen_under_streak && along_px >= kStreakArcMinAlongPx;
-      const int reach = ramp ? std::min(kMaxClearReach, std::max(config.refine_smear_clear_reach,
+      const int reach = ramp ? std::min(kMaxClearReach, std::max(config.refiner.refine_smear_clear_reach,
                                                                  static_cast<int>(std::ceil(0.5 * along_px)) + 1))
-                             : config.refine_smear_clear_reach;
+                             : config.refiner.refine_smear_clear_reach;
       const double arc_window_px =
           ramp ? std::max(window_mm * px_per_mm, static_cast<double>(reach) + 2.0) : window_mm * px_per_mm;
       Crossing read = refiner.crossing(p, normal, arc_window_px, colours, reach, tau);
@@ -228,7 +228,7 @@ ArcReadout read_fit_arcs(const Refiner& refiner, const ExtractorConfig& config, 
       if (colours.margin && read != Crossing::kNone) {
         // The tip arc (j = 0 is not read): under the streak read in an
         // earlier iteration (zero on a sharp frame), refine_smear_tip_bias.
-        tau += config.refine_smear_tip_bias * std::fabs(streak_px.dot(normal));
+        tau += config.refiner.refine_smear_tip_bias * std::fabs(streak_px.dot(normal));
       }
       if (read == Crossing::kSharp) {
         fit.push(rd, normal, tau, p);
@@ -247,8 +247,8 @@ ArcReadout read_fit_arcs(const Refiner& refiner, const ExtractorConfig& config, 
   }
   ArcReadout out;
   const int all_arcs = arc_readings + smeared_count;
-  out.smeared = smeared_count > 0 && all_arcs >= config.refine_smear_min_arc_readings &&
-                static_cast<double>(smeared_count) >= config.refine_smear_share * static_cast<double>(all_arcs);
+  out.smeared = smeared_count > 0 && all_arcs >= config.refiner.refine_smear_min_arc_readings &&
+                static_cast<double>(smeared_count) >= config.refiner.refine_smear_share * static_cast<double>(all_arcs);
   if (out.smeared) {
     for (int i = 0; i < smeared_count; ++i) {
       const Reading& rd = smeared[static_cast<std::size_t>(i)];
@@ -412,14 +412,14 @@ SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorCon
       const double s = bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
       out.readings += read_silhouette(Part::kTube, s, side) ? 1 : 0;
     }
-    for (int i = 0; i < kFitShaftSamples && config.refine_shaft_readings; ++i) {
+    for (int i = 0; i < kFitShaftSamples && config.refiner.refine_shaft_readings; ++i) {
       const double back = kFitShaftFirstMm + kFitShaftStepMm * i;
       if (back > lambda_mm - 1.0) {
         break;  // the shaft starts at the channel exit
       }
       static_cast<void>(read_silhouette(Part::kShaft, back, side));  // a missing shaft reading is no failure
     }
-    for (int i = 0; i < kFitGrasperSamples && config.refine_grasper_readings; ++i) {
+    for (int i = 0; i < kFitGrasperSamples && config.refiner.refine_grasper_readings; ++i) {
       const double beyond = kFitGrasperFirstMm + kFitGrasperStepMm * i;
       if (beyond > model.geometry().tcp_offset_mm - 1.0) {
         break;  // the grasper ends at the TCP
@@ -589,14 +589,14 @@ Status<VisionError> FeatureExtractor::fit_insertion_to_base_rim(const ImageView&
   if (image.data == nullptr || image.width < 2 || image.height < 2 || !r.allFinite()) {
     return Status<VisionError>::failure(VisionError::BadImage);
   }
-  if (!config_.refine_base_rim) {
+  if (!config_.refiner.refine_base_rim) {
     return Status<VisionError>::failure(VisionError::NoInstrument);
   }
   const auto& g = model.geometry();
-  const double rim_radius = g.shaft_radius_mm + config_.refine_base_rim_share * (g.radius_mm - g.shaft_radius_mm);
-  const double step_mm = config_.refine_rim_scan_step_mm;
+  const double rim_radius = g.shaft_radius_mm + config_.refiner.refine_base_rim_share * (g.radius_mm - g.shaft_radius_mm);
+  const double step_mm = config_.refiner.refine_rim_scan_step_mm;
   // Checked at creation: range <= step * kMaxRimScanSteps.
-  const int steps = std::min(static_cast<int>(config_.refine_rim_scan_range_mm / step_mm + 1e-9), kMaxRimScanSteps);
+  const int steps = std::min(static_cast<int>(config_.refiner.refine_rim_scan_range_mm / step_mm + 1e-9), kMaxRimScanSteps);
   // Nearest first: 0, +step, -step, +2 step, ...
   for (int i = 0; i <= 2 * steps; ++i) {
     const int k = (i + 1) / 2;
@@ -634,7 +634,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   FitReadings fit;
   double rms = 0.0;
   int iterations =
-      std::min(std::max(config_.refine_fit_iterations, 1) + (coarse_start ? kCoarseIterations : 0), kMaxFitIterations);
+      std::min(std::max(config_.refiner.refine_fit_iterations, 1) + (coarse_start ? kCoarseIterations : 0), kMaxFitIterations);
   bool widen_arcs = false;  // refine_streak_arc_retry, once set for the rest of the fit
   // The motion-blur streak, read once, at the first iteration whose arcs
   // read as smeared (a sharp frame never pays for it).
@@ -649,8 +649,8 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     const bool coarse_it = coarse_start && it < kCoarseIterations;
     const int fine_it = coarse_start ? it - kCoarseIterations : it;
     const double window_mm =
-        coarse_it ? config_.refine_coarse_search_mm : (fine_it == 0 ? config_.refine_search_mm : 0.6);
-    const double edge_window_px = coarse_it ? config_.refine_coarse_edge_search_px : config_.refine_edge_search_px;
+        coarse_it ? config_.refiner.refine_coarse_search_mm : (fine_it == 0 ? config_.refiner.refine_search_mm : 0.6);
+    const double edge_window_px = coarse_it ? config_.refiner.refine_coarse_edge_search_px : config_.refiner.refine_edge_search_px;
     const ArcReadout arcs = read_fit_arcs(refiner, config_, camera, model, f, window_mm, streak_px, widen_arcs, fit);
     summary.smeared = arcs.smeared;
     int boundaries = 0;
@@ -664,11 +664,11 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     // stand on the tube, where it must be longer (a pose beside the tube
     // reads widths from stray colour). Once read it is the frame's, for
     // every later iteration.
-    const bool unsmeared_read = config_.refine_streak_unsmeared && !summary.smeared && !coarse_it &&
-                                boundaries >= config_.refine_streak_unsmeared_min_boundaries;
-    if ((summary.smeared || unsmeared_read) && config_.refine_streak && !streak_tried) {
+    const bool unsmeared_read = config_.refiner.refine_streak_unsmeared && !summary.smeared && !coarse_it &&
+                                boundaries >= config_.refiner.refine_streak_unsmeared_min_boundaries;
+    if ((summary.smeared || unsmeared_read) && config_.refiner.refine_streak && !streak_tried) {
       streak_tried = true;
-      const double min_px = summary.smeared ? config_.refine_streak_min_px : config_.refine_streak_unsmeared_min_px;
+      const double min_px = summary.smeared ? config_.refiner.refine_streak_min_px : config_.refiner.refine_streak_unsmeared_min_px;
       if (!read_streak(image, config_, camera, model, f, streak_px) || !(streak_px.norm() >= min_px)) {
         streak_px = solver::Vec2::Zero();
       }
@@ -691,7 +691,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     // (refine_one_boundary_min_silhouette: an occluder hiding the others).
     // A coarse one, from a rough seed, needs the silhouette.
     const bool arcs_hold = boundaries >= 2 ||
-                           (boundaries == 1 && silhouette.plain >= config_.refine_one_boundary_min_silhouette);
+                           (boundaries == 1 && silhouette.plain >= config_.refiner.refine_one_boundary_min_silhouette);
     if (!coarse_it && !arcs_hold && !widen_arcs &&
         streak_for_arc_retry(image, config_, camera, model, f, streak_px)) {
       streak_tried = true;
@@ -710,7 +710,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     x += delta;
     // Converged when the step moves no model point read by more than
     // refine_fit_tolerance_px along its reading direction.
-    if (largest_move_px < config_.refine_fit_tolerance_px && !coarse_it) {
+    if (largest_move_px < config_.refiner.refine_fit_tolerance_px && !coarse_it) {
       summary.converged = true;
       break;
     }

@@ -8,9 +8,10 @@
 // p(S|M_i) p(d|M_i) is kept; after a merge the merged statistics are used for
 // the next level. The hypothesis of highest total score wins.
 #include <cmath>
+#include <new>
 
 #include "tcpest/common/dmath.hpp"
-#include "tcpest/vision/features.hpp"
+#include "tcpest/vision/interpretation.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -60,7 +61,7 @@ double distance_log(const Region& child, const Region& parent, const MarkerPrior
   return s;
 }
 
-bool adjacent(const Region& a, const Region& b, const ExtractorConfig& config) noexcept {
+bool adjacent(const Region& a, const Region& b, const InterpretationConfig& config) noexcept {
   const double dx = b.centroid.x - a.centroid.x;
   const double dy = b.centroid.y - a.centroid.y;
   const double d = dmath::hypot(dx, dy);
@@ -71,7 +72,7 @@ bool adjacent(const Region& a, const Region& b, const ExtractorConfig& config) n
   return d <= config.adjacency_factor * reach + config.adjacency_slack_px;
 }
 
-PixelClass level_class(const ExtractorConfig& config, int level) noexcept {
+PixelClass level_class(const InterpretationConfig& config, int level) noexcept {
   return config.marker_classes[static_cast<std::size_t>(level)];
 }
 
@@ -95,7 +96,7 @@ struct Heading {
 // The children of `parent` at the next level: the unused regions of colour
 // `want` adjacent to it whose link keeps the skeleton's turn from `heading`
 // below max_link_angle_rad (at most kMaxChildren).
-void collect_children(const RegionList& regions, const ExtractorConfig& config, const Region& parent, PixelClass want,
+void collect_children(const RegionList& regions, const InterpretationConfig& config, const Region& parent, PixelClass want,
                       std::uint64_t used, const Heading& heading, Children& children) noexcept {
   for (std::size_t c = 0U; c < regions.size() && !children.full(); ++c) {
     if (((used >> c) & 1ULL) != 0ULL) {
@@ -149,7 +150,7 @@ Node best_child(const RegionList& regions, const Children& children, const Regio
 // another region) at level `start`, grown towards the tip level by level
 // while a chosen node's posterior and the level reward stay above zero.
 // Returns its score (before the orientation cue).
-double grow_hypothesis(const RegionList& regions, const ExtractorConfig& config, const MarkerPriors& priors,
+double grow_hypothesis(const RegionList& regions, const InterpretationConfig& config, const MarkerPriors& priors,
                        std::size_t root, std::size_t partner, int start, Interpretation& hyp) noexcept {
   hyp = Interpretation{};
   std::uint64_t used = (1ULL << root) | (1ULL << partner);
@@ -197,12 +198,86 @@ double grow_hypothesis(const RegionList& regions, const ExtractorConfig& config,
   return score;
 }
 
+// Mean luminance of a 5x5 patch, -1 outside the image.
+double patch_luminance(const ImageView& image, double x, double y) noexcept {
+  const int cx = static_cast<int>(std::lround(x));
+  const int cy = static_cast<int>(std::lround(y));
+  if (!image.valid() || cx < 2 || cy < 2 || cx + 2 >= image.width || cy + 2 >= image.height) {
+    return -1.0;
+  }
+  double sum = 0.0;
+  for (int dy = -2; dy <= 2; ++dy) {
+    const std::uint8_t* p = image.row(cy + dy) + static_cast<std::ptrdiff_t>(3) * (cx - 2);
+    for (int dx = 0; dx < 5; ++dx) {
+      sum += 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+      p += 3;
+    }
+  }
+  return sum / 25.0;
+}
+
+// Orientation cue of a chain (times `weight`): the shaft before marker 1
+// is dark, the grasper after marker 5 is bright.
+double orientation_log(const ImageView& image, double weight, const Interpretation& hyp) noexcept {
+  if (hyp.found_count < 2) {
+    return 0.0;
+  }
+  const Region& first = hyp.markers[static_cast<std::size_t>(hyp.first_marker)].region;
+  const Region& second = hyp.markers[static_cast<std::size_t>(hyp.first_marker) + 1U].region;
+  const Region& last = hyp.markers[static_cast<std::size_t>(hyp.last_marker)].region;
+  const Region& before_last = hyp.markers[static_cast<std::size_t>(hyp.last_marker) - 1U].region;
+  // Points well beyond each end of the chain, along the chain.
+  const auto beyond = [&image](const Region& end, const Region& inner) noexcept {
+    const double dx = end.centroid.x - inner.centroid.x;
+    const double dy = end.centroid.y - inner.centroid.y;
+    const double d = dmath::hypot(dx, dy);
+    if (!(d > 0.0)) {
+      return -1.0;
+    }
+    const double reach = 1.8 * end.extent_along(dx / d, dy / d) + 2.0;
+    return patch_luminance(image, end.centroid.x + dx / d * reach, end.centroid.y + dy / d * reach);
+  };
+  const double base = hyp.first_marker == 0 ? beyond(first, second) : -1.0;
+  const double tip = hyp.last_marker == kNumMarkers - 1 ? beyond(last, before_last) : -1.0;
+  constexpr double kMidGrey = 90.0;
+  double cue = 0.0;
+  if (base >= 0.0 && tip >= 0.0) {
+    cue = (tip - base) / 40.0;
+  } else if (base >= 0.0) {
+    cue = (kMidGrey - base) / 40.0;
+  } else if (tip >= 0.0) {
+    cue = (tip - kMidGrey) / 40.0;
+  }
+  cue = cue > 1.0 ? 1.0 : (cue < -1.0 ? -1.0 : cue);
+  return weight * cue;
+}
+
 }  // namespace
 
-Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noexcept {
-  Interpretation& out = result_.interpretation;
+Result<std::unique_ptr<Interpreter>, VisionError> Interpreter::create(const InterpretationConfig& config) noexcept {
+  using R = Result<std::unique_ptr<Interpreter>, VisionError>;
+  for (const PixelClass cls : config.marker_classes) {
+    if (cls != PixelClass::Blue && cls != PixelClass::Yellow) {
+      return R::failure(VisionError::BadParameter);
+    }
+  }
+  if (!(config.max_link_angle_rad > 0.0) || !(config.adjacency_factor > 0.0) ||
+      !(config.adjacency_slack_px >= 0.0) || !std::isfinite(config.level_reward) ||
+      !std::isfinite(config.orientation_weight)) {
+    return R::failure(VisionError::BadParameter);
+  }
+  std::unique_ptr<Interpreter> interpreter(new (std::nothrow) Interpreter());
+  if (interpreter == nullptr) {
+    return R::failure(VisionError::OutOfMemory);
+  }
+  interpreter->config_ = config;
+  return R::success(std::move(interpreter));
+}
+
+Status<VisionError> Interpreter::interpret(const RegionSet& region_set, const ImageView& image,
+                                           const MarkerPriors& priors, Interpretation& out) const noexcept {
   out = Interpretation{};
-  const auto& regions = result_.regions.regions;
+  const auto& regions = region_set.regions;
   const std::size_t n = regions.size();
 
   Interpretation best{};
@@ -225,7 +300,7 @@ Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noex
       }
       Interpretation hyp{};
       double score = grow_hypothesis(regions, config_, priors, root, partner, start, hyp);
-      score += orientation_log(hyp);
+      score += orientation_log(image, config_.orientation_weight, hyp);
       if (score > best_score) {
         best_score = score;
         hyp.score = score;
@@ -238,57 +313,6 @@ Status<VisionError> FeatureExtractor::interpret(const MarkerPriors& priors) noex
     return Status<VisionError>::failure(VisionError::NoInstrument);
   }
   return ok_status<VisionError>();
-}
-
-double FeatureExtractor::patch_luminance(double x, double y) const noexcept {
-  const int cx = static_cast<int>(std::lround(x));
-  const int cy = static_cast<int>(std::lround(y));
-  if (!image_.valid() || cx < 2 || cy < 2 || cx + 2 >= image_.width || cy + 2 >= image_.height) {
-    return -1.0;
-  }
-  double sum = 0.0;
-  for (int dy = -2; dy <= 2; ++dy) {
-    const std::uint8_t* p = image_.row(cy + dy) + static_cast<std::ptrdiff_t>(3) * (cx - 2);
-    for (int dx = 0; dx < 5; ++dx) {
-      sum += 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
-      p += 3;
-    }
-  }
-  return sum / 25.0;
-}
-
-double FeatureExtractor::orientation_log(const Interpretation& hyp) const noexcept {
-  if (hyp.found_count < 2) {
-    return 0.0;
-  }
-  const Region& first = hyp.markers[static_cast<std::size_t>(hyp.first_marker)].region;
-  const Region& second = hyp.markers[static_cast<std::size_t>(hyp.first_marker) + 1U].region;
-  const Region& last = hyp.markers[static_cast<std::size_t>(hyp.last_marker)].region;
-  const Region& before_last = hyp.markers[static_cast<std::size_t>(hyp.last_marker) - 1U].region;
-  // Points well beyond each end of the chain, along the chain.
-  const auto beyond = [this](const Region& end, const Region& inner) noexcept {
-    const double dx = end.centroid.x - inner.centroid.x;
-    const double dy = end.centroid.y - inner.centroid.y;
-    const double d = dmath::hypot(dx, dy);
-    if (!(d > 0.0)) {
-      return -1.0;
-    }
-    const double reach = 1.8 * end.extent_along(dx / d, dy / d) + 2.0;
-    return patch_luminance(end.centroid.x + dx / d * reach, end.centroid.y + dy / d * reach);
-  };
-  const double base = hyp.first_marker == 0 ? beyond(first, second) : -1.0;
-  const double tip = hyp.last_marker == kNumMarkers - 1 ? beyond(last, before_last) : -1.0;
-  constexpr double kMidGrey = 90.0;
-  double cue = 0.0;
-  if (base >= 0.0 && tip >= 0.0) {
-    cue = (tip - base) / 40.0;
-  } else if (base >= 0.0) {
-    cue = (kMidGrey - base) / 40.0;
-  } else if (tip >= 0.0) {
-    cue = (tip - kMidGrey) / 40.0;
-  }
-  cue = cue > 1.0 ? 1.0 : (cue < -1.0 ? -1.0 : cue);
-  return config_.orientation_weight * cue;
 }
 
 // --- priors ----------------------------------------------------------------

@@ -175,7 +175,7 @@ void silhouette_widths(const ImageView& image, const ExtractorConfig& config, co
   const auto& g = model.geometry();
   for (int m = 0; m < kNumMarkers; ++m) {
     const auto mm = static_cast<std::size_t>(m);
-    if (config.marker_classes[mm] != PixelClass::Blue) {
+    if (config.interpretation.marker_classes[mm] != PixelClass::Blue) {
       continue;
     }
     const double s_mid_mm = 0.5 * (g.boundaries_mm[mm] + g.boundaries_mm[mm + 1U]);
@@ -264,14 +264,14 @@ bool read_streak(const ImageView& image, const ExtractorConfig& config, const so
 bool streak_for_arc_retry(const ImageView& image, const ExtractorConfig& config, const solver::CameraModel& camera,
                           const solver::InstrumentModel& model, const solver::PoseFrames& f,
                           solver::Vec2& streak_px) noexcept {
-  if (!config.refine_streak_arc_retry || !config.refine_streak) {
+  if (!config.refiner.refine_streak_arc_retry || !config.refiner.refine_streak) {
     return false;
   }
   if (streak_px.norm() > 0.0) {
     return true;
   }
   if (!read_streak(image, config, camera, model, f, streak_px) ||
-      !(streak_px.norm() >= config.refine_streak_arc_retry_min_px)) {
+      !(streak_px.norm() >= config.refiner.refine_streak_arc_retry_min_px)) {
     streak_px = solver::Vec2::Zero();
     return false;
   }

@@ -70,12 +70,12 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     double shift = 0.0;
     double step = 0.0;
     bool measured = colours.usable && j != 0 && !(j == kNumBoundaries - 1 && tip_face_visible(model, frames)) &&
-                    refiner.arc_shift(s_j, colours, config_.refine_search_mm, step);
+                    refiner.arc_shift(s_j, colours, config_.refiner.refine_search_mm, step);
     if (measured) {
       shift = step;
       measured = refiner.arc_shift(s_j + shift, colours, 0.4, step);
       shift += measured ? step : 0.0;
-      measured = measured && std::fabs(shift) <= config_.refine_search_mm;
+      measured = measured && std::fabs(shift) <= config_.refiner.refine_search_mm;
     }
     if (!measured) {
       shift = 0.0;
@@ -85,8 +85,8 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
     // points of the shifted circle (the silhouette beside them is the
     // shaft's outline as much as the tube's, so no offset across).
     const bool base = j == 0;
-    if (base && config_.refine_base_rim && base_face_visible(model, frames)) {
-      const double rim_radius = g.shaft_radius_mm + config_.refine_base_rim_share * (g.radius_mm - g.shaft_radius_mm);
+    if (base && config_.refiner.refine_base_rim && base_face_visible(model, frames)) {
+      const double rim_radius = g.shaft_radius_mm + config_.refiner.refine_base_rim_share * (g.radius_mm - g.shaft_radius_mm);
       measured = refiner.rim_shift(rim_radius, step);
       shift = measured ? step : 0.0;
     }
@@ -116,7 +116,7 @@ Status<VisionError> FeatureExtractor::refine_corners(const ImageView& image, con
       Corner& c = e.corners[2U * static_cast<std::size_t>(j) + side];
       c.found = true;
       c.pixel = Point{corner.x(), corner.y()};
-      c.confidence = side_measured ? 0.9 : config_.refine_predicted_confidence;
+      c.confidence = side_measured ? 0.9 : config_.refiner.refine_predicted_confidence;
       ++e.corner_count;
     }
   }

@@ -73,13 +73,13 @@ int ceil_within(double v, int lo, int hi) noexcept {
 BoundaryColours colours_of(const ExtractorConfig& config, int j) noexcept {
   BoundaryColours c;
   if (j > 0 && j < kNumBoundaries - 1) {
-    c.usable = config.marker_classes[static_cast<std::size_t>(j - 1)] !=
-               config.marker_classes[static_cast<std::size_t>(j)];
-    c.want = config.marker_classes[static_cast<std::size_t>(j - 1)] == PixelClass::Blue ? 1.0 : -1.0;
+    c.usable = config.interpretation.marker_classes[static_cast<std::size_t>(j - 1)] !=
+               config.interpretation.marker_classes[static_cast<std::size_t>(j)];
+    c.want = config.interpretation.marker_classes[static_cast<std::size_t>(j - 1)] == PixelClass::Blue ? 1.0 : -1.0;
     return c;
   }
   const std::size_t m = (j == 0) ? 0U : static_cast<std::size_t>(kNumMarkers - 1);
-  c.usable = config.marker_classes[m] == PixelClass::Blue;  // only a blue end has a margin profile
+  c.usable = config.interpretation.marker_classes[m] == PixelClass::Blue;  // only a blue end has a margin profile
   c.margin = true;
   c.want = (j == 0) ? 1.0 : -1.0;
   return c;
@@ -150,11 +150,11 @@ bool Refiner::median_arc_shift(double s_mm, double radius, double max_spread_mm,
     return false;
   }
   const double half = solver::kPi - limb_half;  // half the visible arc (facing the camera)
-  const int n = std::min(std::max(config_.refine_arc_samples, 3), kMaxArcSamples);
+  const int n = std::min(std::max(config_.refiner.refine_arc_samples, 3), kMaxArcSamples);
   std::array<double, kMaxArcSamples> shifts{};
   int count = 0;
   for (int i = 0; i < n; ++i) {
-    const double u = -config_.refine_arc_span + 2.0 * config_.refine_arc_span * i / static_cast<double>(n - 1);
+    const double u = -config_.refiner.refine_arc_span + 2.0 * config_.refiner.refine_arc_span * i / static_cast<double>(n - 1);
     const double a = base + solver::kPi + u * half;
     const double ca = dmath::cos(a);
     const double sa = dmath::sin(a);
@@ -175,7 +175,7 @@ bool Refiner::median_arc_shift(double s_mm, double radius, double max_spread_mm,
       shifts[static_cast<std::size_t>(count++)] = tau_px / px_per_mm;
     }
   }
-  if (count < 3 || count < config_.refine_min_arc_share * n) {
+  if (count < 3 || count < config_.refiner.refine_min_arc_share * n) {
     return false;
   }
   const double mid = median_of(shifts.data(), count);
@@ -192,7 +192,7 @@ bool Refiner::median_arc_shift(double s_mm, double radius, double max_spread_mm,
 
 bool Refiner::arc_shift(double s_mm, const BoundaryColours& colours, double window_mm, double& shift_mm) noexcept {
   return median_arc_shift(
-      s_mm, model_.geometry().radius_mm, config_.refine_max_spread_mm,
+      s_mm, model_.geometry().radius_mm, config_.refiner.refine_max_spread_mm,
       [&](const solver::Vec2& p, const solver::Vec2& dir, double px_per_mm, double& tau_px) noexcept {
         return crossing(p, dir, window_mm * px_per_mm, colours, 1, tau_px) == Crossing::kSharp;
       },
@@ -201,7 +201,7 @@ bool Refiner::arc_shift(double s_mm, const BoundaryColours& colours, double wind
 
 bool Refiner::rim_shift(double radius, double& shift_mm) noexcept {
   return median_arc_shift(
-      0.0, radius, config_.refine_base_rim_max_spread_mm,
+      0.0, radius, config_.refiner.refine_base_rim_max_spread_mm,
       [&](const solver::Vec2& p, const solver::Vec2& dir, double px_per_mm, double& tau_px) noexcept {
         // The pose fitted to the image puts the base within a few pixels,
         // or 0.3 mm at a large scale.
@@ -229,17 +229,17 @@ bool Refiner::silhouette_offset(double s_mm, std::size_t side, int j, double& of
     }
     // Smeared across by the streak: the peak's centre is pulled towards
     // the darker side (docs/vision.md "The smear across the tube").
-    if (std::fabs(streak_px_.dot(normal)) >= config_.refine_streak_across_px) {
+    if (std::fabs(streak_px_.dot(normal)) >= config_.refiner.refine_streak_across_px) {
       continue;
     }
     double e = 0.0;
-    if (edge(point, normal, config_.refine_edge_search_px, e)) {
+    if (edge(point, normal, config_.refiner.refine_edge_search_px, e)) {
       os[static_cast<std::size_t>(count)] = o;
       es[static_cast<std::size_t>(count)] = e;
       ++count;
     }
   }
-  if (count < config_.refine_min_edge_points) {
+  if (count < config_.refiner.refine_min_edge_points) {
     return false;
   }
   // Line e = e0 + e1 o by least squares, once more without the points far
@@ -261,7 +261,7 @@ bool Refiner::silhouette_offset(double s_mm, std::size_t side, int j, double& of
       }
     }
     const double det = s0 * s2 - s1 * s1;
-    if (s0 < static_cast<double>(config_.refine_min_edge_points) || !(std::fabs(det) > 1e-9)) {
+    if (s0 < static_cast<double>(config_.refiner.refine_min_edge_points) || !(std::fabs(det) > 1e-9)) {
       return false;
     }
     e0 = (t0 * s2 - t1 * s1) / det;
@@ -274,7 +274,7 @@ bool Refiner::silhouette_offset(double s_mm, std::size_t side, int j, double& of
     }
   }
   offset_px = e0;
-  return std::fabs(offset_px) <= config_.refine_edge_search_px;
+  return std::fabs(offset_px) <= config_.refiner.refine_edge_search_px;
 }
 
 double Refiner::score(double x, double y, bool margin, bool& ok) const noexcept {
@@ -361,7 +361,7 @@ bool Refiner::ridge(const solver::Vec2& p, const solver::Vec2& dir, double reach
     const double c = v[k];
     if (c < v[k - 1U] || c < v[k + 1U] ||
         c - std::max(v[k - static_cast<std::size_t>(kRimSidePx)], v[k + static_cast<std::size_t>(kRimSidePx)]) <
-            config_.refine_base_rim_contrast) {
+            config_.refiner.refine_base_rim_contrast) {
       continue;
     }
     if (best < 0 || std::abs(i - reach - kRimSidePx) < std::abs(best - reach - kRimSidePx)) {
@@ -433,18 +433,18 @@ bool Refiner::edge(const solver::Vec2& p, const solver::Vec2& normal, double win
     sum_wi += w * static_cast<double>(i);
   }
   const double centre = sum_w > 0.0 ? sum_wi / sum_w : static_cast<double>(best);
-  offset_px = kStep * (centre - static_cast<double>(half)) + config_.edge_offset_px;
+  offset_px = kStep * (centre - static_cast<double>(half)) + config_.borders.edge_offset_px;
   return true;
 }
 
 bool Refiner::edge_across(const solver::Vec2& p, const solver::Vec2& normal, double window_px, double half_width_px,
                           double& offset_px, bool& outer_end) const noexcept {
   const double across_px = std::fabs(streak_px_.dot(normal));
-  outer_end = across_px > 0.0 && across_px >= config_.refine_streak_across_px;
+  outer_end = across_px > 0.0 && across_px >= config_.refiner.refine_streak_across_px;
   if (!outer_end) {
     return edge(p, normal, window_px, offset_px);
   }
-  if (config_.refine_streak_edge_model && edge_scratch_ != nullptr && half_width_px > 1.0) {
+  if (config_.refiner.refine_streak_edge_model && edge_scratch_ != nullptr && half_width_px > 1.0) {
     return edge_blurred(p, normal, window_px, across_px, half_width_px, offset_px);
   }
   return edge_outer_end(p, normal, window_px, across_px, offset_px);
@@ -466,7 +466,7 @@ bool Refiner::edge_blurred(const solver::Vec2& p, const solver::Vec2& normal, do
     profile.rgb[static_cast<std::size_t>(i)] = {linear(q.r), linear(q.g), linear(q.b)};
   }
   detail::BlurredEdgeFit fit;
-  if (!detail::fit_blurred_edge_and_smear(profile, across_px, config_.refine_streak_edge_smear_search_px,
+  if (!detail::fit_blurred_edge_and_smear(profile, across_px, config_.refiner.refine_streak_edge_smear_search_px,
                                           half_width_px, window, *edge_scratch_, fit)) {
     return false;
   }

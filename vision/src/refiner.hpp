@@ -97,7 +97,7 @@ class Refiner {
   bool arc_shift(double s_mm, const BoundaryColours& colours, double window_mm, double& shift_mm) noexcept;
 
   // Shift (mm along the tube) of the base's rim (its end face, seen as a
-  // thin bright ring: ExtractorConfig::refine_base_rim) from the model's,
+  // thin bright ring: RefinerConfig::refine_base_rim) from the model's,
   // read on the ring of `radius` at s = 0; false when too few arc points
   // see it or they spread.
   bool rim_shift(double radius, double& shift_mm) noexcept;

@@ -1,13 +1,10 @@
-// Stage 1: per-pixel classification through the lookup table, then connected
-// components (8-connected) over runs of equal class, with union-find on the
-// runs and moments accumulated per run in closed form.
-#include <cmath>
+// Stage 1 (regions.hpp): per-pixel classification through the lookup table,
+// then connected components (8-connected) over runs of equal class, with
+// union-find on the runs and moments accumulated per run in closed form.
 #include <cstring>
 #include <new>
 
-#include "blurred_edge.hpp"
-#include "tcpest/common/dmath.hpp"
-#include "tcpest/vision/features.hpp"
+#include "tcpest/vision/regions.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -96,120 +93,38 @@ bool ClassifierLut::build(const ColorModel& model) noexcept {
   return true;
 }
 
-const char* to_string(VisionError e) noexcept {
-  switch (e) {
-    case VisionError::BadImage: return "bad image (null, empty or bad stride)";
-    case VisionError::ImageTooLarge: return "image larger than the extractor was configured for";
-    case VisionError::TooManyRuns: return "too many colour regions (image too fragmented)";
-    case VisionError::NoInstrument: return "no chain of marker regions found";
-    case VisionError::BorderFitFailed: return "too few edge points to fit the borders";
-    case VisionError::BadParameter: return "invalid extractor configuration";
-    case VisionError::OutOfMemory: return "not enough memory for the extractor's buffers";
-  }
-  return "unknown vision error";
-}
-
-void Region::merge(const Region& other) noexcept {
-  const double n0 = static_cast<double>(area);
-  const double n1 = static_cast<double>(other.area);
-  const double n = n0 + n1;
-  if (!(n > 0.0)) {
-    return;
-  }
-  const Point c{(n0 * centroid.x + n1 * other.centroid.x) / n, (n0 * centroid.y + n1 * other.centroid.y) / n};
-  // Parallel-axis theorem: second moments about the joint centroid.
-  const auto shifted = [&c](const Region& r, double& xx, double& xy, double& yy) noexcept {
-    const double dx = r.centroid.x - c.x;
-    const double dy = r.centroid.y - c.y;
-    xx = r.cov_xx + dx * dx;
-    xy = r.cov_xy + dx * dy;
-    yy = r.cov_yy + dy * dy;
-  };
-  double xx0 = 0.0, xy0 = 0.0, yy0 = 0.0, xx1 = 0.0, xy1 = 0.0, yy1 = 0.0;
-  shifted(*this, xx0, xy0, yy0);
-  shifted(other, xx1, xy1, yy1);
-  cov_xx = (n0 * xx0 + n1 * xx1) / n;
-  cov_xy = (n0 * xy0 + n1 * xy1) / n;
-  cov_yy = (n0 * yy0 + n1 * yy1) / n;
-  centroid = c;
-  area += other.area;
-  x_min = x_min < other.x_min ? x_min : other.x_min;
-  y_min = y_min < other.y_min ? y_min : other.y_min;
-  x_max = x_max > other.x_max ? x_max : other.x_max;
-  y_max = y_max > other.y_max ? y_max : other.y_max;
-  update_shape();
-}
-
-void Region::update_shape() noexcept {
-  const double mean = 0.5 * (cov_xx + cov_yy);
-  const double diff = 0.5 * (cov_xx - cov_yy);
-  const double root = std::sqrt(diff * diff + cov_xy * cov_xy);
-  const double l1 = mean + root;
-  const double l2 = mean - root;
-  // Uniform ellipse: variance along a half axis h is h^2 / 4.
-  half_major = 2.0 * std::sqrt(l1 > 0.0 ? l1 : 0.0);
-  half_minor = 2.0 * std::sqrt(l2 > 0.0 ? l2 : 0.0);
-  orientation_rad = 0.5 * dmath::atan2(2.0 * cov_xy, cov_xx - cov_yy);
-}
-
-double Region::extent_along(double dx, double dy) const noexcept {
-  // Support function of the equivalent ellipse: sqrt(4 u^T C u).
-  const double v = cov_xx * dx * dx + 2.0 * cov_xy * dx * dy + cov_yy * dy * dy;
-  return 2.0 * std::sqrt(v > 0.0 ? v : 0.0);
-}
-
-FeatureExtractor::~FeatureExtractor() = default;
-
-Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(const ExtractorConfig& config,
-                                                                                const ColorModel& colors) noexcept {
-  using R = Result<std::unique_ptr<FeatureExtractor>, VisionError>;
+Result<std::unique_ptr<RegionFinder>, VisionError> RegionFinder::create(const RegionsConfig& config,
+                                                                        const ColorModel& colors) noexcept {
+  using R = Result<std::unique_ptr<RegionFinder>, VisionError>;
   if (config.max_width <= 0 || config.max_height <= 0 || config.max_width > 8192 || config.max_height > 8192 ||
-      config.skeleton_samples < 8 || config.skeleton_samples > static_cast<int>(kMaxSkeletonSamples) ||
-      config.irls_iterations < 1 || config.irls_iterations > 50 || config.irls_scale_iterations < 1 ||
-      config.irls_scale_iterations > config.irls_iterations || config.profile_samples < 16 ||
-      config.profile_samples > static_cast<int>(kMaxProfileSamples) || !colors.valid() || config.min_region_area < 1 || !(config.tukey_c > 0.0) ||
-      config.classify_step < 0 || config.classify_step > 2 ||
-      !(config.refine_smear_tip_bias >= 0.0 && config.refine_smear_tip_bias <= 0.5) ||
-      !(config.refine_streak_unsmeared_min_px >= 0.0) || !(config.refine_streak_arc_retry_min_px >= 0.0) ||
-      config.refine_streak_unsmeared_min_boundaries < 0 ||
-      config.refine_streak_unsmeared_min_boundaries > kNumBoundaries || !(config.refine_rim_scan_step_mm > 0.0) ||
-      !(config.refine_rim_scan_range_mm >= 0.0) ||
-      !(config.refine_rim_scan_range_mm <= config.refine_rim_scan_step_mm * FeatureExtractor::kMaxRimScanSteps) ||
-      !(config.refine_streak_edge_smear_search_px >= 0.0 &&
-        config.refine_streak_edge_smear_search_px <= kMaxStreakEdgeSmearSearchPx)) {
+      !colors.valid() || config.min_region_area < 1 || config.classify_step < 0 || config.classify_step > 2) {
     return R::failure(VisionError::BadParameter);
   }
-  std::unique_ptr<FeatureExtractor> e(new (std::nothrow) FeatureExtractor());
-  if (e == nullptr) {
+  std::unique_ptr<RegionFinder> f(new (std::nothrow) RegionFinder());
+  if (f == nullptr) {
     return R::failure(VisionError::OutOfMemory);
   }
-  e->config_ = config;
-  e->colors_ = colors;
-  if (!e->lut_.build(colors)) {
+  f->config_ = config;
+  if (!f->lut_.build(colors)) {
     return R::failure(VisionError::OutOfMemory);  // the table's allocations are its only failure
   }
   const std::size_t pixels = static_cast<std::size_t>(config.max_width) * static_cast<std::size_t>(config.max_height);
   // A run needs at least one classified pixel and one separating pixel.
-  e->max_runs_ = static_cast<std::int32_t>(pixels / 2U + 1U);
-  e->classes_.reset(new (std::nothrow) std::uint8_t[pixels]);
-  e->runs_.reset(new (std::nothrow) Run[static_cast<std::size_t>(e->max_runs_)]);
-  e->region_of_root_.reset(new (std::nothrow) std::int32_t[static_cast<std::size_t>(e->max_runs_)]);
-  e->candidates_.reset(new (std::nothrow) Region[kMaxCandidates]);
+  f->max_runs_ = static_cast<std::int32_t>(pixels / 2U + 1U);
+  f->classes_.reset(new (std::nothrow) std::uint8_t[pixels]);
+  f->runs_.reset(new (std::nothrow) Run[static_cast<std::size_t>(f->max_runs_)]);
+  f->region_of_root_.reset(new (std::nothrow) std::int32_t[static_cast<std::size_t>(f->max_runs_)]);
+  f->candidates_.reset(new (std::nothrow) Region[kMaxCandidates]);
   const auto grid_row_bytes = static_cast<std::size_t>(config.max_width);
-  e->grid_row_.reset(new (std::nothrow) std::uint8_t[grid_row_bytes]);
-  for (auto& d : e->class_distance_) {
-    d.reset(new (std::nothrow) std::uint16_t[pixels]);
-  }
-  e->edge_scratch_.reset(new (std::nothrow) detail::BlurredEdgeScratch());
-  if (e->classes_ == nullptr || e->runs_ == nullptr || e->region_of_root_ == nullptr || e->candidates_ == nullptr ||
-      e->grid_row_ == nullptr || e->class_distance_[0] == nullptr || e->class_distance_[1] == nullptr ||
-      e->edge_scratch_ == nullptr) {
+  f->grid_row_.reset(new (std::nothrow) std::uint8_t[grid_row_bytes]);
+  if (f->classes_ == nullptr || f->runs_ == nullptr || f->region_of_root_ == nullptr || f->candidates_ == nullptr ||
+      f->grid_row_ == nullptr) {
     return R::failure(VisionError::OutOfMemory);
   }
-  return R::success(std::move(e));
+  return R::success(std::move(f));
 }
 
-std::int32_t FeatureExtractor::find_root(std::int32_t run) noexcept {
+std::int32_t RegionFinder::find_root(std::int32_t run) noexcept {
   // Path halving; terminates because parents always point to lower indices.
   std::int32_t i = run;
   while (runs_[idx(i)].parent != i) {
@@ -249,7 +164,7 @@ int span_end(const std::uint8_t* classes, int x, int count, std::uint8_t cls) no
 
 }  // namespace
 
-void FeatureExtractor::classify_row(const std::uint8_t* px, int count, int step, std::uint8_t* out) const noexcept {
+void RegionFinder::classify_row(const std::uint8_t* px, int count, int step, std::uint8_t* out) const noexcept {
   // One table read per pixel; the second level only in ambiguous cells (a
   // few per cent of the colours, rare in a frame).
   const std::uint8_t* table = lut_.table();
@@ -285,7 +200,7 @@ void FeatureExtractor::classify_row(const std::uint8_t* px, int count, int step,
   }
 }
 
-bool FeatureExtractor::cut_runs(const std::uint8_t* classes, int count, int grid_y, std::int32_t& run_count) noexcept {
+bool RegionFinder::cut_runs(const std::uint8_t* classes, int count, int grid_y, std::int32_t& run_count) noexcept {
   int x = 0;
   // Every iteration consumes at least one class: at most `count` iterations.
   while (x < count) {
@@ -310,20 +225,7 @@ bool FeatureExtractor::cut_runs(const std::uint8_t* classes, int count, int grid
   return true;
 }
 
-Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexcept {
-  // A new frame: nothing of the last one survives (a later stage that is
-  // not reached must not leave an older frame's results).
-  result_.interpretation = Interpretation{};
-  for (Border& b : result_.borders) {
-    b.valid = false;
-  }
-  for (Corner& c : result_.corners) {
-    c = Corner{};
-  }
-  result_.corner_count = 0;
-  result_.refined = false;
-  class_distance_ready_ = false;
-  RegionSet& out = result_.regions;
+Status<VisionError> RegionFinder::find(const ImageView& image, RegionSet& out) noexcept {
   out.regions.clear();
   out.too_many_regions = false;
   out.run_count = 0;
@@ -350,11 +252,11 @@ Status<VisionError> FeatureExtractor::find_regions(const ImageView& image) noexc
   if (overflow) {
     out.too_many_regions = true;
   }
-  select_regions(kept);
+  select_regions(kept, out);
   return ok_status<VisionError>();
 }
 
-bool FeatureExtractor::classify_and_label(const ImageView& image, int step, std::int32_t& run_count) noexcept {
+bool RegionFinder::classify_and_label(const ImageView& image, int step, std::int32_t& run_count) noexcept {
   // The grid: pixels (step * gx, step * gy), which stand for the step x step
   // block starting there.
   const int grid_width = (width_ + step - 1) / step;
@@ -397,7 +299,7 @@ bool FeatureExtractor::classify_and_label(const ImageView& image, int step, std:
   return true;
 }
 
-void FeatureExtractor::join_with_previous_row(std::int32_t row_begin, std::int32_t row_end, std::int32_t prev_begin,
+void RegionFinder::join_with_previous_row(std::int32_t row_begin, std::int32_t row_end, std::int32_t prev_begin,
                                               std::int32_t prev_end) noexcept {
   // 8-connectivity with the previous row: runs overlap when
   // [x0 - 1, x1] and [p.x0, p.x1) intersect.
@@ -425,7 +327,7 @@ void FeatureExtractor::join_with_previous_row(std::int32_t row_begin, std::int32
   }
 }
 
-std::size_t FeatureExtractor::accumulate_candidates(std::int32_t run_count, int step, bool& overflow) noexcept {
+std::size_t RegionFinder::accumulate_candidates(std::int32_t run_count, int step, bool& overflow) noexcept {
   // Moments per component, accumulated per run in closed form.
   // Areas per component first (indexed by root), so that only components of
   // at least the minimum area take one of the kMaxCandidates slots.
@@ -470,7 +372,7 @@ std::size_t FeatureExtractor::accumulate_candidates(std::int32_t run_count, int 
   return candidate_count;
 }
 
-void FeatureExtractor::add_run_moments(const Run& r, Region& reg) noexcept {
+void RegionFinder::add_run_moments(const Run& r, Region& reg) noexcept {
   const double n = static_cast<double>(r.x1 - r.x0);
   const double a = static_cast<double>(r.x0);
   const double b = static_cast<double>(r.x1 - 1);
@@ -494,7 +396,7 @@ void FeatureExtractor::add_run_moments(const Run& r, Region& reg) noexcept {
   reg.y_max = r.y;  // rows are visited in order
 }
 
-std::size_t FeatureExtractor::finish_candidates(std::size_t candidate_count, int step) noexcept {
+std::size_t RegionFinder::finish_candidates(std::size_t candidate_count, int step) noexcept {
   // Raw sums to centroid and central moments (grid units), then pixels: a
   // grid point (gx, gy) is pixel (step gx, step gy) and stands for a step x
   // step cell, whose footprint variance step^2 / 12 the scaled 1/12 gives.
@@ -528,8 +430,7 @@ std::size_t FeatureExtractor::finish_candidates(std::size_t candidate_count, int
   return kept;
 }
 
-void FeatureExtractor::select_regions(std::size_t candidate_count) noexcept {
-  RegionSet& out = result_.regions;
+void RegionFinder::select_regions(std::size_t candidate_count, RegionSet& out) noexcept {
   if (candidate_count > kMaxRegions) {
     out.too_many_regions = true;
     // Partial selection sort: the kMaxRegions largest first.

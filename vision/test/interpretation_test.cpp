@@ -17,29 +17,19 @@ namespace vision {
 namespace {
 
 using testing::Canvas;
+using testing::draw_in_line;
+using testing::draw_stripe;
 using testing::kBlue;
+using testing::kStripeLength;
+using testing::kStripeWidth;
 using testing::kTissue;
+using testing::kTop;
 using testing::kYellow;
-using testing::make;
+using testing::make_finder;
 
-// Stripes 30 px along the tube and 40 px across it. Level m's stripe, drawn
-// in line from the base at x = 40, has its centroid at x = 54.5 + 30 m.
-constexpr int kStripeLength = 30;
-constexpr int kStripeWidth = 40;
-constexpr int kTop = 40;
-
-const std::uint8_t* colour_of(int level) { return level % 2 == 0 ? kBlue : kYellow; }
-
-void draw_stripe(Canvas& c, int level, int x0, int y0) {
-  c.fill_rect(x0, y0, x0 + kStripeLength, y0 + kStripeWidth, colour_of(level));
-}
-
-// Levels first..last drawn in line, each in its place from x = 40.
-void draw_in_line(Canvas& c, int first, int last) {
-  for (int m = first; m <= last; ++m) {
-    draw_stripe(c, m, 40 + kStripeLength * m, kTop);
-  }
-}
+// Stripes kStripeLength = 30 px along the tube and kStripeWidth = 40 px
+// across it (drawn_canvas.hpp). Level m's stripe, drawn in line from the
+// base at x = 40, has its centroid at x = 54.5 + 30 m.
 
 // Priors that know each stripe's size loosely and where the chain in line
 // from x = 40 puts each level, within 60 px: enough to tell the base from
@@ -60,17 +50,84 @@ MarkerPriors in_line_priors() {
   return p;
 }
 
-const Interpretation& interpret(FeatureExtractor& fx, const Canvas& canvas) {
-  EXPECT_TRUE(fx.find_regions(canvas.view()).ok());
-  EXPECT_TRUE(fx.interpret(in_line_priors()).ok());
-  return fx.result().interpretation;
+// Stages 1 and 2 on their own: the regions of `canvas`, interpreted by an
+// Interpreter of the default configuration.
+Interpretation interpret(const Canvas& canvas) {
+  auto finder = make_finder(canvas.w, canvas.h);
+  RegionSet regions;
+  EXPECT_TRUE(finder->find(canvas.view(), regions).ok());
+  auto interpreter = Interpreter::create(InterpretationConfig{});
+  EXPECT_TRUE(interpreter.ok());
+  Interpretation in;
+  EXPECT_TRUE(interpreter.value()->interpret(regions, canvas.view(), in_line_priors(), in).ok());
+  return in;
+}
+
+// A region as stage 1 would give a stripe of `cls` whose bounding box is
+// [x0, x0 + length) x [y0, y0 + width): a uniform rectangle's moments.
+Region stripe_region(PixelClass cls, double x0, double y0, double length, double width) {
+  Region r;
+  r.cls = cls;
+  r.area = static_cast<std::int32_t>(length * width);
+  r.centroid = Point{x0 + 0.5 * (length - 1.0), y0 + 0.5 * (width - 1.0)};
+  r.cov_xx = length * length / 12.0;
+  r.cov_yy = width * width / 12.0;
+  r.x_min = static_cast<std::int32_t>(x0);
+  r.x_max = static_cast<std::int32_t>(x0 + length) - 1;
+  r.y_min = static_cast<std::int32_t>(y0);
+  r.y_max = static_cast<std::int32_t>(y0 + width) - 1;
+  r.update_shape();
+  return r;
+}
+
+// The interpreter alone, on a region set made by hand (no image, no stage
+// 1): the five stripes in line, listed out of order and with a stray blue
+// region far off, are labelled 1..5 from the base, each by its own region.
+TEST(Interpreter, LabelsAHandMadeRegionSetInLineFromTheBase) {
+  RegionSet set;
+  const int order[kNumMarkers] = {3, 0, 4, 2, 1};
+  for (const int m : order) {
+    const PixelClass cls = m % 2 == 0 ? PixelClass::Blue : PixelClass::Yellow;
+    ASSERT_TRUE(set.regions.push_back(stripe_region(cls, 40.0 + kStripeLength * m, kTop, kStripeLength, kStripeWidth)));
+  }
+  ASSERT_TRUE(set.regions.push_back(stripe_region(PixelClass::Blue, 260.0, 120.0, 12.0, 8.0)));
+  auto created = Interpreter::create(InterpretationConfig{});
+  ASSERT_TRUE(created.ok());
+  Interpretation in;
+  ASSERT_TRUE(created.value()->interpret(set, ImageView{}, in_line_priors(), in).ok());
+  ASSERT_EQ(in.found_count, kNumMarkers);
+  EXPECT_EQ(in.first_marker, 0);
+  EXPECT_EQ(in.last_marker, kNumMarkers - 1);
+  for (int m = 0; m < kNumMarkers; ++m) {
+    const MarkerObservation& o = in.markers[static_cast<std::size_t>(m)];
+    ASSERT_TRUE(o.found) << m;
+    EXPECT_EQ(order[o.region_index[0]], m) << m;
+    EXPECT_LT(o.region_index[1], 0) << m;
+    EXPECT_NEAR(o.region.centroid.x, 54.5 + 30.0 * m, 1e-9) << m;
+  }
+  // No region of a marker's colour: nothing to label.
+  RegionSet empty;
+  EXPECT_EQ(created.value()->interpret(empty, ImageView{}, in_line_priors(), in).error(), VisionError::NoInstrument);
+  EXPECT_EQ(in.found_count, 0);
+}
+
+TEST(Interpreter, CreateRejectsBadConfiguration) {
+  InterpretationConfig c;
+  c.marker_classes[2] = PixelClass::Background;
+  EXPECT_EQ(Interpreter::create(c).error(), VisionError::BadParameter);
+  InterpretationConfig angle;
+  angle.max_link_angle_rad = 0.0;
+  EXPECT_EQ(Interpreter::create(angle).error(), VisionError::BadParameter);
+  InterpretationConfig reward;
+  reward.level_reward = std::nan("");
+  EXPECT_EQ(Interpreter::create(reward).error(), VisionError::BadParameter);
+  EXPECT_TRUE(Interpreter::create(InterpretationConfig{}).ok());
 }
 
 TEST(Interpretation, FiveAlternatingStripesAreLabelledFromTheBase) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 0, kNumMarkers - 1);
-  auto fx = make(canvas.w, canvas.h);
-  const Interpretation& in = interpret(*fx, canvas);
+  const Interpretation in = interpret(canvas);
   ASSERT_EQ(in.found_count, kNumMarkers);
   EXPECT_EQ(in.first_marker, 0);
   EXPECT_EQ(in.last_marker, kNumMarkers - 1);
@@ -89,8 +146,7 @@ TEST(Interpretation, AStripeSplitInTwoIsOneVirtualNode) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 0, kNumMarkers - 1);
   canvas.fill_rect(70, kTop + 18, 100, kTop + 21, kTissue);  // marker 2 (yellow) cut along the tube
-  auto fx = make(canvas.w, canvas.h);
-  const Interpretation& in = interpret(*fx, canvas);
+  const Interpretation in = interpret(canvas);
   ASSERT_EQ(in.found_count, kNumMarkers);
   const MarkerObservation& split = in.markers[1];
   ASSERT_TRUE(split.found);
@@ -111,8 +167,7 @@ TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
     draw_in_line(canvas, 0, 2);
     draw_stripe(canvas, 3, 130, kTop + 17);  // centroid link (30, 17): 29.5 deg
     draw_stripe(canvas, 4, 160, kTop + 34);
-    auto fx = make(canvas.w, canvas.h);
-    const Interpretation& in = interpret(*fx, canvas);
+    const Interpretation in = interpret(canvas);
     EXPECT_EQ(in.found_count, kNumMarkers);
   }
   {
@@ -122,8 +177,7 @@ TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
     // which it would otherwise touch and join).
     canvas.fill_rect(102, kTop + kStripeWidth, 130, kTop + kStripeWidth + 30, kYellow);
     canvas.fill_rect(102, kTop + kStripeWidth + 30, 130, kTop + kStripeWidth + 60, kBlue);
-    auto fx = make(canvas.w, canvas.h);
-    const Interpretation& in = interpret(*fx, canvas);
+    const Interpretation in = interpret(canvas);
     EXPECT_EQ(in.first_marker, 0);
     EXPECT_EQ(in.last_marker, 2);
     EXPECT_EQ(in.found_count, 3);
@@ -136,8 +190,7 @@ TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
 TEST(Interpretation, AHiddenBaseLeavesTheFirstLevelEmpty) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 1, kNumMarkers - 1);
-  auto fx = make(canvas.w, canvas.h);
-  const Interpretation& in = interpret(*fx, canvas);
+  const Interpretation in = interpret(canvas);
   EXPECT_EQ(in.first_marker, 1);
   EXPECT_EQ(in.last_marker, kNumMarkers - 1);
   EXPECT_EQ(in.found_count, kNumMarkers - 1);
@@ -153,8 +206,7 @@ TEST(Interpretation, AStripeBeyondTheAdjacencyReachIsNotLinked) {
   for (int m = 0; m < kNumMarkers; ++m) {
     draw_stripe(canvas, m, 40 + kStripeLength * m + (m >= 2 ? 21 : 0), kTop);
   }
-  auto fx = make(canvas.w, canvas.h);
-  const Interpretation& in = interpret(*fx, canvas);
+  const Interpretation in = interpret(canvas);
   EXPECT_EQ(in.found_count, 3);  // markers 3-5, the larger side of the gap
   EXPECT_EQ(in.first_marker, 2);
   EXPECT_FALSE(in.markers[1].found);

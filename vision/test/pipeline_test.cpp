@@ -118,7 +118,7 @@ std::unique_ptr<FeatureExtractor> default_extractor(const ExtractorConfig& confi
 // grasper").
 ExtractorConfig without_grasper() {
   ExtractorConfig config;
-  config.refine_grasper_readings = false;
+  config.refiner.refine_grasper_readings = false;
   return config;
 }
 
@@ -701,7 +701,7 @@ TEST(Pipeline, ClassImageFitIsNotPulledByTheStripesAnOccluderHides) {
 TEST(Pipeline, UnderAnOccluderTheGraspersSilhouetteHoldsTheTip) {
   Fixture f;
   ExtractorConfig without;
-  without.refine_grasper_readings = false;
+  without.refiner.refine_grasper_readings = false;
   auto with_grasper = default_extractor();
   auto without_grasper = default_extractor(without);
   ASSERT_NE(with_grasper, nullptr);
@@ -964,7 +964,7 @@ TEST(Pipeline, ShaftFitFailsWithoutAShaftAndLeavesThePose) {
 TEST(Pipeline, ShaftRecheckMovesTheChannelTowardsTheShaft) {
   Fixture f;
   ExtractorConfig config = without_grasper();
-  config.refine_base_rim = false;
+  config.refiner.refine_base_rim = false;
   auto fx = default_extractor(config);
   ASSERT_NE(fx, nullptr);
   solver::PoseEstimator estimator(f.camera, f.model);
@@ -1056,7 +1056,7 @@ TEST(Pipeline, UnderAStreakAcrossTheTubeTheCornersKeepTheFittedSilhouette) {
     static_cast<void>(f.render_r(scene_r, scene.hard_cases, scene.seed));
     const ImageView image = f.jpeg_round_trip(92);
     const solver::Vec2 streak(f.truth.motion_blur_dx_px, f.truth.motion_blur_dy_px);
-    ASSERT_GT(streak.norm(), ExtractorConfig{}.refine_streak_across_px);
+    ASSERT_GT(streak.norm(), ExtractorConfig{}.refiner.refine_streak_across_px);
     solver::CornerSet expected;
     f.model.corners(f.camera, scene_r, expected);
     std::array<double, 2> error_sum_px{};
@@ -1162,7 +1162,7 @@ TEST(Pipeline, AFitThatReadsOneBoundaryAndTheSilhouetteGivesItsCornersAndADegrad
     for (const bool one_boundary : {true, false}) {
       ExtractorConfig config;
       if (!one_boundary) {
-        config.refine_one_boundary_min_silhouette = 21;  // more than the 20 points read: never
+        config.refiner.refine_one_boundary_min_silhouette = 21;  // more than the 20 points read: never
       }
       auto fx = default_extractor(config);
       ASSERT_NE(fx, nullptr);
@@ -1173,7 +1173,7 @@ TEST(Pipeline, AFitThatReadsOneBoundaryAndTheSilhouetteGivesItsCornersAndADegrad
       }
       ASSERT_GT(guided.rounds_kept, 0) << "seed " << scene.seed;
       EXPECT_EQ(guided.fit.boundaries, 1) << "seed " << scene.seed;
-      EXPECT_GE(guided.fit.plain_silhouette_readings, config.refine_one_boundary_min_silhouette);
+      EXPECT_GE(guided.fit.plain_silhouette_readings, config.refiner.refine_one_boundary_min_silhouette);
       EXPECT_EQ(guided.estimate.quality, solver::EstimateQuality::Degraded) << "seed " << scene.seed;
       int visible = 0;
       EXPECT_EQ(corners_found(*fx, truth, visible), visible) << "seed " << scene.seed;
@@ -1433,7 +1433,7 @@ TEST(Pipeline, AValidSolveThatAgreesWithItsImageFitStaysValid) {
 // Motion blur smears the tip arc's colour change (blue to the grey
 // grasper) along the tube, and the blue margin's zero then lies where the
 // mix is about 65 % blue, short of the boundary by 15 % of the smear
-// (ExtractorConfig::refine_smear_tip_bias). Moved back by that share of the
+// (RefinerConfig::refine_smear_tip_bias). Moved back by that share of the
 // streak the image fit reads, the fit's boundaries agree again: hard frames
 // 64, 136 and 192 (each with motion blur) succeed only with the correction.
 TEST(Pipeline, TheTipArcUnderASmearIsReadAtTheBoundaryItself) {
@@ -1457,11 +1457,11 @@ TEST(Pipeline, TheTipArcUnderASmearIsReadAtTheBoundaryItself) {
   // end under the streak; the blurred edge's model reads it otherwise, and
   // one of them then succeeds with 8 of its 11 corners either way.
   ExtractorConfig config = without_grasper();
-  config.refine_streak_edge_model = false;
+  config.refiner.refine_streak_edge_model = false;
   for (const HardScene& scene : scenes) {
     static_cast<void>(expect_success_only_with_rule(  // its checks are the whole test
         f, estimator, scene, every_seed_options(), config, 4,
-        [](GuidedOptions&, ExtractorConfig& c) { c.refine_smear_tip_bias = 0.0; }));
+        [](GuidedOptions&, ExtractorConfig& c) { c.refiner.refine_smear_tip_bias = 0.0; }));
   }
 }
 
@@ -1491,7 +1491,7 @@ TEST(Pipeline, UnderAStreakTheSilhouetteIsReadByTheBlurredEdgesModel) {
   for (const HardScene& scene : scenes) {
     const WithAndWithout runs = expect_success_only_with_rule(
         f, estimator, scene, every_seed_options(), ExtractorConfig{}, 11,
-        [](GuidedOptions&, ExtractorConfig& c) { c.refine_streak_edge_model = false; });
+        [](GuidedOptions&, ExtractorConfig& c) { c.refiner.refine_streak_edge_model = false; });
     EXPECT_GT(runs.with.guided.fit.streak_px.norm(), 0.0) << scene.seed;  // the streak was read, the model used
   }
 }
@@ -1523,7 +1523,7 @@ TEST(Pipeline, UnderAStreakAlongTheTubeTheArcsAreReadAgainWidened) {
   for (const HardScene& scene : scenes) {
     const WithAndWithout runs = expect_success_only_with_rule(
         f, estimator, scene, every_seed_options(), ExtractorConfig{}, 12,
-        [](GuidedOptions&, ExtractorConfig& c) { c.refine_streak_arc_retry = false; });
+        [](GuidedOptions&, ExtractorConfig& c) { c.refiner.refine_streak_arc_retry = false; });
     EXPECT_GT(runs.with.guided.fit.streak_px.norm(), 0.0) << scene.seed;  // read, and the arcs widened under it
     EXPECT_NE(runs.with.guided.estimate.quality, solver::EstimateQuality::None) << scene.seed;
   }
@@ -1581,7 +1581,7 @@ TEST(Pipeline, AFitThatReadsNoSilhouetteUnderMotionBlurGivesItsCornersAndADegrad
   const render::InstrumentTruth& truth = f.truth.instruments[0];
   for (const bool across : {false, true}) {
     ExtractorConfig config = without_grasper();
-    config.refine_streak_unsmeared = across;
+    config.refiner.refine_streak_unsmeared = across;
     const TruthRun run = truth_run(estimator, f, image, scene_r, config);
     ASSERT_NE(run.fx, nullptr);
     const GuidedResult& guided = run.guided;
@@ -1589,7 +1589,7 @@ TEST(Pipeline, AFitThatReadsNoSilhouetteUnderMotionBlurGivesItsCornersAndADegrad
     EXPECT_FALSE(guided.fit.smeared) << "across " << across;
     EXPECT_LT(guided.fit.plain_silhouette_readings, 6) << "across " << across;
     if (across) {
-      EXPECT_GE(guided.fit.streak_px.norm(), config.refine_streak_unsmeared_min_px);
+      EXPECT_GE(guided.fit.streak_px.norm(), config.refiner.refine_streak_unsmeared_min_px);
       EXPECT_GE(guided.fit.silhouette_readings, 6);
     } else {
       EXPECT_EQ(guided.fit.streak_px.norm(), 0.0);
@@ -1614,12 +1614,12 @@ TEST(Pipeline, ImageFitReadsTheArcsOfASmearedFrame) {
   solver::PoseVector scene_r;
   scene_r << -12.4799331622, 8.69459297894, 0.143887794782, 0.103773153829, 25.0, -1.0471975512, 1.0471975512;
   const ImageView image = f.render_r(scene_r, render::kHardHaze | render::kHardMotionBlur, 9665399092365174048ULL);
-  for (int reach : {1, ExtractorConfig{}.refine_smear_clear_reach}) {
+  for (int reach : {1, ExtractorConfig{}.refiner.refine_smear_clear_reach}) {
     ExtractorConfig config;
-    config.refine_smear_clear_reach = reach;  // 1: sharp changes only (the rule before)
+    config.refiner.refine_smear_clear_reach = reach;  // 1: sharp changes only (the rule before)
     // Under test: the smeared readings alone, without the retry that widens
     // the arcs once a fit fails (refine_streak_arc_retry rescues reach 1).
-    config.refine_streak_arc_retry = false;
+    config.refiner.refine_streak_arc_retry = false;
     auto created = FeatureExtractor::create(config, default_color_model());
     ASSERT_TRUE(created.ok());
     solver::PoseVector r = scene_r;
@@ -1714,7 +1714,7 @@ TEST(Pipeline, TheMotionStreakIsReadFromTheArcs) {
     const ImageView sharp = f.jpeg_round_trip(92);
     solver::Vec2 streak = solver::Vec2::Zero();
     ASSERT_TRUE(fx->read_motion_streak(sharp, f.camera, f.model, sharp_r, streak).ok()) << "lambda " << pose[0];
-    EXPECT_LT(streak.norm(), ExtractorConfig{}.refine_streak_min_px) << "lambda " << pose[0];
+    EXPECT_LT(streak.norm(), ExtractorConfig{}.refiner.refine_streak_min_px) << "lambda " << pose[0];
   }
   // Bad input is an error, not a reading.
   solver::Vec2 streak = solver::Vec2::Zero();
@@ -1739,8 +1739,8 @@ TEST(Pipeline, UnderAStreakTheImageFitReadsTheSilhouetteAtItsOuterEnd) {
   const render::InstrumentTruth& truth = f.truth.instruments[0];
   for (bool streak_rule : {false, true}) {
     ExtractorConfig config = without_grasper();
-    config.refine_streak = streak_rule;
-    config.refine_streak_edge_model = false;  // the outer end (the model: 8 of the 11 here)
+    config.refiner.refine_streak = streak_rule;
+    config.refiner.refine_streak_edge_model = false;  // the outer end (the model: 8 of the 11 here)
     const TruthRun run = truth_run(estimator, f, image, scene_r, config);
     ASSERT_NE(run.fx, nullptr);
     const GuidedResult& guided = run.guided;
@@ -1976,7 +1976,7 @@ TEST(Pipeline, TheBaseCornersAreReadOnTheRimOfTheFirstStripesEndFace) {
   const solver::PoseVector prior = f.model.geometry().nominal_pose(17.6596624212, -0.459629487006, -1.73967824341);
   for (int rule = 0; rule < 2; ++rule) {
     ExtractorConfig config = without_grasper();
-    config.refine_base_rim = rule == 1;
+    config.refiner.refine_base_rim = rule == 1;
     const GuidedRun run = guided_run(f, estimator, image, prior, every_seed_options(), config);
     ASSERT_GT(run.guided.rounds_kept, 0);
     const Extraction& e = run.fx->result();
@@ -2053,7 +2053,7 @@ TEST(Pipeline, TheBaseRimGivesTheInsertion) {
     EXPECT_EQ(r.tail<2>(), scene_r.tail<2>());
   }
   ExtractorConfig short_scan;
-  short_scan.refine_rim_scan_range_mm = 0.0;
+  short_scan.refiner.refine_rim_scan_range_mm = 0.0;
   auto near_only = default_extractor(short_scan);
   ASSERT_NE(near_only, nullptr);
   solver::PoseVector far_r = scene_r;
@@ -2141,7 +2141,7 @@ TEST(Pipeline, StepTwoGridKeepsMarkerStatisticsAndCornersAtHd) {
   std::unique_ptr<FeatureExtractor> fx[2];
   for (int i = 0; i < 2; ++i) {
     ExtractorConfig config;
-    config.classify_step = i + 1;
+    config.regions.classify_step = i + 1;
     auto e = FeatureExtractor::create(config, default_color_model());
     ASSERT_TRUE(e.ok());
     fx[i] = std::move(e.value());

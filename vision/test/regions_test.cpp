@@ -16,14 +16,15 @@ using testing::kBlue;
 using testing::kTissue;
 using testing::kYellow;
 using testing::make;
+using testing::make_finder;
 
 TEST(Regions, RectanglesGiveAreaCentroidAxesAndOrientation) {
   Canvas canvas(200, 120);
   canvas.fill_rect(10, 20, 70, 40, kBlue);     // 60 x 20
   canvas.fill_rect(100, 10, 120, 90, kYellow);  // 20 x 80
-  auto fx = make(200, 120);
-  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
-  const RegionSet& set = fx->result().regions;
+  auto finder = make_finder(200, 120);
+  RegionSet set;
+  ASSERT_TRUE(finder->find(canvas.view(), set).ok());
   ASSERT_EQ(set.regions.size(), 2U);
   EXPECT_FALSE(set.too_many_regions);
   for (const Region& r : set.regions) {
@@ -56,9 +57,10 @@ TEST(Regions, DiagonalNeighboursAreConnectedAndColoursSeparate) {
   // A yellow block touching a blue block: two regions.
   canvas.fill_rect(30, 30, 40, 40, kBlue);
   canvas.fill_rect(40, 30, 45, 40, kYellow);
-  auto fx = make(50, 50);
-  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
-  ASSERT_EQ(fx->result().regions.regions.size(), 3U);
+  auto finder = make_finder(50, 50);
+  RegionSet set;
+  ASSERT_TRUE(finder->find(canvas.view(), set).ok());
+  ASSERT_EQ(set.regions.size(), 3U);
 }
 
 TEST(Regions, TooManyRegionsIsReportedNotACrash) {
@@ -69,16 +71,20 @@ TEST(Regions, TooManyRegionsIsReportedNotACrash) {
       canvas.fill_rect(bx * 10, by * 10, bx * 10 + 4, by * 10 + 4, (bx + by) % 2 == 0 ? kBlue : kYellow);
     }
   }
-  ExtractorConfig c;
+  RegionsConfig c;
   c.max_width = 400;
   c.max_height = 400;
   c.min_region_area = 4;
-  auto created = FeatureExtractor::create(c, default_color_model());
+  auto created = RegionFinder::create(c, default_color_model());
   ASSERT_TRUE(created.ok());
-  auto fx = std::move(created.value());
-  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
-  EXPECT_TRUE(fx->result().regions.too_many_regions);
-  EXPECT_EQ(fx->result().regions.regions.size(), kMaxRegions);
+  RegionSet set;
+  ASSERT_TRUE(created.value()->find(canvas.view(), set).ok());
+  EXPECT_TRUE(set.too_many_regions);
+  EXPECT_EQ(set.regions.size(), kMaxRegions);
+  // The largest are kept: every blob is 16 px.
+  for (const Region& r : set.regions) {
+    EXPECT_EQ(r.area, 16);
+  }
 }
 
 // A frame fragmented beyond the run buffer (blue and yellow alternating
@@ -115,15 +121,6 @@ TEST(Regions, BadAndOversizedImagesAreErrors) {
   EXPECT_FALSE(fx->find_corners(big.view()).ok());
 }
 
-std::unique_ptr<FeatureExtractor> make_with_step(int w, int h, int step) {
-  ExtractorConfig c;
-  c.max_width = w;
-  c.max_height = h;
-  c.classify_step = step;
-  auto e = FeatureExtractor::create(c, default_color_model());
-  EXPECT_TRUE(e.ok());
-  return std::move(e.value());
-}
 
 // Pseudo-random colours (a fixed LCG): every branch of the row classifier,
 // ambiguous cells included, on an odd-sized image (the last pixel of a row
@@ -143,8 +140,9 @@ Canvas random_canvas(int w, int h) {
 
 TEST(Regions, ClassImageIsTheLookupTableClassOfEveryPixel) {
   const Canvas canvas = random_canvas(37, 23);
-  auto fx = make_with_step(37, 23, 1);
-  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  auto fx = make_finder(37, 23, 1);
+  RegionSet set;
+  ASSERT_TRUE(fx->find(canvas.view(), set).ok());
   EXPECT_EQ(fx->classify_step(), 1);
   int ambiguous = 0;
   for (int y = 0; y < canvas.h; ++y) {
@@ -160,8 +158,9 @@ TEST(Regions, ClassImageIsTheLookupTableClassOfEveryPixel) {
 
 TEST(Regions, StepTwoClassImageRepeatsTheGridClassOverEachBlock) {
   const Canvas canvas = random_canvas(37, 23);
-  auto fx = make_with_step(37, 23, 2);
-  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  auto fx = make_finder(37, 23, 2);
+  RegionSet set;
+  ASSERT_TRUE(fx->find(canvas.view(), set).ok());
   EXPECT_EQ(fx->classify_step(), 2);
   for (int y = 0; y < canvas.h; ++y) {
     for (int x = 0; x < canvas.w; ++x) {
@@ -178,9 +177,9 @@ TEST(Regions, StepTwoRegionsKeepAreaCentroidAxesInPixels) {
   Canvas canvas(200, 120);
   canvas.fill_rect(10, 20, 70, 40, kBlue);      // 60 x 20
   canvas.fill_rect(101, 11, 121, 91, kYellow);  // 20 x 80, odd offsets
-  auto fx = make_with_step(200, 120, 2);
-  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
-  const RegionSet& set = fx->result().regions;
+  auto fx = make_finder(200, 120, 2);
+  RegionSet set;
+  ASSERT_TRUE(fx->find(canvas.view(), set).ok());
   ASSERT_EQ(set.regions.size(), 2U);
   for (const Region& r : set.regions) {
     if (r.cls == PixelClass::Blue) {
@@ -213,9 +212,10 @@ TEST(Regions, AutoStepIsTwoFromFourPalFramesOfPixelsOn) {
   EXPECT_EQ(classify_step_for(0, 1920, 1080), 2);
   EXPECT_EQ(classify_step_for(1, 1920, 1080), 1);
   EXPECT_EQ(classify_step_for(2, 720, 576), 2);
-  auto fx = make(1920, 1080);
+  auto fx = make_finder(1920, 1080);
   Canvas hd(1920, 1080);
-  ASSERT_TRUE(fx->find_regions(hd.view()).ok());
+  RegionSet set;
+  ASSERT_TRUE(fx->find(hd.view(), set).ok());
   EXPECT_EQ(fx->classify_step(), 2);
 }
 
@@ -227,8 +227,8 @@ TEST(Regions, CreateReportsOutOfMemoryAtAnyOfItsAllocations) {
     GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
   }
   ExtractorConfig c;
-  c.max_width = 320;
-  c.max_height = 240;
+  c.regions.max_width = 320;
+  c.regions.max_height = 240;
   VisionError error = VisionError::BadImage;
   const auto create = [&]() {
     const auto result = FeatureExtractor::create(c, default_color_model());
@@ -246,75 +246,100 @@ TEST(Regions, CreateReportsOutOfMemoryAtAnyOfItsAllocations) {
   EXPECT_TRUE(FeatureExtractor::create(c, default_color_model()).ok());
 }
 
+// The region finder refuses what it cannot size or classify, and the
+// extractor composes it: its class image and grid step are the finder's.
+TEST(Regions, TheFinderRejectsBadConfigurationAndTheExtractorComposesIt) {
+  RegionsConfig c;
+  for (const int bad_width : {0, -3, 8193}) {
+    c.max_width = bad_width;
+    EXPECT_EQ(RegionFinder::create(c, default_color_model()).error(), VisionError::BadParameter) << bad_width;
+  }
+  c = RegionsConfig{};
+  c.min_region_area = 0;
+  EXPECT_EQ(RegionFinder::create(c, default_color_model()).error(), VisionError::BadParameter);
+  ColorModel bad = default_color_model();
+  bad.blue.cov_aa = -1.0;
+  EXPECT_EQ(RegionFinder::create(RegionsConfig{}, bad).error(), VisionError::BadParameter);
+  Canvas canvas(64, 48);
+  canvas.fill_rect(8, 8, 40, 20, kBlue);
+  auto fx = make(64, 48);
+  ASSERT_TRUE(fx->find_regions(canvas.view()).ok());
+  EXPECT_EQ(fx->class_image(), fx->region_finder().class_image());
+  EXPECT_EQ(fx->classify_step(), fx->region_finder().classify_step());
+  EXPECT_EQ(fx->region_finder().image().data, canvas.view().data);
+  ASSERT_EQ(fx->result().regions.regions.size(), 1U);
+  EXPECT_EQ(fx->result().regions.regions[0].area, 32 * 12);
+}
+
 TEST(Regions, CreateRejectsBadConfiguration) {
   ExtractorConfig c;
-  c.max_width = 0;
+  c.regions.max_width = 0;
   EXPECT_FALSE(FeatureExtractor::create(c, default_color_model()).ok());
   ColorModel bad = default_color_model();
   bad.blue.cov_aa = -1.0;
   EXPECT_FALSE(FeatureExtractor::create(ExtractorConfig{}, bad).ok());
   ExtractorConfig step;
-  step.classify_step = 3;
+  step.regions.classify_step = 3;
   EXPECT_FALSE(FeatureExtractor::create(step, default_color_model()).ok());
-  step.classify_step = -1;
+  step.regions.classify_step = -1;
   EXPECT_FALSE(FeatureExtractor::create(step, default_color_model()).ok());
   // The IRLS scale: estimated at least once (else every weight divides by
   // zero), and not in more iterations than the fit runs.
   ExtractorConfig irls;
-  for (const int bad_scale_iterations : {0, -1, irls.irls_iterations + 1}) {
-    irls.irls_scale_iterations = bad_scale_iterations;
+  for (const int bad_scale_iterations : {0, -1, irls.borders.irls_iterations + 1}) {
+    irls.borders.irls_scale_iterations = bad_scale_iterations;
     EXPECT_FALSE(FeatureExtractor::create(irls, default_color_model()).ok()) << bad_scale_iterations;
   }
-  irls.irls_scale_iterations = irls.irls_iterations;
+  irls.borders.irls_scale_iterations = irls.borders.irls_iterations;
   EXPECT_TRUE(FeatureExtractor::create(irls, default_color_model()).ok());
   // The tip arc's share of a smear: 0 (off) to one half, never NaN.
   ExtractorConfig tip;
   for (const double bad_share : {-0.01, 0.51, std::nan("")}) {
-    tip.refine_smear_tip_bias = bad_share;
+    tip.refiner.refine_smear_tip_bias = bad_share;
     EXPECT_FALSE(FeatureExtractor::create(tip, default_color_model()).ok()) << bad_share;
   }
-  tip.refine_smear_tip_bias = 0.0;
+  tip.refiner.refine_smear_tip_bias = 0.0;
   EXPECT_TRUE(FeatureExtractor::create(tip, default_color_model()).ok());
   // The streak read where the arcs stay sharp: a boundary count the model
   // has, a length that is not negative or NaN.
   ExtractorConfig streak;
-  streak.refine_streak_unsmeared_min_boundaries = kNumBoundaries + 1;
+  streak.refiner.refine_streak_unsmeared_min_boundaries = kNumBoundaries + 1;
   EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());
-  streak.refine_streak_unsmeared_min_boundaries = -1;
+  streak.refiner.refine_streak_unsmeared_min_boundaries = -1;
   EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());
-  streak.refine_streak_unsmeared_min_boundaries = 4;
-  streak.refine_streak_unsmeared_min_px = std::nan("");
+  streak.refiner.refine_streak_unsmeared_min_boundaries = 4;
+  streak.refiner.refine_streak_unsmeared_min_px = std::nan("");
   EXPECT_FALSE(FeatureExtractor::create(streak, default_color_model()).ok());
   // The arcs' retry under a streak: its length gate not negative or NaN.
   ExtractorConfig retry;
   for (const double bad_min : {-1.0, std::nan("")}) {
-    retry.refine_streak_arc_retry_min_px = bad_min;
+    retry.refiner.refine_streak_arc_retry_min_px = bad_min;
     EXPECT_FALSE(FeatureExtractor::create(retry, default_color_model()).ok()) << bad_min;
   }
-  retry.refine_streak_arc_retry_min_px = 0.0;
+  retry.refiner.refine_streak_arc_retry_min_px = 0.0;
   EXPECT_TRUE(FeatureExtractor::create(retry, default_color_model()).ok());
   // The base-rim scan: a positive step, a range it covers within
   // kMaxRimScanSteps steps each way, never NaN.
   ExtractorConfig rim;
   for (const double bad_step : {0.0, -0.5, std::nan("")}) {
-    rim.refine_rim_scan_step_mm = bad_step;
+    rim.refiner.refine_rim_scan_step_mm = bad_step;
     EXPECT_FALSE(FeatureExtractor::create(rim, default_color_model()).ok()) << bad_step;
   }
-  rim.refine_rim_scan_step_mm = 0.5;
+  rim.refiner.refine_rim_scan_step_mm = 0.5;
   for (const double bad_range : {-1.0, 0.5 * FeatureExtractor::kMaxRimScanSteps + 0.01, std::nan("")}) {
-    rim.refine_rim_scan_range_mm = bad_range;
+    rim.refiner.refine_rim_scan_range_mm = bad_range;
     EXPECT_FALSE(FeatureExtractor::create(rim, default_color_model()).ok()) << bad_range;
   }
-  rim.refine_rim_scan_range_mm = 0.5 * FeatureExtractor::kMaxRimScanSteps;
+  rim.refiner.refine_rim_scan_range_mm = 0.5 * FeatureExtractor::kMaxRimScanSteps;
   EXPECT_TRUE(FeatureExtractor::create(rim, default_color_model()).ok());
   // The blurred edge's smear search: 0 (the read smear alone) to
   // kMaxStreakEdgeSmearSearchPx, never NaN.
   ExtractorConfig edge;
   for (const double bad_search : {-1.0, kMaxStreakEdgeSmearSearchPx + 0.5, std::nan("")}) {
-    edge.refine_streak_edge_smear_search_px = bad_search;
+    edge.refiner.refine_streak_edge_smear_search_px = bad_search;
     EXPECT_FALSE(FeatureExtractor::create(edge, default_color_model()).ok()) << bad_search;
   }
-  edge.refine_streak_edge_smear_search_px = 0.0;
+  edge.refiner.refine_streak_edge_smear_search_px = 0.0;
   EXPECT_TRUE(FeatureExtractor::create(edge, default_color_model()).ok());
 }
 

@@ -138,32 +138,33 @@ int main(int argc, char** argv) {
     bool verbose = false;
     for (int i = 2; i < argc; ++i) {
       if (std::strcmp(argv[i], "--insets") == 0 && i + 2 < argc) {
-        config.profile_min_inset_px = std::atof(argv[++i]);
-        config.profile_max_inset = std::atof(argv[++i]);
+        config.corners.profile_min_inset_px = std::atof(argv[++i]);
+        config.corners.profile_max_inset = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--every") == 0 && i + 1 < argc) {
         every = std::atoi(argv[++i]);
       } else if (std::strcmp(argv[i], "--extension") == 0 && i + 1 < argc) {
-        config.skeleton_extension = std::atof(argv[++i]);
+        config.borders.skeleton_extension = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--samples") == 0 && i + 1 < argc) {
-        config.skeleton_samples = std::atoi(argv[++i]);
+        config.borders.skeleton_samples = std::atoi(argv[++i]);
       } else if (std::strcmp(argv[i], "--tukey") == 0 && i + 1 < argc) {
-        config.tukey_c = std::atof(argv[++i]);
+        config.borders.tukey_c = std::atof(argv[++i]);
+        config.corners.tukey_c = config.borders.tukey_c;  // the local borders too
       } else if (std::strcmp(argv[i], "--dump-index") == 0 && i + 1 < argc) {
         g_dump_index = std::atoi(argv[++i]);
       } else if (std::strcmp(argv[i], "--min-confidence") == 0 && i + 1 < argc) {
-        config.min_corner_confidence = std::atof(argv[++i]);
+        config.corners.min_corner_confidence = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--end-margin") == 0 && i + 1 < argc) {
-        config.end_margin_px = std::atof(argv[++i]);
+        config.corners.end_margin_px = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--local") == 0 && i + 1 < argc) {
-        config.local_border_window = std::atof(argv[++i]);
+        config.corners.local_border_window = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--edge-offset") == 0 && i + 1 < argc) {
-        config.edge_offset_px = std::atof(argv[++i]);
+        config.borders.edge_offset_px = std::atof(argv[++i]);
       } else if (std::strcmp(argv[i], "--count") == 0 && i + 1 < argc) {
         count = std::atoi(argv[++i]);
       } else if (std::strcmp(argv[i], "--verbose") == 0) {
         verbose = true;
       } else if (std::strcmp(argv[i], "--orientation") == 0 && i + 1 < argc) {
-        config.orientation_weight = std::atof(argv[++i]);
+        config.interpretation.orientation_weight = std::atof(argv[++i]);
       }
     }
     return eval_render(count, every, verbose, config);

@@ -62,8 +62,8 @@ bool open_overlay(const char* overlay_dir, const EstimatePipeline& pipeline,
     std::fprintf(stderr, "tcpest estimate: cannot create the overlay directory %s\n", overlay_dir);
     return false;
   }
-  auto created =
-      render::JpegEncoder::create(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height);
+  const vision::RegionsConfig& frames = pipeline.extractor().config().regions;
+  auto created = render::JpegEncoder::create(frames.max_width, frames.max_height);
   if (!created.ok()) {
     std::fprintf(stderr, "tcpest estimate: JPEG encoder: %s\n", render::to_string(created.error()));
     return false;
@@ -210,7 +210,8 @@ int cmd_estimate(int argc, char** argv) {
     return exit_code;
   }
   ImageReader reader;
-  if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {
+  const vision::RegionsConfig& frames = pipeline.extractor().config().regions;
+  if (!reader.init(frames.max_width, frames.max_height)) {
     std::fprintf(stderr, "tcpest estimate: JPEG decoder initialisation failed\n");
     return kExitFailure;
   }

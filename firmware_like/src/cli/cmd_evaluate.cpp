@@ -583,7 +583,8 @@ int cmd_evaluate(int argc, char** argv) {
     }
   }
   ImageReader reader;
-  if (!reader.init(pipeline.extractor().config().max_width, pipeline.extractor().config().max_height)) {
+  const vision::RegionsConfig& frames = pipeline.extractor().config().regions;
+  if (!reader.init(frames.max_width, frames.max_height)) {
     std::fprintf(stderr, "tcpest evaluate: JPEG decoder initialisation failed\n");
     return kExitFailure;
   }

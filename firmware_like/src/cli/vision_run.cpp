@@ -477,7 +477,7 @@ solver::EstimateQuality dense_kept_quality(solver::EstimateQuality replaced, sol
 int measured_corner_count(const vision::Extraction& e, const vision::ExtractorConfig& config) noexcept {
   int count = 0;
   for (const vision::Corner& c : e.corners) {
-    if (c.found && (!e.refined || c.confidence > config.refine_predicted_confidence)) {
+    if (c.found && (!e.refined || c.confidence > config.refiner.refine_predicted_confidence)) {
       ++count;
     }
   }

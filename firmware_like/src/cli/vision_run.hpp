@@ -149,7 +149,7 @@ bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& 
 bool corner_reported(const EstimateResult& result, const vision::Extraction& extraction, std::size_t k) noexcept;
 // The corners the extraction measured on the image: stage 4's, or after a
 // guided round those whose boundary arc was read (the others are the
-// fitted pose's predictions, ExtractorConfig::refine_predicted_confidence).
+// fitted pose's predictions, RefinerConfig::refine_predicted_confidence).
 // The dense stage's rule asks for them (DenseOptions::max_measured_corners,
 // max_measured_corners_valid).
 int measured_corner_count(const vision::Extraction& extraction, const vision::ExtractorConfig& config) noexcept;

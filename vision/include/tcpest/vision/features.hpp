@@ -1,12 +1,17 @@
 // Feature extraction, paper section 2.3: from an endoscopic RGB frame to up to
 // 12 labelled apparent corners (k = 2 j + side, model.md), with the regions
-// and the Bezier borders they came from. Four stages:
-//   1. classify pixels through a lookup table, connected components + moments
-//   2. interpretation tree: which region is which marker (1..5 from the base)
-//   3. borders: edge points along the skeleton's normals, a quadratic Bezier per
-//      side fitted by IRLS with Tukey's biweight
-//   4. corners: zero crossings of the (yellow - blue) chroma profile along
-//      each border, plus the transitions to the shaft and the grasper.
+// and the Bezier borders they came from. FeatureExtractor composes the four
+// stages, each a component of its own:
+//   1. regions.hpp: classify pixels through a lookup table, connected
+//      components + moments (RegionFinder)
+//   2. interpretation.hpp: the interpretation tree, which region is which
+//      marker (1..5 from the base) (Interpreter)
+//   3. borders.hpp: edge points along the skeleton's normals, a quadratic
+//      Bezier per side fitted by IRLS with Tukey's biweight (BorderFitter)
+//   4. corners.hpp: zero crossings of the (yellow - blue) chroma profile
+//      along each border, plus the transitions to the shaft and the grasper
+//      (CornerFinder)
+// and adds the fits guided by the instrument's model after a first pose.
 // Every buffer is allocated once in FeatureExtractor::create(); running a
 // frame allocates nothing. No recursion; every loop has a fixed bound.
 #pragma once
@@ -18,191 +23,27 @@
 
 #include "tcpest/common/image.hpp"
 #include "tcpest/common/result.hpp"
-#include "tcpest/common/static_vector.hpp"
 #include "tcpest/solver/camera.hpp"
 #include "tcpest/solver/instrument.hpp"
+#include "tcpest/vision/borders.hpp"
 #include "tcpest/vision/classifier_lut.hpp"
 #include "tcpest/vision/color_model.hpp"
+#include "tcpest/vision/corners.hpp"
+#include "tcpest/vision/extraction.hpp"
+#include "tcpest/vision/interpretation.hpp"
+#include "tcpest/vision/regions.hpp"
 
 namespace tcpest {
 namespace vision {
 
-enum class VisionError : std::uint8_t {
-  BadImage,        // null data, bad size or stride
-  ImageTooLarge,   // larger than the extractor was created for
-  TooManyRuns,     // the classified image is too fragmented for the run buffer
-  NoInstrument,    // no chain of marker regions found
-  BorderFitFailed, // too few edge points on a side
-  BadParameter,    // invalid configuration at creation
-  OutOfMemory,     // the buffers could not be allocated at creation
-};
-const char* to_string(VisionError e) noexcept;
-
-struct Point {
-  double x = 0.0;  // pixels, (0, 0) = centre of the top-left pixel
-  double y = 0.0;
-};
-
-// A connected component of one colour, with its moments.
-struct Region {
-  PixelClass cls = PixelClass::Background;
-  std::int32_t area = 0;  // pixels
-  Point centroid{};
-  double cov_xx = 0.0, cov_xy = 0.0, cov_yy = 0.0;  // second central moments / area
-  double half_major = 0.0;  // 2 sqrt(largest eigenvalue): the half axis of the equivalent ellipse
-  double half_minor = 0.0;
-  double orientation_rad = 0.0;  // of the major axis, image x towards y
-  std::int32_t x_min = 0, x_max = 0, y_min = 0, y_max = 0;  // bounding box, inclusive
-  // Adds the moments of another region (a virtual node of the tree).
-  void merge(const Region& other) noexcept;
-  // Recomputes half axes and orientation from the covariance.
-  void update_shape() noexcept;
-  // Half extent of the equivalent ellipse in unit direction (dx, dy).
-  double extent_along(double dx, double dy) const noexcept;
-};
-
-constexpr std::size_t kMaxRegions = 64U;        // regions handed to stage 2 (the largest)
-constexpr std::size_t kMaxCandidates = 1024U;   // regions above the minimum area before selection
-constexpr int kNumMarkers = solver::kNumMarkers;
-constexpr int kNumBoundaries = solver::kNumBoundaries;
-constexpr int kNumCorners = solver::kNumCorners;
-
-struct RegionSet {
-  StaticVector<Region, kMaxRegions> regions;
-  bool too_many_regions = false;  // more candidates than kMaxRegions: the smallest were dropped
-  std::int32_t run_count = 0;
-};
-
-// Per-marker Gaussian priors of stage 2: shape (half axes), distance to the
-// previous marker's centroid, and (when known) position.
-struct MarkerPrior {
-  double half_major = 0.0, half_major_sd = 0.0;  // pixels
-  double half_minor = 0.0, half_minor_sd = 0.0;
-  double parent_distance = 0.0, parent_distance_sd = 0.0;
-  Point centroid{};
-  double centroid_sd = 0.0;  // 0 = position unknown
-  bool in_image = true;      // the marker is expected in the image
-};
-
-struct MarkerPriors {
-  std::array<MarkerPrior, kNumMarkers> marker{};
-  bool relative_only = true;  // generic prior: shape/distance judged relative to neighbours
-};
-
-// One labelled marker (a level of the tree): a region or a virtual merge of two.
-struct MarkerObservation {
-  bool found = false;
-  Region region{};
-  std::array<std::int16_t, 2> region_index{{-1, -1}};  // into RegionSet::regions
-  double log_posterior = 0.0;
-};
-
-struct Interpretation {
-  std::array<MarkerObservation, kNumMarkers> markers{};
-  int first_marker = -1;  // 0-based level of the first found marker, -1 if none
-  int last_marker = -1;
-  int found_count = 0;
-  double score = 0.0;
-};
-
-// A quadratic Bezier curve B(t) = (1-t)^2 p0 + 2 (1-t) t p1 + t^2 p2, t in [0, 1].
-struct Bezier {
-  Point p0{}, p1{}, p2{};
-  Point at(double t) const noexcept;
-  Point derivative(double t) const noexcept;
-};
-
-constexpr std::size_t kMaxSkeletonSamples = 64U;
-constexpr std::size_t kProfileInsets = 8U;
-constexpr std::size_t kMaxProfileSamples = 512U;
-
-struct EdgePoint {
-  Point pixel{};
-  double weight = 0.0;  // final IRLS weight
-  double t = 0.0;       // chord-length parameter
-};
-
-struct Border {
-  bool valid = false;
-  Bezier curve{};
-  StaticVector<EdgePoint, kMaxSkeletonSamples> points;
-  double scale_px = 0.0;  // final MAD scale of the residuals
-  int iterations = 0;
-};
-
-struct Corner {
-  bool found = false;
-  Point pixel{};
-  double confidence = 0.0;  // 0..1
-};
-
-struct Extraction {
-  RegionSet regions;
-  Interpretation interpretation;
-  std::array<Point, kMaxSkeletonSamples> skeleton{};
-  int skeleton_count = 0;
-  std::array<Border, 2> borders{};  // [side]: 0 = left, 1 = right (model.md's side rule)
-  std::array<Corner, kNumCorners> corners{};
-  int corner_count = 0;
-  // Model-guided corners (refine_corners): stage 4's corners are kept here,
-  // and each boundary's measured shift along the tube from the pose's.
-  bool refined = false;
-  std::array<Corner, kNumCorners> stage4_corners{};
-  std::array<bool, kNumBoundaries> boundary_measured{};
-  std::array<double, kNumBoundaries> boundary_shift_mm{};
-};
-
 // The largest smear search of the blurred edge's model (px either way;
-// ExtractorConfig::refine_streak_edge_smear_search_px): 16 fits a reading.
+// RefinerConfig::refine_streak_edge_smear_search_px): 16 fits a reading.
 constexpr double kMaxStreakEdgeSmearSearchPx = 16.0;
 
-struct ExtractorConfig {
-  int max_width = 1920;
-  int max_height = 1080;
-  // Colour of markers 1..5 from the base (the geometry's marker_colors).
-  std::array<PixelClass, kNumMarkers> marker_classes{
-      {PixelClass::Blue, PixelClass::Yellow, PixelClass::Blue, PixelClass::Yellow, PixelClass::Blue}};
-  std::int32_t min_region_area = 12;        // pixels; smaller components are noise
-  double max_link_angle_rad = 1.0471975511965976;  // 60 deg: the skeleton's largest turn per link
-  double adjacency_factor = 1.35;           // centroid distance <= factor * (sum of half extents) + slack
-  double adjacency_slack_px = 3.0;
-  double level_reward = 9.0;                // log-likelihood credit of one more labelled level
-  int skeleton_samples = 40;
-  // The skeleton runs past the end markers' centroids by this many of their
-  // half extents (a stripe's end lies at ~0.87): just past the end boundaries.
-  double skeleton_extension = 1.3;
-  double edge_search_min = 0.35;            // edge search window along the normal, in local half widths
-  double edge_search_max = 1.9;
-  // Outward correction of the gradient maximum: the tube's shading falls off
-  // towards the silhouette, which pulls the maximum inwards (measured on
-  // rendered frames, docs/vision.md).
-  double edge_offset_px = 0.3;
-  double tukey_c = 1.5;
-  int irls_iterations = 10;
-  int irls_scale_iterations = 4;            // the MAD scale is re-estimated during the first ones only (1..irls_iterations)
-  int profile_samples = 160;                // chroma profile samples along each border
-  // The profiles are read along curves parallel to the border, from this far
-  // inside to profile_max_inset times the tube's half width (see find_corners).
-  double profile_min_inset_px = 3.0;
-  double profile_max_inset = 1.1;
-  // Stage 4 refits each border locally, on the edge points within this many
-  // tube widths of the corner.
-  double local_border_window = 1.5;
-  // At an end boundary the local fit keeps the edge points on the marker's
-  // side, and at most this far beyond.
-  double end_margin_px = 2.0;
-  // Corners of lower confidence are not reported (docs/vision.md: below ~0.45
-  // most are misplaced).
-  double min_corner_confidence = 0.45;
-  double orientation_weight = 0.0;          // log-likelihood of the dark-shaft / bright-grasper cue
-  // Stage 1 classifies every classify_step-th pixel in x and y (1 or 2) and
-  // builds the regions on that grid (moments scaled back to pixels); the
-  // class image stays full size (each grid class fills its step x step
-  // block) and stages 3-4 read the full-resolution RGB image. 0 = auto: 2
-  // when the grid still has at least as many points as a PAL 720x576 frame
-  // (kAutoStepMinPixels, e.g. 1920x1080), else 1 (docs/vision.md).
-  int classify_step = 0;
-  // Model-guided corners (refine_corners, docs/vision.md).
+// The model-guided fits' part of ExtractorConfig (refine_corners,
+// fit_pose_to_image, read_motion_streak, fit_channel_to_shaft,
+// fit_insertion_to_base_rim; docs/vision.md "Model-guided corners").
+struct RefinerConfig {
   int refine_arc_samples = 16;              // points of each boundary's visible arc
   double refine_arc_span = 0.8;             // share of the half arc used (its ends graze the silhouette)
   double refine_search_mm = 1.2;            // along-tube search window of the colour change, +/-
@@ -315,6 +156,20 @@ struct ExtractorConfig {
   double refine_rim_scan_range_mm = 4.0;
 };
 
+// The extractor's configuration: each stage's, and the model-guided fits'.
+// The model-guided fits also read two of the stages': the markers' colours
+// (interpretation.marker_classes: which colour change each boundary shows)
+// and the edge's outward correction (borders.edge_offset_px, on the
+// silhouette's readings). Stage 4's local borders have their own IRLS
+// parameters (corners.tukey_c, ...), stage 3's by default.
+struct ExtractorConfig {
+  RegionsConfig regions{};
+  InterpretationConfig interpretation{};
+  BordersConfig borders{};
+  CornersConfig corners{};
+  RefinerConfig refiner{};
+};
+
 // What fit_pose_to_image did.
 struct ImageFitSummary {
   int iterations = 0;
@@ -349,12 +204,6 @@ struct ShaftFitSummary {
   double rms_px = 0.0;     // robust RMS of their residuals
 };
 
-// The auto rule of ExtractorConfig::classify_step: step 2 from 4 x 720 x 576
-// pixels on.
-constexpr std::int64_t kAutoStepMinPixels = std::int64_t{4} * 720 * 576;
-// The step stage 1 uses for an image of this size (resolves 0 = auto).
-int classify_step_for(int configured_step, int width, int height) noexcept;
-
 namespace detail {
 class BlurredEdgeScratch;  // src/blurred_edge.hpp
 }  // namespace detail
@@ -368,18 +217,19 @@ class FeatureExtractor {
   FeatureExtractor& operator=(const FeatureExtractor&) = delete;
   FeatureExtractor(FeatureExtractor&&) = delete;
   FeatureExtractor& operator=(FeatureExtractor&&) = delete;
-  // Allocates every buffer (start-up only). The model and camera are used for
-  // the model-predicted priors; the colour model builds the lookup table.
+  // Creates the four stages and allocates every buffer (start-up only); the
+  // colour model builds stage 1's lookup table.
   static Result<std::unique_ptr<FeatureExtractor>, VisionError> create(const ExtractorConfig& config,
                                                                        const ColorModel& colors) noexcept;
 
-  // Stage 1. Also keeps the class image for stage 3 and the overlay.
+  // Stage 1 (RegionFinder), on a new frame: the results of the last one
+  // are cleared. Also keeps the class image for stage 3 and the overlay.
   Status<VisionError> find_regions(const ImageView& image) noexcept;
-  // Stage 2, with the given priors.
+  // Stage 2 (Interpreter) on stage 1's regions, with the given priors.
   Status<VisionError> interpret(const MarkerPriors& priors) noexcept;
-  // Stage 3.
+  // Stage 3 (BorderFitter) on the same frame.
   Status<VisionError> fit_borders(const ImageView& image) noexcept;
-  // Stage 4.
+  // Stage 4 (CornerFinder) on the same frame.
   Status<VisionError> find_corners(const ImageView& image) noexcept;
   // After a first pose r (ours, not the paper's): each boundary's circle is
   // moved along the tube to where its visible arc meets the colour change in
@@ -485,57 +335,29 @@ class FeatureExtractor {
   Status<VisionError> extract(const ImageView& image, const MarkerPriors& priors) noexcept;
 
   const Extraction& result() const noexcept { return result_; }
-  const ClassifierLut& lut() const noexcept { return lut_; }
+  const ClassifierLut& lut() const noexcept { return regions_->lut(); }
   const ColorModel& colors() const noexcept { return colors_; }
   const ExtractorConfig& config() const noexcept { return config_; }
   // Class of each pixel of the last frame (row-major, width() per row).
-  const std::uint8_t* class_image() const noexcept { return classes_.get(); }
+  const std::uint8_t* class_image() const noexcept { return regions_->class_image(); }
   // The grid step stage 1 used on the last frame (1 = every pixel).
-  int classify_step() const noexcept { return step_; }
-  int width() const noexcept { return width_; }
-  int height() const noexcept { return height_; }
+  int classify_step() const noexcept { return regions_->classify_step(); }
+  int width() const noexcept { return regions_->width(); }
+  int height() const noexcept { return regions_->height(); }
+  // The stages themselves.
+  const RegionFinder& region_finder() const noexcept { return *regions_; }
+  const Interpreter& interpreter() const noexcept { return *interpreter_; }
+  const BorderFitter& border_fitter() const noexcept { return *border_fitter_; }
+  const CornerFinder& corner_finder() const noexcept { return *corner_finder_; }
 
  private:
-  struct Run {
-    std::int32_t parent = 0;
-    std::int16_t y = 0;
-    std::int16_t x0 = 0;  // first pixel
-    std::int16_t x1 = 0;  // one past the last pixel
-    std::uint8_t cls = 0;
-  };
-  std::int32_t find_root(std::int32_t run) noexcept;
-  // Stage 1's row work: classes of `count` pixels `step` apart into `out`,
-  // then the row's runs (grid coordinates) appended from run_count.
-  void classify_row(const std::uint8_t* px, int count, int step, std::uint8_t* out) const noexcept;
-  bool cut_runs(const std::uint8_t* classes, int count, int grid_y, std::int32_t& run_count) noexcept;
-  // Mean luminance of a 5x5 patch, -1 outside the image.
-  double patch_luminance(double x, double y) const noexcept;
-  // Orientation cue of a chain: the shaft before marker 1 is dark, the
-  // grasper after marker 5 is bright.
-  double orientation_log(const Interpretation& hyp) const noexcept;
-  void select_regions(std::size_t candidate_count) noexcept;
-  // Stage 1's steps (find_regions): the grid's classes and runs, joined into
-  // 8-connected components (false: the runs overflowed); the joins of a
-  // row's runs [row_begin, row_end) with the previous row's of the same
-  // class; the components of at least the minimum area into candidates_,
-  // with their raw moment sums (`overflow`: more than kMaxCandidates); one
-  // run's sums; and the sums turned into pixel moments and shapes, the
-  // candidates still large enough first (returns how many).
-  bool classify_and_label(const ImageView& image, int step, std::int32_t& run_count) noexcept;
-  void join_with_previous_row(std::int32_t row_begin, std::int32_t row_end, std::int32_t prev_begin,
-                              std::int32_t prev_end) noexcept;
-  std::size_t accumulate_candidates(std::int32_t run_count, int step, bool& overflow) noexcept;
-  static void add_run_moments(const Run& r, Region& reg) noexcept;
-  std::size_t finish_candidates(std::size_t candidate_count, int step) noexcept;
-
   ExtractorConfig config_{};
   ColorModel colors_{};
-  ClassifierLut lut_{};
-  std::unique_ptr<std::uint8_t[]> classes_;
-  std::unique_ptr<Run[]> runs_;
-  std::unique_ptr<std::int32_t[]> region_of_root_;
-  std::unique_ptr<Region[]> candidates_;
-  std::unique_ptr<std::uint8_t[]> grid_row_;  // one row of grid classes (step > 1)
+  // The four stages.
+  std::unique_ptr<RegionFinder> regions_;
+  std::unique_ptr<Interpreter> interpreter_;
+  std::unique_ptr<BorderFitter> border_fitter_;
+  std::unique_ptr<CornerFinder> corner_finder_;
   // Chamfer distance (3-4 weights: 3 per pixel step) of every pixel to the
   // nearest blue [0] and yellow [1] pixel of the class image, capped;
   // computed by fit_pose_to_classes once per frame.
@@ -547,53 +369,8 @@ class FeatureExtractor {
   std::array<int, 4> distance_box_{};  // x0, y0, x1, y1 (inclusive) where the distances were computed
   void compute_class_distances() noexcept;
   double class_distance_px(int colour, double x, double y) const noexcept;
-  std::int32_t max_runs_ = 0;
-  int width_ = 0;
-  int height_ = 0;
-  int step_ = 1;
   Extraction result_{};
-  std::array<Border, 2> local_borders_{};  // stage 4's borders around one boundary
-  ImageView image_{};  // the frame of find_regions(), for the orientation cue
-  // Stage 4's chroma profiles [side][inset][sample].
-  std::array<std::array<std::array<double, kMaxProfileSamples>, kProfileInsets>, 2> profile_score_{};
-  std::array<std::array<std::array<double, kMaxProfileSamples>, kProfileInsets>, 2> profile_margin_{};
-  std::array<std::array<std::array<bool, kMaxProfileSamples>, kProfileInsets>, 2> profile_valid_{};
 };
-
-// Stage-2 priors. `generic`: the documented prior of the very first frame
-// (relative shape and distance terms, a weak position term from the model at
-// the nominal pose). `from_model`: predicted from a configuration r (e.g. the
-// encoders) through the instrument and camera models.
-MarkerPriors generic_priors(const solver::CameraModel& camera, const solver::InstrumentModel& model) noexcept;
-MarkerPriors model_priors(const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                          const solver::PoseVector& r) noexcept;
-
-// Gaussian priors per marker from the last kHistory successful frames of a
-// sequence.
-class TemporalPriors {
- public:
-  static constexpr int kHistory = 5;
-  void reset() noexcept { count_ = 0; next_ = 0; }
-  // Adds a frame whose interpretation succeeded.
-  void add(const Interpretation& interpretation) noexcept;
-  // Needs at least kMinFrames frames; otherwise returns false.
-  bool priors(MarkerPriors& out) const noexcept;
-  int frames() const noexcept { return count_; }
-  static constexpr int kMinFrames = 2;
-
- private:
-  struct Entry {
-    std::array<bool, kNumMarkers> found{};
-    std::array<Region, kNumMarkers> region{};
-  };
-  std::array<Entry, kHistory> entries_{};
-  int count_ = 0;
-  int next_ = 0;
-};
-
-// The corners as the solver wants them (pixels, presence per k).
-void corners_to_arrays(const Extraction& e, std::array<solver::Vec2, kNumCorners>& pixels,
-                       std::array<bool, kNumCorners>& present) noexcept;
 
 }  // namespace vision
 }  // namespace tcpest
