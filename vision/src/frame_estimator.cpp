@@ -182,8 +182,9 @@ FrameEstimate FrameEstimator::estimate(const ImageView& image, const FramePrior&
   if (out.solved()) {
     out.tcp_mm = model_.tcp(first.r);
     // The next frames' stage-2 priors follow the track (only a frame whose
-    // interpretation succeeded carries one).
-    if (stages.ok() || out.failed_step > EstimationStep::kInterpret) {
+    // interpretation succeeded carries one; failed_step is kSolve when
+    // every stage succeeded).
+    if (out.failed_step > EstimationStep::kInterpret) {
       temporal_.add(extractor_->result().interpretation);
     }
   }

@@ -402,7 +402,9 @@ namespace {
 // Laps the estimator's steps into the cycle record on the loop's clock.
 class StepLaps final : public vision::StepObserver {
  public:
-  StepLaps(hal::Clock& clock, CycleRecord& record) noexcept : clock_(clock), record_(record), t_(clock.now_ns()) {}
+  // `start_ns`: the clock's reading the first step is timed from.
+  StepLaps(hal::Clock& clock, CycleRecord& record, std::int64_t start_ns) noexcept
+      : clock_(clock), record_(record), t_(start_ns) {}
   void step_done(vision::EstimationStep step) noexcept override {
     const std::int64_t now = clock_.now_ns();
     record_.step_ns[static_cast<std::size_t>(index_of(step_of(step)))] += now - t_;
@@ -419,8 +421,11 @@ class StepLaps final : public vision::StepObserver {
 
 std::int64_t Executive::run_pipeline() noexcept {
   FeaturePipeline& pipeline = *parts_.pipeline;
-  choose_prior(parts_.clock->now_ns());
-  StepLaps laps(*parts_.clock, record_);
+  // One reading for the prior's freshness and the first step's lap (the
+  // prior's choice is timed with classify, as before).
+  const std::int64_t now_ns = parts_.clock->now_ns();
+  choose_prior(now_ns);
+  StepLaps laps(*parts_.clock, record_, now_ns);
   const vision::FrameEstimate e = pipeline.estimate(frame_view_.view(), prior_, laps);
   if (!e.extraction_ok) {
     record_.failed_stage = index_of(step_of(e.failed_step));
