@@ -13,7 +13,8 @@ Test sources are every .cpp/.hpp/.h/.cc file in a `test` folder or under
 
 Fails (exit 1), naming them, on: a requirement no test verifies, a test
 naming an unknown requirement, a malformed or duplicated requirement id, a
-marker that is not directly above a test.
+marker that is not directly above a test, a design note (docs/*.md)
+naming an unknown requirement.
 
     toolchain/trace.py                       check
     toolchain/trace.py --matrix              check, then print the trace matrix (Markdown)
@@ -47,6 +48,7 @@ REQ_ID = re.compile(r"^REQ-(" + "|".join(UNITS) + r")-([0-9]{3})$")
 TEST_LINE = re.compile(r"^\s*(TEST|TEST_F|TEST_P|TYPED_TEST|TYPED_TEST_P)\(\s*(\w+)\s*,\s*(\w+)\s*\)")
 MARKER = re.compile(r"^\s*//\s*Verifies:\s*(.*?)\s*$")
 COMMENT = re.compile(r"^\s*//")
+DOC_REFERENCE = re.compile(r"\bREQ-[A-Z]+-[0-9]+\b")
 
 
 class Requirement:
@@ -142,6 +144,19 @@ def read_markers(path, errors):
     return traced
 
 
+def check_doc_references(requirements, errors):
+    """Every requirement id another design note names (safety.md, ...) exists."""
+    docs = os.path.join(ROOT, "docs")
+    for name in sorted(os.listdir(docs)):
+        if not name.endswith(".md") or name in ("requirements.md", "trace.md"):
+            continue
+        with open(os.path.join(docs, name), encoding="utf-8") as handle:
+            for number, line in enumerate(handle, start=1):
+                for req_id in DOC_REFERENCE.findall(line):
+                    if req_id not in requirements:
+                        errors.append("docs/%s:%d: names unknown requirement %s" % (name, number, req_id))
+
+
 def trace(errors):
     requirements = read_requirements(errors)
     for path in test_sources():
@@ -151,6 +166,7 @@ def trace(errors):
                     errors.append("%s:%d: %s names unknown requirement %s" % (path, line, test, req_id))
                 elif (test, path) not in requirements[req_id].tests:
                     requirements[req_id].tests.append((test, path))
+    check_doc_references(requirements, errors)
     for requirement in requirements.values():
         if not requirement.tests:
             errors.append("%s:%d: %s has no verifying test"
