@@ -11,7 +11,6 @@ namespace vision {
 namespace detail {
 namespace {
 
-// Verifies: REQ-VISION-005
 TEST(RobustStep, TheCutIsThreeMadScalesWithAFloor) {
   double spread[5] = {4.0, 1.0, 2.0, 3.0, 5.0};  // median 3
   EXPECT_NEAR(tukey_cut_px(spread, 5, 0.3), 3.0 * 1.4826 * 3.0, 1e-12);
@@ -19,7 +18,6 @@ TEST(RobustStep, TheCutIsThreeMadScalesWithAFloor) {
   EXPECT_DOUBLE_EQ(tukey_cut_px(agreeing, 4, 1.0), 3.0);
 }
 
-// Verifies: REQ-VISION-005
 TEST(RobustStep, TukeyWeightIsOneAtZeroAndZeroFromTheCut) {
   const RobustNormalEquations<2> equations(3.0);
   EXPECT_DOUBLE_EQ(equations.weight(0.0), 1.0);
