@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Every test and check of tcpest, as CI runs it: installs what is missing,
 # builds (release, sanitizers, clang, aarch64 cross), runs the unit and
-# integration tests, the static analysers, and the vcan tests (on the host
-# or in a guest: tests/vcan/README.md). `--quick` runs only the release build
-# and its tests.
+# integration tests, the static analysers, the requirements trace, and the
+# vcan tests (on the host or in a guest: tests/vcan/README.md). `--quick`
+# runs only the release build and its tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source toolchain/deps.sh
@@ -21,6 +21,9 @@ cmake --build build/default -j"$jobs"
 if [ "$quick" -eq 0 ]; then
   step "static analysis"
   toolchain/lint.sh build/default
+
+  step "requirements trace (docs/requirements.md, the tests' Verifies markers, docs/trace.md)"
+  python3 toolchain/trace.py --check-matrix docs/trace.md
 
   step "sanitizer build (ASan + UBSan) and its tests"
   cmake --preset asan >/dev/null

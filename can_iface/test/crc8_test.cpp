@@ -10,11 +10,13 @@ namespace tcpest {
 namespace can {
 namespace {
 
+// Verifies: REQ-CAN-004
 TEST(Crc8, CatalogueCheckValue) {
   const char* text = "123456789";
   EXPECT_EQ(crc8_sae_j1850(reinterpret_cast<const std::uint8_t*>(text), std::strlen(text)), 0x4BU);
 }
 
+// Verifies: REQ-CAN-004
 TEST(Crc8, EmptyInputIsInitXorFinal) { EXPECT_EQ(crc8_sae_j1850(nullptr, 0U), 0x00U); }
 
 // Bit-by-bit reference, independent of the table.
@@ -29,6 +31,7 @@ std::uint8_t reference_crc(const std::uint8_t* bytes, std::size_t length) {
   return static_cast<std::uint8_t>(crc ^ 0xFF);
 }
 
+// Verifies: REQ-CAN-004
 TEST(Crc8, MatchesBitwiseReferenceOnAllSingleBytes) {
   for (int value = 0; value < 256; ++value) {
     const auto byte = static_cast<std::uint8_t>(value);
@@ -36,6 +39,7 @@ TEST(Crc8, MatchesBitwiseReferenceOnAllSingleBytes) {
   }
 }
 
+// Verifies: REQ-CAN-004
 TEST(Crc8, E2eCoversCobIdLowByteFirstThenBytes0To6) {
   Frame frame;
   frame.id = 0x190;

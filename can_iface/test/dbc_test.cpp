@@ -129,7 +129,9 @@ constexpr std::uint8_t kNode = kDefaultNodeId;
 void check_random_values(DbcTest& t, int rounds);
 void check_small_messages(DbcTest& t);
 
+// Verifies: REQ-CAN-013
 TEST_F(DbcTest, EncodersAgreeWithTheDbcOnRandomValues) { check_random_values(*this, 200); }
+// Verifies: REQ-CAN-013
 TEST_F(DbcTest, SmallMessagesAgreeWithTheDbc) { check_small_messages(*this); }
 
 void check_random_values(DbcTest& t, int rounds) {
@@ -208,6 +210,7 @@ void check_small_messages(DbcTest& t) {
   t.expect_signals(frame, {});
 }
 
+// Verifies: REQ-CAN-013
 TEST_F(DbcTest, SaturatedValuesDecodeToTheRangeLimits) {
   Frame frame;
   TcpMessage tcp{1e6, -1e6, 0.0, EstimateStatus::kValid, 0};
@@ -216,6 +219,7 @@ TEST_F(DbcTest, SaturatedValuesDecodeToTheRangeLimits) {
                          {"TCP_Status", 3}, {"TCP_CRC", e2e_crc(frame.id, frame)}});
 }
 
+// Verifies: REQ-CAN-013
 TEST_F(DbcTest, EveryDbcMessageIsEncodedAndChecked) {
   checked.clear();
   check_random_values(*this, 1);

@@ -6,6 +6,7 @@ namespace tcpest {
 namespace can {
 namespace {
 
+// Verifies: REQ-CAN-004
 TEST(AliveCounter, CountsZeroToFourteenAndWraps) {
   AliveCounter counter;
   for (int i = 0; i < 45; ++i) {
@@ -13,6 +14,7 @@ TEST(AliveCounter, CountsZeroToFourteenAndWraps) {
   }
 }
 
+// Verifies: REQ-CAN-005
 TEST(E2eConfig, Validates) {
   EXPECT_TRUE(validate(E2eConfig{}).ok());
   EXPECT_FALSE(validate(E2eConfig{0, 1000}).ok());
@@ -20,6 +22,7 @@ TEST(E2eConfig, Validates) {
   EXPECT_FALSE(validate(E2eConfig{3, 0}).ok());
 }
 
+// Verifies: REQ-CAN-005
 TEST(E2eReceiver, AcceptsConsecutiveAndWrap) {
   E2eReceiver rx(E2eConfig{1, 1000000});
   std::int64_t t = 0;
@@ -29,6 +32,7 @@ TEST(E2eReceiver, AcceptsConsecutiveAndWrap) {
   EXPECT_EQ(rx.counters().accepted, 40U);
 }
 
+// Verifies: REQ-CAN-005
 TEST(E2eReceiver, RepeatIgnoredJumpIgnoredThenResynchronised) {
   E2eReceiver rx(E2eConfig{3, 1000000});
   EXPECT_TRUE(rx.check_counter(5, 0).ok());
@@ -44,6 +48,7 @@ TEST(E2eReceiver, RepeatIgnoredJumpIgnoredThenResynchronised) {
   EXPECT_EQ(rx.counters().accepted, 3U);
 }
 
+// Verifies: REQ-CAN-005
 TEST(E2eReceiver, TimeoutCountedOnceAndDropsReference) {
   E2eReceiver rx(E2eConfig{1, 100});
   EXPECT_EQ(rx.freshness(0).error(), CanError::kNoData);

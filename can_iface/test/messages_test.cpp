@@ -13,6 +13,7 @@ namespace {
 
 constexpr std::uint8_t kNode = kDefaultNodeId;
 
+// Verifies: REQ-CAN-001
 TEST(Messages, IdsFollowTheProtocolTable) {
   EXPECT_EQ(tcp_id(kNode), 0x190U);
   EXPECT_EQ(joints_id(kNode), 0x290U);
@@ -23,6 +24,7 @@ TEST(Messages, IdsFollowTheProtocolTable) {
   EXPECT_EQ(encoder_prior_id(kNode), 0x210U);
 }
 
+// Verifies: REQ-CAN-002
 TEST(Messages, TcpLayoutAndRoundTrip) {
   TcpMessage in;
   in.x_mm = -13.3;
@@ -54,6 +56,7 @@ TEST(Messages, TcpLayoutAndRoundTrip) {
   EXPECT_EQ(out.value().counter, 7U);
 }
 
+// Verifies: REQ-CAN-002
 TEST(Messages, EncoderPriorWorkedExample) {
   // docs/can-protocol.md: lambda 15.5 mm, phi 0.125 rad, theta -0.25 rad, counter 0, valid.
   EncoderPriorMessage in{15.5, 0.125, -0.25, EstimateStatus::kValid, 0};
@@ -66,6 +69,7 @@ TEST(Messages, EncoderPriorWorkedExample) {
   }
 }
 
+// Verifies: REQ-CAN-003
 TEST(Messages, SaturationClampsAndForcesInvalidStatus) {
   TcpMessage in;
   in.x_mm = 400.0;    // > 327.67
@@ -84,6 +88,7 @@ TEST(Messages, SaturationClampsAndForcesInvalidStatus) {
   EXPECT_EQ(out.value().status, EstimateStatus::kInvalid);
 }
 
+// Verifies: REQ-CAN-003
 TEST(Messages, NonFiniteValuesSaturateToZeroInvalid) {
   JointsMessage in;
   in.lambda_mm = std::numeric_limits<double>::quiet_NaN();
@@ -102,6 +107,7 @@ TEST(Messages, NonFiniteValuesSaturateToZeroInvalid) {
   EXPECT_EQ(out.value().status, EstimateStatus::kInvalid);
 }
 
+// Verifies: REQ-CAN-002
 TEST(Messages, JointsAngleScale) {
   JointsMessage in;
   in.lambda_mm = 20.0;
@@ -119,6 +125,7 @@ TEST(Messages, JointsAngleScale) {
   EXPECT_EQ(out.value().counter, 14U);
 }
 
+// Verifies: REQ-CAN-001
 TEST(Messages, RejectsBadArguments) {
   Frame frame;
   TcpMessage tcp;
@@ -133,6 +140,7 @@ TEST(Messages, RejectsBadArguments) {
   EXPECT_FALSE(encode_nmt(nmt, frame).ok());
 }
 
+// Verifies: REQ-CAN-006
 TEST(Messages, DecodersRejectWrongIdLengthCrcCounter) {
   TcpMessage tcp;
   Frame frame;
@@ -154,6 +162,7 @@ TEST(Messages, DecodersRejectWrongIdLengthCrcCounter) {
 // length damaged, the CRC sometimes made right again), into every decoder:
 // an error value or a message whose E2E bytes check, never a read past the
 // frame (the sanitizer build runs this); a length beyond 8 is refused.
+// Verifies: REQ-CAN-006
 TEST(Messages, RandomFramesAreRefusedOrCheckOut) {
   test::Mutator random(17U);
   Frame valid[3];
@@ -205,6 +214,7 @@ TEST(Messages, RandomFramesAreRefusedOrCheckOut) {
   EXPECT_GT(accepted, 1000);  // the re-protected damage still reaches the decoder's values
 }
 
+// Verifies: REQ-CAN-006
 TEST(Messages, UndefinedStatusNibbleReadsAsInvalid) {
   TcpMessage tcp;
   Frame frame;
@@ -216,6 +226,7 @@ TEST(Messages, UndefinedStatusNibbleReadsAsInvalid) {
   EXPECT_EQ(out.value().status, EstimateStatus::kInvalid);
 }
 
+// Verifies: REQ-CAN-002, REQ-CAN-003
 TEST(Messages, MechanicalRoundTripAndSaturation) {
   MechanicalMessage in;
   in.x_ch_mm = 1.23;
@@ -240,6 +251,7 @@ TEST(Messages, MechanicalRoundTripAndSaturation) {
   EXPECT_NEAR(out.value().mu_rad, 3.2767, 1e-9);
 }
 
+// Verifies: REQ-CAN-002, REQ-CAN-003
 TEST(Messages, QualityRoundTripAndSaturation) {
   QualityMessage in;
   in.corners_detected = 12;
@@ -274,6 +286,7 @@ TEST(Messages, QualityRoundTripAndSaturation) {
   EXPECT_EQ(out.value().rms_px, 0.0);
 }
 
+// Verifies: REQ-CAN-002, REQ-CAN-012
 TEST(Messages, HeartbeatEmcyNmtSync) {
   Frame frame;
   ASSERT_TRUE(encode_heartbeat(kNode, NmtState::kPreOperational, frame).ok());
@@ -322,6 +335,7 @@ TEST(Messages, HeartbeatEmcyNmtSync) {
   EXPECT_EQ(decode_sync(frame).error(), CanError::kWrongLength);
 }
 
+// Verifies: REQ-ERR-008
 TEST(Messages, EveryErrorHasAName) {
   for (int e = 0; e <= static_cast<int>(CanError::kFull); ++e) {
     EXPECT_STRNE(to_string(static_cast<CanError>(e)), "unknown error");

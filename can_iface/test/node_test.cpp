@@ -81,6 +81,7 @@ class NodeTest : public ::testing::Test {
   Node node;
 };
 
+// Verifies: REQ-CAN-008
 TEST_F(NodeTest, BootsUpIntoPreOperationalWithBootUpMessage) {
   EXPECT_EQ(node.state(), NmtState::kBootUp);
   const auto frames = collect(0);
@@ -91,6 +92,7 @@ TEST_F(NodeTest, BootsUpIntoPreOperationalWithBootUpMessage) {
   EXPECT_EQ(node.state(), NmtState::kPreOperational);
 }
 
+// Verifies: REQ-CAN-008
 TEST_F(NodeTest, HeartbeatAtItsPeriodWithoutDriftOrBurst) {
   static_cast<void>(collect(0));
   std::vector<std::int64_t> times;
@@ -112,6 +114,7 @@ TEST_F(NodeTest, HeartbeatAtItsPeriodWithoutDriftOrBurst) {
   EXPECT_EQ(collect(5100000).size(), 1U);
 }
 
+// Verifies: REQ-CAN-008
 TEST_F(NodeTest, NmtStateMachine) {
   static_cast<void>(collect(0));
   feed(nmt(NmtCommand::kStart, kNode), 1);
@@ -140,6 +143,7 @@ TEST_F(NodeTest, NmtStateMachine) {
   EXPECT_EQ(node.state(), NmtState::kPreOperational);
 }
 
+// Verifies: REQ-CAN-008
 TEST_F(NodeTest, BadNmtFramesCounted) {
   static_cast<void>(collect(0));
   Frame bad = nmt(NmtCommand::kStart, kNode);
@@ -153,6 +157,7 @@ TEST_F(NodeTest, BadNmtFramesCounted) {
   EXPECT_EQ(node.counters().nmt_unknown_command, 1U);
 }
 
+// Verifies: REQ-CAN-004, REQ-CAN-007
 TEST_F(NodeTest, PdosOnlyWhenOperationalInOrderWithCounters) {
   static_cast<void>(collect(0));
   ASSERT_TRUE(node.publish(sample_estimate()).ok());
@@ -182,6 +187,7 @@ TEST_F(NodeTest, PdosOnlyWhenOperationalInOrderWithCounters) {
   EXPECT_TRUE(collect(6000).empty());
 }
 
+// Verifies: REQ-CAN-007
 TEST_F(NodeTest, HeldRepeatsLastPoseAndInvalidWithoutOne) {
   boot_and_start();
   Estimate held;
@@ -201,6 +207,7 @@ TEST_F(NodeTest, HeldRepeatsLastPoseAndInvalidWithoutOne) {
   EXPECT_EQ(decode_quality(kNode, frames[3]).value().frame_counter, 5U);
 }
 
+// Verifies: REQ-CAN-003
 TEST_F(NodeTest, SaturatedEstimateSentAsInvalid) {
   boot_and_start();
   Estimate e = sample_estimate();
@@ -213,6 +220,7 @@ TEST_F(NodeTest, SaturatedEstimateSentAsInvalid) {
   EXPECT_EQ(node.counters().pdo_saturated, 1U);
 }
 
+// Verifies: REQ-CAN-012
 TEST_F(NodeTest, SyncModeSendsLatestOncePerSyncCoalescingFloods) {
   config.sync_mode = true;
   ASSERT_TRUE(node.configure(config).ok());
@@ -233,6 +241,7 @@ TEST_F(NodeTest, SyncModeSendsLatestOncePerSyncCoalescingFloods) {
   EXPECT_EQ(node.counters().sync_wrong_length, 1U);
 }
 
+// Verifies: REQ-CAN-010
 TEST_F(NodeTest, EncoderPriorAcceptedAndRejectedAsTheProtocolSays) {
   config.prior_e2e = E2eConfig{2, 50000};
   ASSERT_TRUE(node.configure(config).ok());
@@ -291,6 +300,7 @@ TEST_F(NodeTest, EncoderPriorAcceptedAndRejectedAsTheProtocolSays) {
   EXPECT_EQ(node.prior_counters().timeouts, 1U);
 }
 
+// Verifies: REQ-CAN-009
 TEST_F(NodeTest, FaultsRaiseAndClearEmcyWithErrorRegister) {
   boot_and_start();
   ASSERT_TRUE(node.set_fault(Fault::kCameraTimeout, true, 1234).ok());
@@ -318,6 +328,7 @@ TEST_F(NodeTest, FaultsRaiseAndClearEmcyWithErrorRegister) {
   EXPECT_EQ(node.set_fault(Fault::kPriorE2eError, true, 0).error(), CanError::kNotAllowed);
 }
 
+// Verifies: REQ-CAN-009
 TEST_F(NodeTest, BothEdgesInOneCycleEndInTheCurrentState) {
   boot_and_start();
   ASSERT_TRUE(node.set_fault(Fault::kTrackingLost, true, 1).ok());
@@ -337,6 +348,7 @@ TEST_F(NodeTest, BothEdgesInOneCycleEndInTheCurrentState) {
   EXPECT_EQ(decode_emcy(kNode, frames[1]).value().detail, 3U);
 }
 
+// Verifies: REQ-CAN-009
 TEST_F(NodeTest, NoEmcyWhileStopped) {
   boot_and_start();
   feed(nmt(NmtCommand::kStop, kNode), 1);
@@ -346,6 +358,7 @@ TEST_F(NodeTest, NoEmcyWhileStopped) {
   EXPECT_TRUE(node.fault_active(Fault::kSolverFailed));
 }
 
+// Verifies: REQ-CAN-009
 TEST_F(NodeTest, EveryFaultHasATableEntry) {
   for (std::uint8_t id = 1; id <= kFaultCount; ++id) {
     const FaultInfo* info = fault_info(static_cast<Fault>(id));
@@ -356,6 +369,7 @@ TEST_F(NodeTest, EveryFaultHasATableEntry) {
   }
 }
 
+// Verifies: REQ-CAN-010
 TEST_F(NodeTest, PriorTimeoutFaultWhenExpected) {
   config.prior_expected = true;
   config.prior_e2e = E2eConfig{2, 50000};
@@ -371,6 +385,7 @@ TEST_F(NodeTest, PriorTimeoutFaultWhenExpected) {
   EXPECT_EQ(decode_emcy(kNode, frames[0]).value().error_code, 0x0000U);
 }
 
+// Verifies: REQ-CAN-011
 TEST_F(NodeTest, FloodIsBoundedAndCounted) {
   boot_and_start();
   std::vector<Frame> flood(5000);
@@ -399,6 +414,7 @@ TEST_F(NodeTest, FloodIsBoundedAndCounted) {
   EXPECT_EQ(decode_emcy(kNode, frames[0]).value().error_code, 0x0000U);
 }
 
+// Verifies: REQ-CAN-011
 TEST_F(NodeTest, UnknownIdsAndOwnIdsIgnored) {
   boot_and_start();
   Frame own;
@@ -412,6 +428,7 @@ TEST_F(NodeTest, UnknownIdsAndOwnIdsIgnored) {
   EXPECT_EQ(node.encoder_prior(3).error(), CanError::kNoData);
 }
 
+// Verifies: REQ-CAN-001
 TEST_F(NodeTest, RejectsInvalidConfiguration) {
   NodeConfig bad;
   bad.node_id = 0;
@@ -426,6 +443,7 @@ TEST_F(NodeTest, RejectsInvalidConfiguration) {
   EXPECT_FALSE(node.configure(bad).ok());
 }
 
+// Verifies: REQ-CAN-007
 TEST_F(NodeTest, TxBatchFullKeepsTheRestPending) {
   boot_and_start();
   std::size_t raised = 0;
@@ -445,6 +463,7 @@ TEST_F(NodeTest, TxBatchFullKeepsTheRestPending) {
   EXPECT_EQ(batch.size() - 28U + next.size(), raised);
 }
 
+// Verifies: REQ-LOOP-006
 TEST_F(NodeTest, CyclicPathDoesNotAllocate) {
   boot_and_start();
   const Frame in[3] = {prior(0, 1.0), sync_frame(), prior(1, 2.0)};
@@ -461,6 +480,7 @@ TEST_F(NodeTest, CyclicPathDoesNotAllocate) {
   EXPECT_EQ(scope.count(), 0U);
 }
 
+// Verifies: REQ-SOLVER-008
 TEST(ClassifyEstimate, DegradedThresholds) {
   const DegradedThresholds t{8, 2.0};
   EXPECT_EQ(classify_estimate(12, 0.5, t), EstimateStatus::kValid);

@@ -65,6 +65,7 @@ double max_ulp_error2(std::uint64_t seed, double lo, double hi, F f, R reference
   return worst;
 }
 
+// Verifies: REQ-MODEL-006
 TEST(Dmath, SinAndCosWithinOneUlpOverTheAnglesUsedAndBeyond) {
   EXPECT_LT(max_ulp_error(1U, -7.0, 7.0, dmath::sin, [](long double x) { return std::sin(x); }), 1.0);
   EXPECT_LT(max_ulp_error(2U, -7.0, 7.0, dmath::cos, [](long double x) { return std::cos(x); }), 1.0);
@@ -83,6 +84,7 @@ TEST(Dmath, SinAndCosWithinOneUlpOverTheAnglesUsedAndBeyond) {
 
 // Beyond the accurate range the reduction is only deterministic: still a
 // sine's value, the same on every machine (the checksum below covers it).
+// Verifies: REQ-MODEL-006
 TEST(Dmath, HugeAnglesStayWithinTheSinesRange) {
   for (const double x : {1e7, -3.5e9, 1e300}) {
     EXPECT_LE(std::fabs(dmath::sin(x)), 1.0) << x;
@@ -90,6 +92,7 @@ TEST(Dmath, HugeAnglesStayWithinTheSinesRange) {
   }
 }
 
+// Verifies: REQ-MODEL-006
 TEST(Dmath, ExpAndLogWithinOneUlp) {
   EXPECT_LT(max_ulp_error(5U, -700.0, 700.0, dmath::exp, [](long double x) { return std::exp(x); }), 1.0);
   EXPECT_LT(max_ulp_error(6U, -2.0, 2.0, dmath::exp, [](long double x) { return std::exp(x); }), 1.0);
@@ -98,6 +101,7 @@ TEST(Dmath, ExpAndLogWithinOneUlp) {
   EXPECT_LT(max_ulp_error(9U, 1e-6, 1.0, dmath::log, [](long double x) { return std::log(x); }), 1.0);
 }
 
+// Verifies: REQ-MODEL-006
 TEST(Dmath, ArcFunctionsWithinTwoUlp) {
   EXPECT_LT(max_ulp_error(10U, -3.0, 3.0, dmath::atan, [](long double x) { return std::atan(x); }), 1.0);
   EXPECT_LT(max_ulp_error(11U, -1e6, 1e6, dmath::atan, [](long double x) { return std::atan(x); }), 1.0);
@@ -108,6 +112,7 @@ TEST(Dmath, ArcFunctionsWithinTwoUlp) {
             2.0);
 }
 
+// Verifies: REQ-MODEL-006
 TEST(Dmath, HypotAndPowWithinTheirStatedErrors) {
   EXPECT_LT(max_ulp_error2(16U, -2000.0, 2000.0, dmath::hypot,
                            [](long double x, long double y) { return std::hypot(x, y); }),
@@ -127,6 +132,7 @@ TEST(Dmath, HypotAndPowWithinTheirStatedErrors) {
   EXPECT_LT(worst_relative, 2e-14);
 }
 
+// Verifies: REQ-MODEL-006
 TEST(Dmath, SpecialValuesFollowC) {
   EXPECT_TRUE(std::isnan(dmath::sin(kInf)));
   EXPECT_TRUE(std::isnan(dmath::cos(kNaN)));
@@ -192,6 +198,7 @@ std::uint64_t checksum2(std::uint64_t seed, double lo, double hi, double (*f)(do
   return sum;
 }
 
+// Verifies: REQ-MODEL-006
 TEST(Dmath, TheSameBitsOnEveryMachine) {
   EXPECT_EQ(checksum(21U, -10.0, 10.0, dmath::sin), 0x5634DD9B0F11B449ULL);
   EXPECT_EQ(checksum(22U, -10.0, 10.0, dmath::cos), 0x4D9D8316CCAA4158ULL);

@@ -63,6 +63,7 @@ bool valid_string_contents(const std::string& s) {
 
 // The error line of `tcpest estimate --json` for an unreadable image whose
 // name holds a quote printed the name raw: the line was not JSON.
+// Verifies: REQ-ERR-009
 TEST(JsonEscape, QuotesBackslashesAndControlsAreEscaped) {
   EXPECT_EQ(escaped("e\"vil.jpg"), "e\\\"vil.jpg");
   EXPECT_EQ(escaped("C:\\images\\a.jpg"), "C:\\\\images\\\\a.jpg");
@@ -76,6 +77,7 @@ TEST(JsonEscape, QuotesBackslashesAndControlsAreEscaped) {
   EXPECT_EQ(escaped_size(nullptr), 1U);
 }
 
+// Verifies: REQ-ERR-009
 TEST(JsonEscape, Utf8PassesAndEveryOtherByteIsTheReplacementCharacter) {
   EXPECT_EQ(escaped("caf\xC3\xA9 \xE2\x82\xAC \xF0\x9F\x98\x80"), "caf\xC3\xA9 \xE2\x82\xAC \xF0\x9F\x98\x80");
   EXPECT_EQ(escaped("\xFF"), "\\ufffd");
@@ -86,6 +88,7 @@ TEST(JsonEscape, Utf8PassesAndEveryOtherByteIsTheReplacementCharacter) {
   EXPECT_EQ(escaped("\xE2\x82x"), "\\ufffd\\ufffdx");
 }
 
+// Verifies: REQ-ERR-009
 TEST(JsonEscape, TruncationNeverCutsAnEscapeOrACharacter) {
   const std::string text = "ab\"\xE2\x82\xAC\x01z";
   const std::string whole = escaped(text);
@@ -106,6 +109,7 @@ TEST(JsonEscape, TruncationNeverCutsAnEscapeOrACharacter) {
 
 // Any bytes at all (a file name is any bytes but '/' and NUL): the escaped
 // text is valid JSON string contents, which the project's reader takes.
+// Verifies: REQ-ERR-009
 TEST(JsonEscape, AnyBytesGiveAValidJsonString) {
   std::uint64_t state = 73U;
   const auto next = [&state]() {

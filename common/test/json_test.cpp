@@ -18,6 +18,7 @@ struct Parsed {
   bool parse(const char* text) { return doc.parse(text, std::strlen(text)).ok(); }
 };
 
+// Verifies: REQ-ERR-001
 TEST(Json, ReadsNestedValues) {
   Parsed p;
   ASSERT_TRUE(p.parse(R"({"corners": [[1.5, -2e3], null, [3, 4]], "prior": [0.1, 0.2, 0.3], "s": "a\"b"})"));
@@ -44,6 +45,7 @@ TEST(Json, ReadsNestedValues) {
   EXPECT_FALSE(p.doc.member(p.doc.root(), "missing").ok());
 }
 
+// Verifies: REQ-ERR-001
 TEST(Json, RefusesMalformedText) {
   const char* bad[] = {"",         "{",          "[1, 2",       "{\"a\" 1}",  "[1,]x",  "[01x]",
                        "{\"a\":}", "[1 2]",      "\"open",      "[nul]",      "{1: 2}", "[1] [2]",
@@ -54,6 +56,7 @@ TEST(Json, RefusesMalformedText) {
   }
 }
 
+// Verifies: REQ-ERR-001
 TEST(Json, ReportsTooManyTokensWithoutOverrun) {
   Token tokens[4];
   Document doc(tokens, 4U);
@@ -67,6 +70,7 @@ TEST(Json, ReportsTooManyTokensWithoutOverrun) {
 // object, a key, a string, a number, a literal, an array): always
 // TooManyTokens, never a write past the array; one more token and it
 // parses. Lookups on a token of the wrong type are refused.
+// Verifies: REQ-ERR-001
 TEST(Json, RunsOutOfTokensAtAnyTokenCleanlyAndRefusesWrongTypes) {
   const char* text = R"({"a": "s", "b": [1, true, null], "c": {"d": []}})";
   std::size_t needed = 0U;
@@ -105,6 +109,7 @@ TEST(Json, RunsOutOfTokensAtAnyTokenCleanlyAndRefusesWrongTypes) {
   EXPECT_EQ(doc.member(needed + 5U, "a").error(), LookupError::WrongType);  // beyond the tokens
 }
 
+// Verifies: REQ-ERR-001
 TEST(Json, RefusesNonFiniteNumbers) {
   Parsed p;
   ASSERT_TRUE(p.parse("[1e999]"));
@@ -115,6 +120,7 @@ TEST(Json, RefusesNonFiniteNumbers) {
 // inside the text, or every token can be walked and read (numbers, strings
 // into a short buffer, members, elements) without reading past the text or
 // the token array (the sanitizer build runs this).
+// Verifies: REQ-ERR-001
 TEST(Json, DamagedTextIsRefusedOrSafeToWalk) {
   const std::string valid =
       R"({"format": "x-1", "corners": [[1.5, -2e3], null, [3, 4]], "prior": [0.1, 0.2, 0.3], "s": "a\"b\\u00e9",)"

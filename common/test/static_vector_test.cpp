@@ -5,6 +5,7 @@
 namespace tcpest {
 namespace {
 
+// Verifies: REQ-ERR-008
 TEST(StaticVector, ReportsFullInsteadOfGrowing) {
   StaticVector<int, 3> v;
   EXPECT_TRUE(v.push_back(1));

@@ -45,6 +45,7 @@ TEST(YamlLite, ReadsOpenCvFileStorage) {
   EXPECT_DOUBLE_EQ(m[8], 1.0);
 }
 
+// Verifies: REQ-ERR-001
 TEST(YamlLite, NamesLineAndFieldOfErrors) {
   ASSERT_TRUE(parse("a:\n  b: 1\n  c: x\nd: [1, 2]\n"));
   const auto c = doc().number("a.c");
@@ -63,6 +64,7 @@ TEST(YamlLite, NamesLineAndFieldOfErrors) {
   EXPECT_STREQ(text, "test.yaml:3: field 'a.c': expected a finite number");
 }
 
+// Verifies: REQ-ERR-001
 TEST(YamlLite, FindsUnusedKeys) {
   ASSERT_TRUE(parse("s:\n  known: 1\n  typo: 2\nother:\n  x: 1\n"));
   ASSERT_TRUE(doc().number("s.known").ok());
@@ -72,6 +74,7 @@ TEST(YamlLite, FindsUnusedKeys) {
   EXPECT_EQ(unused->line, 3U);
 }
 
+// Verifies: REQ-ERR-001
 TEST(YamlLite, RefusesWhatItDoesNotSupport) {
   const char* bad[] = {"a: [1, 2\n",      "\ta: 1\n",        "a: &x 1\n",       "a: |\n  text\n",
                        "a: 1\n  b: 2\n",  "just text\n",     "a: 1\na: 2\n",    "a:\n  - b: 1\n",
@@ -84,6 +87,7 @@ TEST(YamlLite, RefusesWhatItDoesNotSupport) {
 // An unclosed '[' used to be reported lines later, at the next key whose
 // value is a sequence, as "nested sequences are not supported": now at the
 // '['s own line, as what it is. A flow sequence over several lines still reads.
+// Verifies: REQ-ERR-001
 TEST(YamlLite, AnUnclosedFlowSequenceIsReportedAtItsBracket) {
   const struct {
     const char* text;
@@ -115,6 +119,7 @@ TEST(YamlLite, EmptyMappingAndNesting) {
   EXPECT_TRUE(doc().find("a")->is_mapping);
 }
 
+// Verifies: REQ-ERR-001
 TEST(YamlLite, LoadNamesMissingFile) {
   const auto status = doc().load("/nonexistent/cam.yaml");
   ASSERT_FALSE(status.ok());

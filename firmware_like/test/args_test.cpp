@@ -38,6 +38,7 @@ TEST(Args, EqualsFormWorksToo) {
   EXPECT_DOUBLE_EQ(r[6], 1.0);
 }
 
+// Verifies: REQ-ERR-004
 TEST(Args, RefusesUnknownOptionsAndMissingValues) {
   char a0[] = "x", a1[] = "--bogus";
   char* argv1[] = {a0, a1};
@@ -58,6 +59,7 @@ TEST(Args, RefusesUnknownOptionsAndMissingValues) {
 // Every option value goes through one range check before any conversion:
 // values past the range (or past what a narrower type holds) are refused,
 // never wrapped, and `out` keeps its default.
+// Verifies: REQ-ERR-004
 TEST(Args, RangeCheckedNumbersRefuseWhatTheirUseCannotTake) {
   unsigned long long n = 7U;
   EXPECT_TRUE(parse_unsigned_in("0", 0U, 10U, n));
@@ -85,6 +87,7 @@ TEST(Args, RangeCheckedNumbersRefuseWhatTheirUseCannotTake) {
   }
 }
 
+// Verifies: REQ-ERR-004
 TEST(Args, OptionHelpersKeepTheDefaultWhenAbsentAndRefuseOutOfRange) {
   const OptionSpec specs[] = {{"frames", "N", "count"}, {"seconds", "S", "time"}, {"flag", nullptr, "flag"}};
   char a0[] = "bench", a1[] = "--frames", a2[] = "4294967296", a3[] = "--seconds=1e308";

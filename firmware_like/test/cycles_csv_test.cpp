@@ -154,6 +154,7 @@ TEST(CyclesCsv, AFailedStageAndNoTruthAreSaidSo) {
                          {"fit_disagrees", "0"}});
 }
 
+// Verifies: REQ-ERR-009
 TEST(CyclesCsv, AStreamThatRefusesTheWriteIsReported) {
   std::FILE* read_only = std::fopen("/dev/null", "r");
   ASSERT_NE(read_only, nullptr);

@@ -75,6 +75,7 @@ TEST(DemoCommand, RunsTheLoopOnTheSimulatedBusAndWritesItsOutputs) {
   EXPECT_EQ(overlays, (std::vector<std::string>{"frame_0000.png", "frame_0005.png", "frame_0010.png"}));
 }
 
+// Verifies: REQ-ERR-004
 TEST(DemoCommand, BadArgumentsAreRefusedWithTheirExitCodes) {
   const std::string dir = temp_dir();
   EXPECT_EQ(run(cmd_demo, {"demo", "--help"}), kExitOk);
@@ -112,6 +113,7 @@ TEST(BenchCommand, PrintsTheStepsPercentilesAndTheJitterComparison) {
   EXPECT_NE(printed.find("ratio p99.9 loop / bare: "), std::string::npos) << printed;
 }
 
+// Verifies: REQ-ERR-004
 TEST(BenchCommand, BadArgumentsAreRefusedWithTheirExitCodes) {
   EXPECT_EQ(run(cmd_bench, {"bench", "--help"}), kExitOk);
   EXPECT_EQ(run(cmd_bench, {"bench", "--frames", "0"}), kExitUsage);

@@ -32,6 +32,7 @@ void write_clip(const std::string& path, int w, int h, int frames) {
   ASSERT_TRUE(writer.close().ok());
 }
 
+// Verifies: REQ-HAL-005
 TEST(RunCommand, ReplaysAClipOntoTheSimulatedBusAndLogsInCandumpFormat) {
   const std::string dir = temp_dir();
   write_clip(dir + "/clip.y4m", 720, 576, 5);
@@ -76,6 +77,7 @@ void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes
 // by junk stops the run with the reason and exit 3 (it used to be millions of
 // dropped cycles, exit 0 and nothing said); so does a colour space the loop
 // cannot read, or a file with no frame.
+// Verifies: REQ-ERR-006
 TEST(RunCommand, ADamagedRecordingDropsAFrameOrStopsWithTheReason) {
   const std::string dir = temp_dir();
   write_clip(dir + "/clip.y4m", 720, 576, 4);
@@ -117,6 +119,7 @@ TEST(RunCommand, ADamagedRecordingDropsAFrameOrStopsWithTheReason) {
 // Every log write failing (a full disk) used to end in exit 0 and
 // "published 20 (errors 0)": now the summary counts the write errors and the
 // run exits 1 (docs/cli.md: a write failed).
+// Verifies: REQ-HAL-005
 TEST(RunCommand, ALogThatCannotBeWrittenIsReportedAndFailsTheRun) {
   if (::access("/dev/full", W_OK) != 0) {
     GTEST_SKIP() << "no /dev/full here";
@@ -140,6 +143,7 @@ TEST(RunCommand, ALogThatCannotBeWrittenIsReportedAndFailsTheRun) {
   EXPECT_NE(good.find("lost 0, write errors 0"), std::string::npos) << good;
 }
 
+// Verifies: REQ-ERR-004
 TEST(RunCommand, ExitCodes) {
   const std::string dir = temp_dir();
   EXPECT_EQ(run({"run", "--bogus"}), kExitUsage);

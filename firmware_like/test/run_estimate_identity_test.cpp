@@ -45,6 +45,7 @@ std::vector<LoggedFrame> frames_of(const std::string& log, const std::string& id
 // The status nibble of a TCP/JOINTS frame (byte 6, bits 4-7).
 int status_of(const LoggedFrame& f) { return std::stoi(f.data.substr(12U, 1U), nullptr, 16); }
 
+// Verifies: REQ-LOOP-005
 TEST(RunAndEstimate, SendTheSameTcpAndJointsPayloadsForTheSameSequence) {
   const std::string dir = command_test::fresh_dir("identity");
   const std::string frames = dir + "/seq";

@@ -60,6 +60,7 @@ TEST(CornersJson, ParsesCornersNullsAndPrior) {
   EXPECT_DOUBLE_EQ(in.prior[1], -0.5);
 }
 
+// Verifies: REQ-ERR-005
 TEST(CornersJson, RefusesMalformedInputWithAMessage) {
   const char* bad[] = {
       "",
@@ -81,6 +82,7 @@ TEST(CornersJson, RefusesMalformedInputWithAMessage) {
 
 // Seeded damage to a valid input line: refused with a message, or every
 // corner it marks visible and its prior finite (what the solver may take).
+// Verifies: REQ-ERR-005
 TEST(CornersJson, DamagedInputIsRefusedOrFinite) {
   const std::string valid =
       "{\"corners\": [[1, 2], null, [3.5, -4], null, [10, 20], null, null, null, null, null, null, [700, 500]],"
@@ -107,6 +109,7 @@ TEST(CornersJson, DamagedInputIsRefusedOrFinite) {
   EXPECT_GT(20000 - refused, 400);
 }
 
+// Verifies: REQ-ERR-005
 TEST(CornersJson, SolveLineHasEveryMemberAndNullsForRefusedInput) {
   solver::SolveSummary s;
   s.status = solver::SolveStatus::ConvergedGradient;
@@ -160,6 +163,7 @@ TEST(CornersJson, ProjectLineListsTwelveCornersAndTheTcp) {
 
 // project -> solve round trip through the stream, with malformed lines in
 // between: each line gets its own answer and the run goes on.
+// Verifies: REQ-ERR-005
 TEST(SolveStream, EachLineSolvedIndependentlyAndMalformedLinesReported) {
   const ModelSetup setup = default_setup();
   solver::PoseVector truth;
@@ -219,6 +223,7 @@ int run(std::initializer_list<const char*> words) {
   return -1;
 }
 
+// Verifies: REQ-ERR-004
 TEST(Commands, UsageErrorsAndHelp) {
   EXPECT_EQ(run({"project", "--help"}), kExitOk);
   EXPECT_EQ(run({"solve", "--help"}), kExitOk);
@@ -271,6 +276,7 @@ std::string write_temp(const char* name, const char* text) {
 
 // Bad calibration and configuration files are refused at load with exit 3
 // (the loaders' own tests check the file/line/field of each message).
+// Verifies: REQ-ERR-004
 TEST(Commands, RefuseBadCameraAndConfigFiles) {
   const char* head = "image_width: 720\nimage_height: 576\ncamera_matrix:\n  data: ";
   const char* tail = "\ndistortion_model: plumb_bob\ndistortion_coefficients:\n  data: [-0.32, 0.11, 0, 0, 0]\n";
@@ -294,6 +300,7 @@ TEST(Commands, RefuseBadCameraAndConfigFiles) {
 
 // NaN cannot be written in JSON; out-of-range numbers and corners far
 // outside the image reach the solver and get their status.
+// Verifies: REQ-ERR-005
 TEST(SolveStream, BadCornerValuesGetAStatusLine) {
   const ModelSetup setup = default_setup();
   std::FILE* in = std::tmpfile();
@@ -321,6 +328,7 @@ TEST(SolveStream, BadCornerValuesGetAStatusLine) {
 // (it used to come back as converged_step echoing the prior); twelve
 // identical corners, fitted only by an instrument pushed far past
 // lambda_max, give no estimate.
+// Verifies: REQ-SOLVER-005, REQ-ERR-005
 TEST(SolveStream, AbsurdPriorAndImpossibleCornersGiveNoEstimate) {
   const ModelSetup setup = default_setup();
   solver::PoseVector truth;
@@ -354,6 +362,7 @@ TEST(SolveStream, AbsurdPriorAndImpossibleCornersGiveNoEstimate) {
   EXPECT_NE(text.find("\"tcp\": null", text.find('\n', second)), std::string::npos) << text;
 }
 
+// Verifies: REQ-SOLVER-003
 TEST(PlayStudy, OneNoiseLevelGivesConsistentStatistics) {
   const ModelSetup setup = default_setup();
   static PlayStudyResult result;

@@ -84,6 +84,7 @@ std::string make_dataset(const char* name, std::uint32_t hard_cases = 0U) {
   return dir;
 }
 
+// Verifies: REQ-ERR-004
 TEST(VisionCommands, UsageErrorsAndHelp) {
   EXPECT_EQ(run({"estimate", "--help"}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--help"}), kExitOk);
@@ -102,6 +103,7 @@ TEST(VisionCommands, UsageErrorsAndHelp) {
   EXPECT_EQ(run({"evaluate", "--guided-rounds", "9", "/nonexistent-dir"}), kExitUsage);
 }
 
+// Verifies: REQ-ERR-006
 TEST(VisionCommands, EstimateGoesOnAfterABadImageAndWritesOverlays) {
   const std::string dir = make_dataset("vision_cli_estimate");
   const std::string bad = dir + "/corrupt.jpg";
@@ -370,6 +372,7 @@ TEST(VisionCommands, EvaluateTalliesFrameSuccessByInsertion) {
 // reports the prior's (what JOINTS sends and the encoders compare with).
 // Lab seed 1 frame 188 (true phi 0, theta -0.35 rad; encoders 0.09, -0.17)
 // is one whose solve ended on the other turn (phi -3.26, theta 0.31).
+// Verifies: REQ-MODEL-004
 TEST(VisionCommands, EstimateReportsTheJointsInThePriorsRepresentation) {
   const std::string dir = ::testing::TempDir() + "vision_cli_joints";
   ASSERT_EQ(run({"render", "--set", "lab", "--seed", "1", "--start", "188", "--n", "1", "--quiet", "--out", dir}),

@@ -18,6 +18,7 @@ CameraIntrinsics vectors_camera() {
   return k;
 }
 
+// Verifies: REQ-MODEL-003
 TEST(Camera, DefaultPalNeverFolds) {
   const auto cam = CameraModel::create(default_pal_camera());
   ASSERT_TRUE(cam.ok());
@@ -25,6 +26,7 @@ TEST(Camera, DefaultPalNeverFolds) {
   EXPECT_FALSE(std::isfinite(cam.value().max_r2()));
 }
 
+// Verifies: REQ-MODEL-003
 TEST(Camera, FoldingCalibrationLimitsProjection) {
   CameraIntrinsics k = default_pal_camera();
   k.k2 = 0.0;  // 1 - 0.96 s = 0 at s = 1/0.96
@@ -41,6 +43,7 @@ TEST(Camera, FoldingCalibrationLimitsProjection) {
   EXPECT_FALSE(cam.value().undistort(Vec2(k.cx + 0.99 * k.fx, k.cy), n));
 }
 
+// Verifies: REQ-MODEL-005
 TEST(Camera, RefusesBadIntrinsics) {
   CameraIntrinsics k = default_pal_camera();
   k.fx = 0.0;
@@ -55,6 +58,7 @@ TEST(Camera, RefusesBadIntrinsics) {
 
 // Finite but absurd intrinsics are refused by the model itself, not only by
 // the file loader.
+// Verifies: REQ-MODEL-005
 TEST(Camera, RefusesAbsurdButFiniteIntrinsics) {
   const double focal[] = {1e308, 1e-300, 0.5, 1.0001e5};
   for (double f : focal) {
@@ -83,6 +87,7 @@ TEST(Camera, RefusesAbsurdButFiniteIntrinsics) {
   EXPECT_TRUE(CameraModel::create(k).ok());
 }
 
+// Verifies: REQ-MODEL-002
 TEST(Camera, JacobianMatchesCentralDifferences) {
   const auto cam = CameraModel::create(vectors_camera());
   ASSERT_TRUE(cam.ok());

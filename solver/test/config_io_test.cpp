@@ -30,6 +30,7 @@ const char* kGood =
     "  data: [400, 0, 359.5, 0, 400, 287.5, 0, 0, 1]\ndistortion_model: plumb_bob\n"
     "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [-0.32, 0.11, 0, 0, 0]\n";
 
+// Verifies: REQ-ERR-002
 TEST(ConfigIo, ReadsShippedFiles) {
   const auto cam = load_camera_info(TCPEST_TEST_DATA_DIR "/../../config/pal_camera.yaml", scratch());
   ASSERT_TRUE(cam.ok());
@@ -41,6 +42,7 @@ TEST(ConfigIo, ReadsShippedFiles) {
   EXPECT_DOUBLE_EQ(geo.value().boundaries_mm[3], 11.1);
 }
 
+// Verifies: REQ-ERR-002
 TEST(ConfigIo, ReadsAGoodCamera) {
   const auto cam = camera_from(kGood);
   ASSERT_TRUE(cam.ok());
@@ -53,6 +55,7 @@ struct BadCase {
   const char* field;
 };
 
+// Verifies: REQ-ERR-002
 TEST(ConfigIo, NamesTheFieldOfEveryBadCamera) {
   const BadCase cases[] = {
       {"image_height: 576\ncamera_matrix:\n  data: [400, 0, 359.5, 0, 400, 287.5, 0, 0, 1]\n", 0, "image_width"},
@@ -83,6 +86,7 @@ TEST(ConfigIo, NamesTheFieldOfEveryBadCamera) {
 // The matrices the raw image does not use (R, P) and the matrices' sizes,
 // when a file gives them, must be well formed: a damaged file is refused,
 // not half read. OpenCV's N x 1 distortion vector is accepted.
+// Verifies: REQ-ERR-002
 TEST(ConfigIo, RefusesDamagedMatricesItDoesNotUse) {
   const std::string good(kGood);
   const std::string full = good +
@@ -123,6 +127,7 @@ TEST(ConfigIo, RefusesDamagedMatricesItDoesNotUse) {
 
 // Finite but absurd calibrations (a mistyped exponent, a wrong file) are
 // refused with the element and its plausible range named.
+// Verifies: REQ-MODEL-005, REQ-ERR-002
 TEST(ConfigIo, RefusesAbsurdButFiniteCalibrations) {
   struct Absurd {
     const char* from;
@@ -161,6 +166,7 @@ TEST(ConfigIo, RefusesAbsurdButFiniteCalibrations) {
   EXPECT_TRUE(camera_from(edge.c_str()).ok());
 }
 
+// Verifies: REQ-ERR-002
 TEST(ConfigIo, GeometryDefaultsAndErrors) {
   const char* empty = "other_section:\n  anything: 1\n";
   ASSERT_TRUE(scratch().parse(empty, std::strlen(empty), "cfg.yaml").ok());
@@ -189,6 +195,7 @@ TEST(ConfigIo, GeometryDefaultsAndErrors) {
 
 // Finite but absurd geometry values are refused at their key with the
 // plausible range named.
+// Verifies: REQ-MODEL-005, REQ-ERR-002
 TEST(ConfigIo, RefusesAbsurdButFiniteGeometry) {
   struct Absurd {
     const char* text;
@@ -222,6 +229,7 @@ TEST(ConfigIo, RefusesAbsurdButFiniteGeometry) {
   EXPECT_FALSE(read_instrument_config(scratch()).ok());
 }
 
+// Verifies: REQ-ERR-002
 TEST(ConfigIo, MarkerColoursAreFiveBlueOrYellow) {
   const char* swapped = "instrument:\n  marker_colors: [yellow, blue, yellow, blue, yellow]\n";
   ASSERT_TRUE(scratch().parse(swapped, std::strlen(swapped), "cfg.yaml").ok());
@@ -254,6 +262,7 @@ TEST(ConfigIo, MarkerColoursAreFiveBlueOrYellow) {
 // Seeded damage to the shipped files: each damaged file is refused with
 // the field named, or it is usable as it reads (a camera model that
 // projects, a geometry that validates). Never a crash or a half-read value.
+// Verifies: REQ-ERR-002
 TEST(ConfigIo, DamagedFilesAreRefusedOrUsable) {
   const std::string camera_text = test::read_text_file(TCPEST_TEST_DATA_DIR "/../../config/pal_camera.yaml");
   const std::string geometry_text = test::read_text_file(TCPEST_TEST_DATA_DIR "/../../config/instrument.yaml");

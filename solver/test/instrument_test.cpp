@@ -33,6 +33,7 @@ PoseVector random_pose(std::mt19937& rng) {
 // The analytic corner Jacobians (limb points sliding on the tube) against
 // central differences, over many random configurations, including nearly
 // straight ones where the series take over.
+// Verifies: REQ-MODEL-002
 TEST(Instrument, CornerJacobiansMatchCentralDifferences) {
   const CameraModel cam = vectors_camera();
   const auto model = InstrumentModel::create(InstrumentGeometry{});
@@ -97,6 +98,7 @@ TEST(Instrument, CornersAreOnTheLimb) {
 // (phi + pi, -theta) and phi + 2 pi n are the same instrument: corners
 // (labels included, the sides being the image's) and TCP. The pair returned
 // is the one nearest the reference, whatever turn the solve ended on.
+// Verifies: REQ-MODEL-004
 TEST(Instrument, EquivalentJointsNearestTheReference) {
   const CameraModel cam = vectors_camera();
   const auto model = InstrumentModel::create(InstrumentGeometry{});
@@ -141,6 +143,7 @@ TEST(Instrument, EquivalentJointsNearestTheReference) {
   }
 }
 
+// Verifies: REQ-MODEL-004
 TEST(Instrument, EquivalentJointsEdgeCases) {
   PoseVector reference = InstrumentGeometry{}.nominal_pose(20.0, 0.0, 0.0);
   // The generic reference (phi = theta = 0): phi within a quarter turn of 0.
@@ -282,6 +285,7 @@ TEST(Instrument, GrasperFrameAndLimbs) {
   EXPECT_GT(compared, 100);
 }
 
+// Verifies: REQ-MODEL-003
 TEST(Instrument, NothingBehindTheCamera) {
   const CameraModel cam = vectors_camera();
   const auto model = InstrumentModel::create(InstrumentGeometry{});
@@ -292,6 +296,7 @@ TEST(Instrument, NothingBehindTheCamera) {
   EXPECT_EQ(out.count_present(), 0);
 }
 
+// Verifies: REQ-MODEL-005
 TEST(Instrument, RefusesAbsurdGeometry) {
   InstrumentGeometry g;
   g.bend_length_mm = -1.0;
@@ -313,6 +318,7 @@ TEST(Instrument, RefusesAbsurdGeometry) {
 
 // Finite values no instrument has are refused by validate() itself, not
 // only by the file loader.
+// Verifies: REQ-MODEL-005
 TEST(Instrument, RefusesAbsurdButFiniteGeometry) {
   InstrumentGeometry g;
   g.lambda_max_mm = 1e300;

@@ -37,6 +37,7 @@ double num(const json::Document& d, std::size_t obj, const char* key) {
   return v.value();
 }
 
+// Verifies: REQ-MODEL-001
 TEST(ModelVectors, ReproducesEveryCase) {
   const std::vector<char> text = read_file(TCPEST_TEST_DATA_DIR "/model-vectors.json");
   ASSERT_FALSE(text.empty());

@@ -19,6 +19,7 @@ namespace {
 using test_support::draw_problem;
 using test_support::Problem;
 
+// Verifies: REQ-SOLVER-007
 TEST(NoMalloc, SolveRunsWithEigenHeapForbidden) {
   const CameraModel camera = test_support::pal_camera();
   const InstrumentModel model = test_support::default_model();
@@ -40,6 +41,7 @@ TEST(NoMalloc, SolveRunsWithEigenHeapForbidden) {
 }
 
 // The guard is live in this build: a dynamic-size Eigen matrix aborts.
+// Verifies: REQ-SOLVER-007
 TEST(NoMallocDeathTest, GuardFiresOnADynamicEigenAllocation) {
   GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_DEATH(

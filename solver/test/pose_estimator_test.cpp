@@ -31,6 +31,7 @@ int first_visible(const CornerObservation& observed) {
   return -1;
 }
 
+// Verifies: REQ-SOLVER-008
 TEST_F(PoseEstimatorTest, ExactCornersGiveAValidEstimateWithoutRejection) {
   std::mt19937 rng(3);
   PoseEstimator estimator(camera_, model_);
@@ -47,6 +48,7 @@ TEST_F(PoseEstimatorTest, ExactCornersGiveAValidEstimateWithoutRejection) {
 
 // A corner 15 px off along the border is dropped and the pose solved again:
 // the estimate's residual returns to the noise level.
+// Verifies: REQ-SOLVER-009
 TEST_F(PoseEstimatorTest, AMisplacedCornerIsRejectedAndThePoseResolved) {
   std::mt19937 rng(5);
   PoseEstimator estimator(camera_, model_);
@@ -69,6 +71,7 @@ TEST_F(PoseEstimatorTest, AMisplacedCornerIsRejectedAndThePoseResolved) {
   EXPECT_GE(rejected_right, 9);
 }
 
+// Verifies: REQ-SOLVER-009
 TEST_F(PoseEstimatorTest, NoRejectionWhenDisabled) {
   std::mt19937 rng(5);
   EstimateOptions options;
@@ -83,6 +86,7 @@ TEST_F(PoseEstimatorTest, NoRejectionWhenDisabled) {
   EXPECT_GT(e.summary.rms_px, 1.0);
 }
 
+// Verifies: REQ-SOLVER-008
 TEST_F(PoseEstimatorTest, TooFewCornersIsNoneAndKeepsTheStart) {
   std::mt19937 rng(7);
   PoseEstimator estimator(camera_, model_);
@@ -103,6 +107,7 @@ TEST_F(PoseEstimatorTest, TooFewCornersIsNoneAndKeepsTheStart) {
 }
 
 // A start outside the model's bounds gives no estimate and keeps the start.
+// Verifies: REQ-SOLVER-005, REQ-SOLVER-008
 TEST_F(PoseEstimatorTest, AStartOutsideTheBoundsIsNone) {
   std::mt19937 rng(7);
   PoseEstimator estimator(camera_, model_);
@@ -118,6 +123,7 @@ TEST_F(PoseEstimatorTest, AStartOutsideTheBoundsIsNone) {
 }
 
 // Five exact corners: the solve converges, but fewer than min_corners_valid.
+// Verifies: REQ-SOLVER-008
 TEST_F(PoseEstimatorTest, FewCornersOrLargeResidualIsDegraded) {
   std::mt19937 rng(11);
   PoseEstimator estimator(camera_, model_);
@@ -141,6 +147,7 @@ TEST_F(PoseEstimatorTest, FewCornersOrLargeResidualIsDegraded) {
   EXPECT_EQ(noisy.quality, EstimateQuality::Degraded);
 }
 
+// Verifies: REQ-SOLVER-008
 TEST(EstimateOptions, RangesAreChecked) {
   EXPECT_TRUE(options_valid(EstimateOptions{}));
   EstimateOptions o;
@@ -169,6 +176,7 @@ Estimate estimate_at(const InstrumentModel& model, double lambda_mm, double phi_
 // Within the encoders' accuracy nothing changes; beyond it, in insertion or
 // in bend, the estimate loses one level. phi is compared through the bend
 // vector: on a nearly straight tube any phi agrees.
+// Verifies: REQ-SOLVER-010
 TEST_F(PoseEstimatorTest, AnEstimateFarFromTheEncodersIsDemotedOneLevel) {
   const EncoderCheck check;  // 6 mm, 0.5 rad
   const PoseVector encoders = model_.geometry().nominal_pose(25.0, 0.3, 0.8);
@@ -208,6 +216,7 @@ TEST_F(PoseEstimatorTest, AnEstimateFarFromTheEncodersIsDemotedOneLevel) {
   EXPECT_FALSE(encoder_check_valid(EncoderCheck{6.0, std::numeric_limits<double>::infinity()}));
 }
 
+// Verifies: REQ-SOLVER-007
 TEST_F(PoseEstimatorTest, EstimateDoesNotAllocate) {
   std::mt19937 rng(13);
   PoseEstimator estimator(camera_, model_);

@@ -29,6 +29,7 @@ class PoseSolverTest : public ::testing::Test {
 
 // Without play the true configuration is the global minimum (zero residuals,
 // zero penalty): both modes must find it from the coarse prior.
+// Verifies: REQ-SOLVER-002
 TEST_F(PoseSolverTest, BothModesRecoverTheTruthFromTheCoarsePriorWithoutPlay) {
   std::mt19937 rng(7);
   PoseSolver solver(camera_, model_);
@@ -58,6 +59,7 @@ TEST_F(PoseSolverTest, BothModesRecoverTheTruthFromTheCoarsePriorWithoutPlay) {
 }
 
 // With play, the adaptive estimate beats the fixed model on the same corners.
+// Verifies: REQ-SOLVER-003
 TEST_F(PoseSolverTest, AdaptiveBeatsFixedModelUnderPlay) {
   std::mt19937 rng(11);
   PoseSolver solver(camera_, model_);
@@ -91,6 +93,7 @@ TEST_F(PoseSolverTest, AdaptiveBeatsFixedModelUnderPlay) {
   EXPECT_LE(outside, 6);
 }
 
+// Verifies: REQ-SOLVER-004
 TEST_F(PoseSolverTest, WorksWithAnySubsetOfAtLeastFourCorners) {
   std::mt19937 rng(5);
   PoseSolver solver(camera_, model_);
@@ -164,14 +167,17 @@ void check_residual_jacobian(const CameraModel& camera, const InstrumentModel& m
   EXPECT_GT(checked, trials / 2);
 }
 
+// Verifies: REQ-SOLVER-001
 TEST_F(PoseSolverTest, AdaptiveResidualJacobianMatchesCentralDifferences) {
   check_residual_jacobian<kNumParams>(camera_, model_, 300, 21);
 }
 
+// Verifies: REQ-SOLVER-001
 TEST_F(PoseSolverTest, FixedModelResidualJacobianMatchesCentralDifferences) {
   check_residual_jacobian<kNumFixedModelParams>(camera_, model_, 200, 22);
 }
 
+// Verifies: REQ-SOLVER-001
 TEST_F(PoseSolverTest, PenaltyDerivativeAtZero) {
   std::mt19937 rng(4);
   Problem p;
@@ -187,6 +193,7 @@ TEST_F(PoseSolverTest, PenaltyDerivativeAtZero) {
   }
 }
 
+// Verifies: REQ-SOLVER-001
 TEST_F(PoseSolverTest, PenaltyIsTheCubicOfEquationEight) {
   PoseSolver solver(camera_, model_);
   const InstrumentGeometry& g = model_.geometry();
@@ -216,6 +223,7 @@ TEST_F(PoseSolverTest, PenaltyIsTheCubicOfEquationEight) {
 
 // --- No allocation --------------------------------------------------------------
 
+// Verifies: REQ-SOLVER-007
 TEST_F(PoseSolverTest, SolveDoesNotAllocate) {
   std::mt19937 rng(9);
   PoseSolver solver(camera_, model_);
@@ -240,6 +248,7 @@ TEST_F(PoseSolverTest, SolveDoesNotAllocate) {
 // The counting hook itself works (else the test above proves nothing).
 double* volatile g_allocation_sink = nullptr;  // escapes the allocation: the compiler may not elide it
 
+// Verifies: REQ-SOLVER-007
 TEST(AllocationScope, CountsOperatorNew) {
   std::size_t allocations = 0;
   {
@@ -265,6 +274,7 @@ class StatusTest : public PoseSolverTest {
   Problem exact_;
 };
 
+// Verifies: REQ-SOLVER-006
 TEST_F(StatusTest, ConvergedGradientAtTheExactSolution) {
   PoseSolver solver(camera_, model_);
   PoseVector r = exact_.truth;
@@ -274,6 +284,7 @@ TEST_F(StatusTest, ConvergedGradientAtTheExactSolution) {
   EXPECT_LT(s.rms_px, 1e-6);
 }
 
+// Verifies: REQ-SOLVER-006
 TEST_F(StatusTest, ConvergedStep) {
   SolverOptions o;
   o.gradient_tolerance = 0.0;
@@ -286,6 +297,7 @@ TEST_F(StatusTest, ConvergedStep) {
   EXPECT_TRUE(is_converged(s.status));
 }
 
+// Verifies: REQ-SOLVER-006
 TEST_F(StatusTest, ConvergedCostChange) {
   SolverOptions o;
   o.gradient_tolerance = 0.0;
@@ -297,6 +309,7 @@ TEST_F(StatusTest, ConvergedCostChange) {
   EXPECT_EQ(s.status, SolveStatus::ConvergedCostChange);
 }
 
+// Verifies: REQ-SOLVER-006
 TEST_F(StatusTest, MaxIterations) {
   SolverOptions o;
   o.max_iterations = 2;
@@ -313,6 +326,7 @@ TEST_F(StatusTest, MaxIterations) {
 }
 
 // A penalty scale the loader accepts but that overflows the residual.
+// Verifies: REQ-SOLVER-006
 TEST_F(StatusTest, NonFiniteResidual) {
   InstrumentGeometry g;
   g.penalty.position_scale_mm = 1e-300;
@@ -324,6 +338,7 @@ TEST_F(StatusTest, NonFiniteResidual) {
   EXPECT_EQ(s.status, SolveStatus::NonFiniteResidual);
 }
 
+// Verifies: REQ-SOLVER-004
 TEST_F(StatusTest, TooFewCornersOnAnEmptyMaskOrThreeCorners) {
   PoseSolver solver(camera_, model_);
   CornerObservation empty = noisy_.observed;
@@ -345,6 +360,7 @@ TEST_F(StatusTest, TooFewCornersOnAnEmptyMaskOrThreeCorners) {
 
 // Visible corners the model does not give at the start are left out; too
 // few remaining is TooFewCorners.
+// Verifies: REQ-SOLVER-004
 TEST_F(StatusTest, CornersWithoutModelCounterpartAtTheStartAreLeftOut) {
   PoseSolver solver(camera_, model_);
   // A start whose instrument lies behind the camera gives no corner at all.
@@ -355,6 +371,7 @@ TEST_F(StatusTest, CornersWithoutModelCounterpartAtTheStartAreLeftOut) {
   EXPECT_EQ(s.corners_used, 0);
 }
 
+// Verifies: REQ-SOLVER-004
 TEST_F(StatusTest, NonFiniteCorners) {
   PoseSolver solver(camera_, model_);
   const double bad[3] = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
@@ -381,6 +398,7 @@ TEST_F(StatusTest, NonFiniteCorners) {
   EXPECT_TRUE(is_converged(solver.solve(o, SolveMode::Adaptive, r).status));
 }
 
+// Verifies: REQ-SOLVER-004
 TEST_F(StatusTest, CornerFarOutsideImage) {
   PoseSolver solver(camera_, model_);
   const Vec2 far[4] = {Vec2(-721.0, 100.0), Vec2(1440.5, 100.0), Vec2(100.0, -577.0), Vec2(100.0, 1e9)};
@@ -397,6 +415,7 @@ TEST_F(StatusTest, CornerFarOutsideImage) {
   }
 }
 
+// Verifies: REQ-SOLVER-004, REQ-SOLVER-006
 TEST_F(StatusTest, InvalidInput) {
   const SolverOptions defaults;
   SolverOptions bad[6] = {defaults, defaults, defaults, defaults, defaults, defaults};
@@ -420,6 +439,7 @@ TEST_F(StatusTest, InvalidInput) {
 // A finite but absurd start (phi = theta = 1e308, sin and cos of which mean
 // nothing, and a step tolerance relative to |x| that is met at once) is
 // refused, not reported as converged where it started.
+// Verifies: REQ-SOLVER-005
 TEST_F(StatusTest, StartOutsideTheModelsBoundsIsRefused) {
   PoseSolver solver(camera_, model_);
   const InstrumentGeometry& g = model_.geometry();
@@ -453,6 +473,7 @@ TEST_F(StatusTest, StartOutsideTheModelsBoundsIsRefused) {
 // Twelve identical corners are fitted best by an instrument pushed far
 // beyond its insertion range (lambda ~ 159 mm with lambda_max = 60 mm): that
 // is not a converged estimate, and the estimator gives none.
+// Verifies: REQ-SOLVER-005
 TEST_F(StatusTest, AnEndOutsideTheJointRangeIsNotConverged) {
   CornerObservation o;
   for (std::size_t k = 0; k < o.visible.size(); ++k) {
@@ -529,6 +550,7 @@ struct Domain : NoCurvature<1> {
   }
 };
 
+// Verifies: REQ-SOLVER-006
 TEST(LevenbergMarquardt, NonFiniteJacobian) {
   LevenbergMarquardt<2, 2> lm;
   NanJacobian f;
@@ -536,6 +558,7 @@ TEST(LevenbergMarquardt, NonFiniteJacobian) {
   EXPECT_EQ(lm.minimise(f, x, SolverOptions{}).status, LmStatus::NonFiniteJacobian);
 }
 
+// Verifies: REQ-SOLVER-006
 TEST(LevenbergMarquardt, SingularSystem) {
   LevenbergMarquardt<2, 1> lm;
   RankOneHuge f;
@@ -556,6 +579,7 @@ TEST(LevenbergMarquardt, StepsOutsideTheDomainAreRejected) {
 
 // The minimisation's endings are the pose solve's, one for one, and
 // converged exactly when they are.
+// Verifies: REQ-SOLVER-006
 TEST(LevenbergMarquardt, EveryEndingMapsOntoThePoseSolveStatus) {
   const LmStatus all[] = {LmStatus::ConvergedGradient, LmStatus::ConvergedStep,   LmStatus::ConvergedCostChange,
                           LmStatus::MaxIterations,     LmStatus::NonFiniteResidual, LmStatus::NonFiniteJacobian,
@@ -570,6 +594,7 @@ TEST(LevenbergMarquardt, EveryEndingMapsOntoThePoseSolveStatus) {
   EXPECT_EQ(to_solve_status(LmStatus::InvalidInput), SolveStatus::InvalidInput);
 }
 
+// Verifies: REQ-SOLVER-006
 TEST(LevenbergMarquardt, StartOutsideTheDomainIsInvalidInput) {
   LevenbergMarquardt<1, 1> lm;
   Domain f;
@@ -577,6 +602,7 @@ TEST(LevenbergMarquardt, StartOutsideTheDomainIsInvalidInput) {
   EXPECT_EQ(lm.minimise(f, x, SolverOptions{}).status, LmStatus::InvalidInput);
 }
 
+// Verifies: REQ-SOLVER-006, REQ-ERR-008
 TEST(SolveStatusNames, EveryStatusHasANameAndASentence) {
   for (int i = 0; i < kNumSolveStatuses; ++i) {
     const auto s = static_cast<SolveStatus>(i);

@@ -288,6 +288,7 @@ bool pump_until(SocketCanBus& bus, can::Node& node, Predicate done, int timeout_
   return false;
 }
 
+// Verifies: REQ-CAN-014
 TEST_F(Vcan, EveryMessageTypeReachesCandumpIntact) {
   SocketCanBus bus;
   ASSERT_TRUE(bus.open(iface(), node_rx_config()).ok());
@@ -403,6 +404,7 @@ TEST_F(Vcan, EveryMessageTypeReachesCandumpIntact) {
   EXPECT_EQ(pdo_set, 2);
 }
 
+// Verifies: REQ-CAN-014
 TEST_F(Vcan, CansendNmtSyncAndEncoderPriorDriveTheNode) {
   SocketCanBus bus;
   ASSERT_TRUE(bus.open(iface(), node_rx_config()).ok());
@@ -570,6 +572,7 @@ void run_timing(int rate_hz, double seconds) {
 TEST_F(Vcan, Timing25Hz) { run_timing(25, 3.0); }
 TEST_F(Vcan, Timing100Hz) { run_timing(100, 3.0); }
 
+// Verifies: REQ-HAL-003
 TEST_F(Vcan, InterfaceDownAndUpWhileSending) {
   SocketCanConfig tx_config;
   tx_config.reopen_interval_us = 20000;
@@ -637,6 +640,7 @@ TEST_F(Vcan, InterfaceDownAndUpWhileSending) {
   EXPECT_EQ(after_seen, 20);
 }
 
+// Verifies: REQ-HAL-003
 TEST_F(Vcan, InterfaceDeletedAndRecreatedIsReopened) {
   struct Recreate {
     ~Recreate() {
@@ -688,6 +692,7 @@ TEST_F(Vcan, InterfaceDeletedAndRecreatedIsReopened) {
   EXPECT_EQ(got, 1U) << "the reopened socket is bound to the new interface";
 }
 
+// Verifies: REQ-HAL-003
 TEST_F(Vcan, FullTxQueueIsRetriedCountedAndRecovered) {
   // A plug qdisc holds frames until released: the TX queue fills (ENOBUFS).
   if (run({"tc", "qdisc", "add", "dev", iface(), "root", "plug", "limit", "160"}) != 0) {
@@ -753,6 +758,7 @@ TEST_F(Vcan, FullTxQueueIsRetriedCountedAndRecovered) {
   EXPECT_EQ(seen.back(), 200);
 }
 
+// Verifies: REQ-HAL-003
 TEST_F(Vcan, ErrorFramesChangeTheBusState) {
   SocketCanBus bus;
   ASSERT_TRUE(bus.open(iface(), SocketCanConfig{}).ok());
@@ -798,6 +804,7 @@ TEST_F(Vcan, ErrorFramesChangeTheBusState) {
   close(raw);
 }
 
+// Verifies: REQ-HAL-003
 TEST_F(Vcan, FloodIsBoundedPerCycleAndKernelDropsCounted) {
   // A small receive buffer so that the kernel has to drop part of the flood.
   SocketCanConfig config = node_rx_config();
@@ -861,6 +868,7 @@ TEST_F(Vcan, FloodIsBoundedPerCycleAndKernelDropsCounted) {
   EXPECT_EQ(node.counters().sync_received, received);
 }
 
+// Verifies: REQ-HAL-005
 TEST_F(Vcan, CandumpLogReplaysWithCanplayer) {
   const std::string path = temp_path("replay") + ".log";
   hal::CandumpLogWriter writer;

@@ -45,6 +45,7 @@ Border border_on_curve(int n, int outlier_every) {
 // curve's own parameter: it carries an along-curve offset of a few tenths of
 // a pixel, so exact points can weigh well below 1. None is rejected, and the
 // curve passes within a few hundredths of a pixel of every point.
+// Verifies: REQ-VISION-005
 TEST(BezierFit, PointsOnACurveAreFittedWithinAFewHundredthsOfAPixel) {
   Border b = border_on_curve(40, 0);
   ASSERT_TRUE(fit_bezier(b, 1.5, 10, 4));
@@ -71,6 +72,7 @@ TEST(BezierFit, PointsOnACurveAreFittedWithinAFewHundredthsOfAPixel) {
 // keeps only edge points near the labelled region's boundary; parameters
 // from median-filtered points gained nothing
 // (docs/decisions/0006-bezier-irls-constants.md).
+// Verifies: REQ-VISION-005
 TEST(BezierFit, OutliersGetNoWeightAndEvenlySpreadOnesLeaveTheCurveNearTheInliers) {
   Border clean = border_on_curve(40, 0);
   ASSERT_TRUE(fit_bezier(clean, 1.5, 10, 4));
@@ -123,6 +125,7 @@ TEST(BezierFit, TheScaleIsEstimatedDuringTheFirstScaleIterationsOnly) {
   EXPECT_EQ(perfect.scale_px, 0.15);
 }
 
+// Verifies: REQ-VISION-005
 TEST(BezierFit, TooFewOrCoincidentPointsOrBadArgumentsAreRefused) {
   Border four = border_on_curve(4, 0);
   EXPECT_FALSE(fit_bezier(four, 1.5, 10, 4));

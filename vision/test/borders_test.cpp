@@ -28,6 +28,7 @@ struct Fitted {
 
 // Five stripes drawn in line along x (the tube's top edge between rows 39
 // and 40, its bottom edge between rows 79 and 80), and their classes.
+// Verifies: REQ-VISION-005
 TEST(BorderFitter, TheBordersOfDrawnStripesLieOnTheirEdges) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 0, kNumMarkers - 1);
@@ -81,6 +82,7 @@ TEST(BorderFitter, ALabellingOfOneMarkerOrAnImageOfAnotherSizeFails) {
             VisionError::BorderFitFailed);
 }
 
+// Verifies: REQ-VISION-012
 TEST(BorderFitter, CreateRejectsBadConfiguration) {
   BordersConfig samples;
   samples.skeleton_samples = static_cast<int>(kMaxSkeletonSamples) + 1;

@@ -51,6 +51,7 @@ double distance(const Point& p, const Point& q) { return std::hypot(p.x - q.x, p
 // Borders converging as under perspective (tangent at -80 and 110 deg, not
 // opposite), the arc read on the half facing +x: the corners found from
 // starts 10 px off are the tangency points.
+// Verifies: REQ-VISION-006
 TEST(BoundaryArc, TheCornersAreTheTangencyPointsOfTheArcsEllipse) {
   const Ellipse e;
   const double phi0 = -80.0 * kPi / 180.0;

@@ -58,6 +58,7 @@ TEST(ColorModel, ShippedFileMatchesBuiltInModel) {
   EXPECT_NEAR(a.yellow.threshold, b.yellow.threshold, 1e-4);
 }
 
+// Verifies: REQ-ERR-003
 TEST(ColorModel, BadFilesAreErrorsNamingTheField) {
   const char* bad[] = {
       "",
@@ -76,6 +77,7 @@ TEST(ColorModel, BadFilesAreErrorsNamingTheField) {
 
 // Finite but absurd numbers (a threshold of 1e308 accepts every colour) are
 // refused with the field and its plausible range named.
+// Verifies: REQ-ERR-003
 TEST(ColorModel, RefusesAbsurdButFiniteValuesNamingTheRange) {
   const std::string good =
       "{\"format\": \"tcpest-colors-1\", \"blue\": {\"mean_ab\": [4, -45], \"covariance_ab\": [23, -16, 35], "
@@ -114,6 +116,7 @@ TEST(ColorModel, RefusesAbsurdButFiniteValuesNamingTheRange) {
   EXPECT_LE(default_color_model().blue.threshold, ColorTrainer::kMaxThreshold);
 }
 
+// Verifies: REQ-VISION-001
 TEST(ColorModel, ClassifiesItsOwnMeans) {
   const ColorModel m = default_color_model();
   // A saturated blue and yellow of the rendered markers.
@@ -129,6 +132,7 @@ TEST(ColorModel, ClassifiesItsOwnMeans) {
 // accepts nothing, coincident class means give no score, a blue mean at the
 // origin no margin; the score is clamped for colours far past the means;
 // the model's text refuses a buffer too small for it.
+// Verifies: REQ-ERR-003
 TEST(ColorModel, DegenerateModelsGiveBoundedAnswers) {
   ColorGaussian singular;
   singular.cov_aa = 1.0;
@@ -201,6 +205,7 @@ TEST(ColorTrainer, TooFewSamplesIsRefused) {
 // (every colour in Release builds; every 3rd level per channel under the
 // sanitizers). The disagreements are colours within half a quantisation cell
 // of a decision boundary; docs/vision.md reports the measured fraction.
+// Verifies: REQ-VISION-001
 TEST(ClassifierLut, AgreesWithExactClassifierOnAllButATinyFraction) {
   const ColorModel m = default_color_model();
   ClassifierLut lut;
@@ -233,6 +238,7 @@ TEST(ClassifierLut, AgreesWithExactClassifierOnAllButATinyFraction) {
 // Seeded damage to the shipped model: refused with the field named, or a
 // valid model (finite means, positive definite covariances, positive
 // thresholds: valid()). Never a crash or a half-read model.
+// Verifies: REQ-ERR-003
 TEST(ColorModel, DamagedFilesAreRefusedOrValid) {
   const std::string shipped = test::read_text_file(TCPEST_TEST_DATA_DIR "/../../config/colors.json");
   ASSERT_FALSE(shipped.empty());

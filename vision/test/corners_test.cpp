@@ -34,6 +34,7 @@ Border straight_border(double y, double x0, double x1) {
   return b;
 }
 
+// Verifies: REQ-VISION-006
 TEST(CornerFinder, TheCornersOfDrawnStripesAreWhereTheColoursChangeOnTheEdges) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 0, kNumMarkers - 1);
@@ -69,6 +70,7 @@ TEST(CornerFinder, TheCornersOfDrawnStripesAreWhereTheColoursChangeOnTheEdges) {
   EXPECT_GE(count, internal);
 }
 
+// Verifies: REQ-VISION-006
 TEST(CornerFinder, WithoutBordersOrMarkersThereAreNoCorners) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 0, kNumMarkers - 1);
@@ -92,6 +94,7 @@ TEST(CornerFinder, WithoutBordersOrMarkersThereAreNoCorners) {
             VisionError::NoInstrument);
 }
 
+// Verifies: REQ-VISION-012
 TEST(CornerFinder, CreateRejectsBadConfiguration) {
   CornersConfig samples;
   samples.profile_samples = static_cast<int>(kMaxProfileSamples) + 1;

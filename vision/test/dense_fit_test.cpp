@@ -756,6 +756,7 @@ TEST(DenseFit, BadInputsAreErrorValues) {
   EXPECT_EQ(hidden.corner_count, 0);
 }
 
+// Verifies: REQ-VISION-012
 TEST(DenseFit, OptionsOutOfRangeAreRefused) {
   EXPECT_TRUE(dense_options_valid(DenseOptions{}));
   DenseOptions o;

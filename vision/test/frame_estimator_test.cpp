@@ -38,6 +38,7 @@ class StepLog final : public StepObserver {
   int count = 0;
 };
 
+// Verifies: REQ-VISION-012
 TEST(EstimatorConfig, TheDefaultsAreValidAndOutOfRangeFieldsAreRefused) {
   EXPECT_TRUE(config_valid(EstimatorConfig{}));
   EstimatorConfig c;
@@ -89,6 +90,7 @@ class FrameEstimatorOnARenderedFrame : public testing::Test {
   std::unique_ptr<FrameEstimator> estimator;
 };
 
+// Verifies: REQ-VISION-008
 TEST_F(FrameEstimatorOnARenderedFrame, GivesAValidEstimateNearTheTruthWithEveryStepReportedInOrder) {
   StepLog log;
   const FrameEstimate e = estimator->estimate(image, encoders_prior(), &log);
@@ -117,6 +119,7 @@ TEST_F(FrameEstimatorOnARenderedFrame, GivesAValidEstimateNearTheTruthWithEveryS
 // Same frames, same priors, same estimator: the same bits (the loop's and
 // the offline commands' results can be compared byte for byte), and no
 // heap after start-up.
+// Verifies: REQ-VISION-009
 TEST_F(FrameEstimatorOnARenderedFrame, IsDeterministicAndAllocationFree) {
   const FrameEstimate a = estimator->estimate(image, encoders_prior(), nullptr);
   estimator->drop_track();
@@ -133,6 +136,7 @@ TEST_F(FrameEstimatorOnARenderedFrame, IsDeterministicAndAllocationFree) {
 }
 
 // An image with no instrument: no pose, the failed step named, no corner reported.
+// Verifies: REQ-VISION-007
 TEST_F(FrameEstimatorOnARenderedFrame, AnEmptyImageGivesNoEstimateAndNamesTheFailedStep) {
   std::vector<std::uint8_t> grey(pixels.size(), 128U);
   const ImageView blank{grey.data(), m.camera.width(), m.camera.height(),
@@ -149,6 +153,7 @@ TEST_F(FrameEstimatorOnARenderedFrame, AnEmptyImageGivesNoEstimateAndNamesTheFai
 }
 
 // Encoders far from what the image shows: the estimate loses one level.
+// Verifies: REQ-SOLVER-010
 TEST_F(FrameEstimatorOnARenderedFrame, EncodersBeyondTheirAccuracyDemoteTheEstimate) {
   FramePrior far = encoders_prior();
   far.r[solver::kLambda] += 9.0;
@@ -165,6 +170,7 @@ FrameEstimate solved_at(const solver::PoseVector& r) {
   return e;
 }
 
+// Verifies: REQ-VISION-011
 TEST(Track, ChoosesEncodersThenTheTrackThenTheGenericPrior) {
   const Models m;
   Track track(m.model, 3);
@@ -189,6 +195,7 @@ TEST(Track, ChoosesEncodersThenTheTrackThenTheGenericPrior) {
   EXPECT_EQ(p.r[solver::kTheta], 0.45);
 }
 
+// Verifies: REQ-VISION-011
 TEST(Track, IsDroppedAfterTheConfiguredFailuresAndKeepsItsLastPoseForAHeldFrame) {
   const Models m;
   Track track(m.model, 3);

@@ -83,6 +83,7 @@ Region stripe_region(PixelClass cls, double x0, double y0, double length, double
 // The interpreter alone, on a region set made by hand (no image, no stage
 // 1): the five stripes in line, listed out of order and with a stray blue
 // region far off, are labelled 1..5 from the base, each by its own region.
+// Verifies: REQ-VISION-004
 TEST(Interpreter, LabelsAHandMadeRegionSetInLineFromTheBase) {
   RegionSet set;
   const int order[kNumMarkers] = {3, 0, 4, 2, 1};
@@ -111,6 +112,7 @@ TEST(Interpreter, LabelsAHandMadeRegionSetInLineFromTheBase) {
   EXPECT_EQ(in.found_count, 0);
 }
 
+// Verifies: REQ-VISION-012
 TEST(Interpreter, CreateRejectsBadConfiguration) {
   InterpretationConfig c;
   c.marker_classes[2] = PixelClass::Background;
@@ -124,6 +126,7 @@ TEST(Interpreter, CreateRejectsBadConfiguration) {
   EXPECT_TRUE(Interpreter::create(InterpretationConfig{}).ok());
 }
 
+// Verifies: REQ-VISION-004
 TEST(Interpretation, FiveAlternatingStripesAreLabelledFromTheBase) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 0, kNumMarkers - 1);
@@ -142,6 +145,7 @@ TEST(Interpretation, FiveAlternatingStripesAreLabelledFromTheBase) {
 
 // A highlight across a stripe splits it in two regions: the level is a
 // virtual node merging both, with their joint statistics.
+// Verifies: REQ-VISION-004
 TEST(Interpretation, AStripeSplitInTwoIsOneVirtualNode) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 0, kNumMarkers - 1);
@@ -161,6 +165,7 @@ TEST(Interpretation, AStripeSplitInTwoIsOneVirtualNode) {
 // The skeleton may turn by less than 60 deg per link: a stripe 30 deg off
 // the chain's line is linked, one at 88 deg is not, and the chain ends
 // there (the remaining levels are empty).
+// Verifies: REQ-VISION-004
 TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
   {
     Canvas canvas(320, 200);
@@ -187,6 +192,7 @@ TEST(Interpretation, ALinkTurningBy60DegreesOrMoreIsRefused) {
 
 // The base marker out of the image (or hidden): its level stays empty and
 // the chain starts at the second marker.
+// Verifies: REQ-VISION-004
 TEST(Interpretation, AHiddenBaseLeavesTheFirstLevelEmpty) {
   Canvas canvas(320, 140);
   draw_in_line(canvas, 1, kNumMarkers - 1);
@@ -201,6 +207,7 @@ TEST(Interpretation, AHiddenBaseLeavesTheFirstLevelEmpty) {
 // markers 2 and 3 (their centroids 51 px apart, beyond the 49.7 px that
 // adjacency allows stripes 30 px long), the chain does not cross the gap,
 // though the posterior alone would take the link.
+// Verifies: REQ-VISION-004
 TEST(Interpretation, AStripeBeyondTheAdjacencyReachIsNotLinked) {
   Canvas canvas(360, 140);
   for (int m = 0; m < kNumMarkers; ++m) {
@@ -229,6 +236,7 @@ Interpretation chain_with_base_size(double base_half_major) {
   return in;
 }
 
+// Verifies: REQ-VISION-004
 TEST(TemporalPriors, NeedTwoFramesAndKeepTheLastFive) {
   TemporalPriors temporal;
   MarkerPriors p;
@@ -251,6 +259,7 @@ TEST(TemporalPriors, NeedTwoFramesAndKeepTheLastFive) {
   EXPECT_FALSE(temporal.priors(p));
 }
 
+// Verifies: REQ-VISION-004
 TEST(TemporalPriors, IdenticalFramesGiveTheFloorsAndAnUnseenMarkerNoPrior) {
   TemporalPriors temporal;
   temporal.add(chain_with_base_size(20.0));
@@ -274,6 +283,7 @@ TEST(TemporalPriors, IdenticalFramesGiveTheFloorsAndAnUnseenMarkerNoPrior) {
 // known position, with a size and a distance to the marker before that
 // agree with the centroids; a marker the model puts behind the camera is
 // not expected in the image and carries no information.
+// Verifies: REQ-VISION-004
 TEST(ModelPriors, FollowTheModelAndSayNothingOfAMarkerBehindTheCamera) {
   const auto camera = solver::CameraModel::create(solver::default_pal_camera());
   const auto model = solver::InstrumentModel::create(solver::InstrumentGeometry{});

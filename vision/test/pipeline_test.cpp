@@ -275,6 +275,7 @@ WithAndWithout expect_success_only_with_rule(Fixture& f, solver::PoseEstimator& 
   return runs;
 }
 
+// Verifies: REQ-VISION-007
 TEST(Pipeline, FindsTheMarkerChainAndCornersOnARenderedFrame) {
   Fixture f;
   const ImageView image = f.render_pose(25.0, 30.0, 40.0);
@@ -294,6 +295,7 @@ TEST(Pipeline, FindsTheMarkerChainAndCornersOnARenderedFrame) {
   draw_extraction(MutableImageView{copy.data(), image.width, image.height, image.stride_bytes}, e, ReprojectedModel{});
 }
 
+// Verifies: REQ-VISION-007
 TEST(Pipeline, NoInstrumentIsAnErrorValue) {
   Fixture f;
   std::vector<std::uint8_t> tissue(f.pixels.size(), 120U);
@@ -307,6 +309,7 @@ TEST(Pipeline, NoInstrumentIsAnErrorValue) {
   EXPECT_EQ(status.error(), VisionError::NoInstrument);
 }
 
+// Verifies: REQ-VISION-009
 TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
   Fixture f;
   // A few different frames, rendered before the counted scope.
@@ -430,6 +433,7 @@ TEST(Pipeline, ZeroHeapAllocationsPerFrameInStages1To4AndTheSolver) {
 // in a row through one extractor and one estimator, then each through new
 // ones; the estimate (quality, r) and the corners (found, position,
 // confidence) must be the same to the bit.
+// Verifies: REQ-VISION-009
 TEST(Pipeline, AFramesEstimateDoesNotDependOnTheFramesBeforeIt) {
   Fixture f;
   const HardScene scenes[] = {
@@ -517,6 +521,7 @@ TEST(Pipeline, AFramesEstimateDoesNotDependOnTheFramesBeforeIt) {
 // The model-guided corners on rendered frames: from stage 4's first pose,
 // the corners are re-measured within a fraction of a pixel of the truth,
 // the base boundary's included, and the estimate is valid.
+// Verifies: REQ-VISION-007
 TEST(Pipeline, GuidedCornersLieOnTheTrueCorners) {
   Fixture f;
   auto fx = default_extractor();
@@ -1091,6 +1096,7 @@ TEST(Pipeline, UnderAStreakAcrossTheTubeTheCornersKeepTheFittedSilhouette) {
 // occluder hides the rest. That too keeps the estimate at most Degraded
 // (a valid one needs 12 by default), so where the rule on boundaries is
 // under test, the rule on silhouette points asks for 8.
+// Verifies: REQ-VISION-010
 TEST(Pipeline, AFitThatReadsTwoBoundariesGivesItsCornersAndADegradedEstimate) {
   Fixture f;
   auto fx = default_extractor(without_grasper());
@@ -1142,6 +1148,7 @@ TEST(Pipeline, AFitThatReadsTwoBoundariesGivesItsCornersAndADegradedEstimate) {
 // iteration (the rule before), the fit stops at its first iteration and
 // nothing is kept. The scenes are frames 75 and 160 of the `hard` set
 // (seed 1, occluder only), rendered without its JPEG step.
+// Verifies: REQ-VISION-010
 TEST(Pipeline, AFitThatReadsOneBoundaryAndTheSilhouetteGivesItsCornersAndADegradedEstimate) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);
@@ -1364,6 +1371,7 @@ TEST(Pipeline, AValidResultIsCheckedAgainstTheStart) {
 // frames 246 (seed 2), 191 (seed 7), 65 (seed 6) and 107 (seed 4), through
 // the set's JPEG step: the solve 4-7 mm off at the TCP, the fitted pose
 // within 1 mm.
+// Verifies: REQ-VISION-010
 TEST(Pipeline, AValidSolveThatItsImageFitContradictsIsDegraded) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);
@@ -1419,6 +1427,7 @@ TEST(Pipeline, AValidSolveThatItsImageFitContradictsIsDegraded) {
 // A valid solve that agrees with its image fit stays valid: the lab-like
 // frame of FindsTheMarkerChainAndCornersOnARenderedFrame, its disagreement
 // measured and small.
+// Verifies: REQ-VISION-010
 TEST(Pipeline, AValidSolveThatAgreesWithItsImageFitStaysValid) {
   Fixture f;
   solver::PoseEstimator estimator(f.camera, f.model);

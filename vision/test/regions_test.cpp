@@ -18,6 +18,7 @@ using testing::kYellow;
 using testing::make;
 using testing::make_finder;
 
+// Verifies: REQ-VISION-002
 TEST(Regions, RectanglesGiveAreaCentroidAxesAndOrientation) {
   Canvas canvas(200, 120);
   canvas.fill_rect(10, 20, 70, 40, kBlue);     // 60 x 20
@@ -48,6 +49,7 @@ TEST(Regions, RectanglesGiveAreaCentroidAxesAndOrientation) {
   }
 }
 
+// Verifies: REQ-VISION-002
 TEST(Regions, DiagonalNeighboursAreConnectedAndColoursSeparate) {
   Canvas canvas(50, 50);
   // A staircase of blue pixels touching only by corners: one region (8-connected).
@@ -63,6 +65,7 @@ TEST(Regions, DiagonalNeighboursAreConnectedAndColoursSeparate) {
   ASSERT_EQ(set.regions.size(), 3U);
 }
 
+// Verifies: REQ-VISION-003
 TEST(Regions, TooManyRegionsIsReportedNotACrash) {
   Canvas canvas(400, 400);
   // 40 x 40 blobs of 4 x 4 pixels, well above the minimum area: 1600 regions.
@@ -90,6 +93,7 @@ TEST(Regions, TooManyRegionsIsReportedNotACrash) {
 // A frame fragmented beyond the run buffer (blue and yellow alternating
 // pixel by pixel: one run per pixel, the buffer holds half of them) is an
 // error value, not a crash, and the next frame is read as usual.
+// Verifies: REQ-VISION-003
 TEST(Regions, AFrameTooFragmentedForTheRunBufferIsAnError) {
   auto fx = make(64, 64);
   Canvas shredded(64, 64);
@@ -110,6 +114,7 @@ TEST(Regions, AFrameTooFragmentedForTheRunBufferIsAnError) {
   EXPECT_EQ(fx->result().regions.regions.size(), 1U);
 }
 
+// Verifies: REQ-VISION-003
 TEST(Regions, BadAndOversizedImagesAreErrors) {
   auto fx = make(64, 64);
   EXPECT_EQ(fx->find_regions(ImageView{}).error(), VisionError::BadImage);
@@ -138,6 +143,7 @@ Canvas random_canvas(int w, int h) {
   return canvas;
 }
 
+// Verifies: REQ-VISION-001
 TEST(Regions, ClassImageIsTheLookupTableClassOfEveryPixel) {
   const Canvas canvas = random_canvas(37, 23);
   auto fx = make_finder(37, 23, 1);
@@ -156,6 +162,7 @@ TEST(Regions, ClassImageIsTheLookupTableClassOfEveryPixel) {
   EXPECT_GT(ambiguous, 0);  // the second level was exercised
 }
 
+// Verifies: REQ-VISION-001
 TEST(Regions, StepTwoClassImageRepeatsTheGridClassOverEachBlock) {
   const Canvas canvas = random_canvas(37, 23);
   auto fx = make_finder(37, 23, 2);
@@ -173,6 +180,7 @@ TEST(Regions, StepTwoClassImageRepeatsTheGridClassOverEachBlock) {
   }
 }
 
+// Verifies: REQ-VISION-002
 TEST(Regions, StepTwoRegionsKeepAreaCentroidAxesInPixels) {
   Canvas canvas(200, 120);
   canvas.fill_rect(10, 20, 70, 40, kBlue);      // 60 x 20
@@ -205,6 +213,7 @@ TEST(Regions, StepTwoRegionsKeepAreaCentroidAxesInPixels) {
   }
 }
 
+// Verifies: REQ-VISION-002
 TEST(Regions, AutoStepIsTwoFromFourPalFramesOfPixelsOn) {
   EXPECT_EQ(classify_step_for(0, 720, 576), 1);
   EXPECT_EQ(classify_step_for(0, 1280, 720), 1);
@@ -222,6 +231,7 @@ TEST(Regions, AutoStepIsTwoFromFourPalFramesOfPixelsOn) {
 // Memory running out at each of create()'s allocations in turn (the
 // extractor, the colour table's, every buffer): OutOfMemory, not a
 // configuration error, with everything taken before freed.
+// Verifies: REQ-ERR-007
 TEST(Regions, CreateReportsOutOfMemoryAtAnyOfItsAllocations) {
   if (!test::malloc_hook_active()) {
     GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
@@ -248,6 +258,7 @@ TEST(Regions, CreateReportsOutOfMemoryAtAnyOfItsAllocations) {
 
 // The region finder refuses what it cannot size or classify, and the
 // extractor composes it: its class image and grid step are the finder's.
+// Verifies: REQ-VISION-012
 TEST(Regions, TheFinderRejectsBadConfigurationAndTheExtractorComposesIt) {
   RegionsConfig c;
   for (const int bad_width : {0, -3, 8193}) {
@@ -271,6 +282,7 @@ TEST(Regions, TheFinderRejectsBadConfigurationAndTheExtractorComposesIt) {
   EXPECT_EQ(fx->result().regions.regions[0].area, 32 * 12);
 }
 
+// Verifies: REQ-VISION-012
 TEST(Regions, CreateRejectsBadConfiguration) {
   ExtractorConfig c;
   c.regions.max_width = 0;

@@ -55,6 +55,7 @@ struct PortRig {
   }
 };
 
+// Verifies: REQ-LOOP-007
 TEST(CanNodePort, TheRobotsNmtCommandsSetTheModeAndAResetIsTakenOnce) {
   PortRig rig;
   ASSERT_EQ(rig.config.can.node_id, kNodeId);
@@ -76,6 +77,7 @@ TEST(CanNodePort, TheRobotsNmtCommandsSetTheModeAndAResetIsTakenOnce) {
   EXPECT_FALSE(rig.port.take_reset());  // taken once
 }
 
+// Verifies: REQ-LOOP-007
 TEST(CanNodePort, AnEstimateIsRefusedUnlessOperational) {
   PortRig rig;
   ASSERT_TRUE(rig.step(1).ok());
@@ -93,6 +95,7 @@ TEST(CanNodePort, AnEstimateIsRefusedUnlessOperational) {
   EXPECT_EQ(latency_ns, 3 * hal::kNsPerMs);
 }
 
+// Verifies: REQ-LOOP-012
 TEST(CanNodePort, TheRobotsEncoderPriorIsReadBackWhileFresh) {
   PortRig rig;
   ASSERT_TRUE(rig.step(1).ok());  // boot-up (a command during boot-up is ignored)
@@ -113,6 +116,7 @@ TEST(CanNodePort, TheRobotsEncoderPriorIsReadBackWhileFresh) {
 // A bus-off lasting 3 s: the loop counts one loss, keeps processing, does
 // not call the bus back while the controller still reports bus-off, and
 // recovers once it is over.
+// Verifies: REQ-LOOP-009
 TEST(CanNodePort, ABusOffIsOneLossAndTheLoopRecoversWhenItEnds) {
   const auto camera = solver::CameraModel::create(solver::default_pal_camera());
   const auto model = solver::InstrumentModel::create(solver::InstrumentGeometry{});

@@ -25,6 +25,7 @@ Status<Diagnostic> parse(const char* text, LoopConfig& config) {
   return read_loop_config(doc, config);
 }
 
+// Verifies: REQ-LOOP-013
 TEST(LoopConfig, DefaultsWithoutSections) {
   LoopConfig config;
   ASSERT_TRUE(parse("instrument:\n  radius_mm: 1.81\n", config).ok());
@@ -48,6 +49,7 @@ const char* const kEverySection =
     "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n"
     "  cpu_latency_us: 0\n";
 
+// Verifies: REQ-LOOP-013
 TEST(LoopConfig, ReadsEverySection) {
   LoopConfig config;
   const char* text = kEverySection;
@@ -83,6 +85,7 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_EQ(config.rt.cpu_latency_us, 0);
 }
 
+// Verifies: REQ-LOOP-013
 TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
   LoopConfig config;
   auto s = parse("loop:\n  trigger: frame\n  peroid_us: 100\n", config);
@@ -129,6 +132,7 @@ namespace {
 
 // Seeded damage to a configuration with every section: refused with the
 // line or field named, or read. Never a crash or an overrun.
+// Verifies: REQ-LOOP-013
 TEST(LoopConfig, DamagedFilesAreRefusedWithAPlace) {
   const std::string valid = kEverySection;
   test::Mutator mutator(13U);
@@ -152,6 +156,7 @@ TEST(LoopConfig, DamagedFilesAreRefusedWithAPlace) {
   EXPECT_GT(20000 - refused, 400);
 }
 
+// Verifies: REQ-LOOP-014
 TEST(RtSetup, FailuresAreReportedNotFatal) {
   RtSettings settings;
   settings.cpu = 1023;           // no such CPU here
@@ -178,6 +183,7 @@ std::int32_t current_cpu_latency_us() {
   return got == static_cast<ssize_t>(sizeof value) ? value : -1;
 }
 
+// Verifies: REQ-LOOP-014
 TEST(RtSetup, CpuLatencyIsHeldUntilReleasedOrReported) {
   const std::int32_t before_us = current_cpu_latency_us();
   RtSettings settings{0 != 0, 0, -1, 0};

@@ -85,6 +85,7 @@ bool run_cycles(Executive& loop, int cycles) {
   return true;
 }
 
+// Verifies: REQ-LOOP-001
 TEST(Executive, TracksTheSimulatedMotionAndPublishesEveryFrame) {
   Rig rig(50U);
   ASSERT_EQ(rig.loop->run(nullptr), CycleOutcome::kFinished);
@@ -105,6 +106,7 @@ TEST(Executive, TracksTheSimulatedMotionAndPublishesEveryFrame) {
   EXPECT_GT(rig.node.heartbeats(), 0U);
 }
 
+// Verifies: REQ-LOOP-006
 TEST(Executive, NoHeapAllocationPerCycleWithTheSimulatedCamera) {
   Rig rig(3000U);
   ASSERT_TRUE(run_cycles(*rig.loop, 10));
@@ -114,6 +116,7 @@ TEST(Executive, NoHeapAllocationPerCycleWithTheSimulatedCamera) {
   EXPECT_EQ(rig.loop->stats().status[0], 3000U);
 }
 
+// Verifies: REQ-LOOP-006
 TEST(Executive, NoHeapAllocationPerCycleWithRawY4mFrames) {
   // A PAL clip of raw frames, replayed in a loop through the real decoder path.
   std::string dir = std::string(::testing::TempDir()) + "tcpest_loop_y4m_XXXXXX";
@@ -145,6 +148,7 @@ TEST(Executive, NoHeapAllocationPerCycleWithRawY4mFrames) {
   EXPECT_EQ(rig.loop->stats().status[static_cast<std::size_t>(EstimateStatus::kInvalid)], 2010U);
 }
 
+// Verifies: REQ-LOOP-011
 TEST(Executive, TrackIsHeldThenDroppedThenReacquiredFromTheGenericPrior) {
   Rig rig(60U);
   rig.scene->blind(20U, 30U);  // ten frames without corners
@@ -159,6 +163,7 @@ TEST(Executive, TrackIsHeldThenDroppedThenReacquiredFromTheGenericPrior) {
   EXPECT_EQ(s.prior[static_cast<std::size_t>(PriorSource::kGeneric)], static_cast<std::uint64_t>(1 + 10 - drop_after + 1));
 }
 
+// Verifies: REQ-LOOP-012
 TEST(Executive, FreshEncoderPriorIsUsedAndAStaleOneIsNot) {
   Rig rig(10U);
   const auto r = rig.motion.pose(rig.model.geometry(), 0U);
@@ -173,6 +178,7 @@ TEST(Executive, FreshEncoderPriorIsUsedAndAStaleOneIsNot) {
 // Encoders that disagree with the image beyond their accuracy (loop.
 // encoder_check_*): the estimate loses one level, and publishes degraded
 // instead of valid; with the check off it stays valid.
+// Verifies: REQ-SOLVER-010
 TEST(Executive, AnEstimateFarFromTheEncodersIsPublishedOneLevelLower) {
   for (const bool check_on : {true, false}) {
     Rig rig(10U);
@@ -192,6 +198,7 @@ TEST(Executive, AnEstimateFarFromTheEncodersIsPublishedOneLevelLower) {
   }
 }
 
+// Verifies: REQ-LOOP-007
 TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
   Rig rig(40U);
   ASSERT_TRUE(run_cycles(*rig.loop, 5));
@@ -255,6 +262,7 @@ class GlitchyReplay final : public WrappedSource {
 // said once on the bus (the frame-errors EMCY, cleared by the next good
 // frame), and the loop goes on with the next frame; the camera is not
 // declared lost.
+// Verifies: REQ-LOOP-010
 TEST(Executive, AnUnreadableFrameIsDroppedCountedAndTheLoopGoesOn) {
   Rig rig(100U);
   GlitchyReplay glitchy(*rig.source, {{5, hal::CameraError::kCorrupt},
@@ -286,6 +294,7 @@ TEST(Executive, AnUnreadableFrameIsDroppedCountedAndTheLoopGoesOn) {
 // without a frame are (loop.camera_lost_after): said on the bus; a replay
 // then ends (reopen() would replay the same damage), a live camera is
 // retried. A shorter run of drops is not.
+// Verifies: REQ-LOOP-008
 TEST(Executive, ConsecutiveDroppedFramesAreALostCamera) {
   Rig rig(100U);
   std::vector<std::pair<int, hal::CameraError>> bad;
@@ -323,6 +332,7 @@ class DamagedCamera final : public WrappedSource {
   int reopen_attempts = 0;
 };
 
+// Verifies: REQ-LOOP-008
 TEST(Executive, ALiveCameraGivingOnlyDamagedFramesIsLostAndRetried) {
   Rig rig(100U);
   DamagedCamera camera(*rig.source);
@@ -359,6 +369,7 @@ class FlakyCamera final : public WrappedSource {
   int reopen_attempts = 0;
 };
 
+// Verifies: REQ-LOOP-008
 TEST(Executive, LostCameraDegradesAndRecoversByItself) {
   Rig rig(100U);
   FlakyCamera flaky(*rig.source);
@@ -382,6 +393,7 @@ TEST(Executive, LostCameraDegradesAndRecoversByItself) {
 
 // A node reset forgets its faults (CiA 301 reset node): those that still
 // hold are said again at once.
+// Verifies: REQ-LOOP-007
 TEST(Executive, AResetNodeIsToldAgainOfTheFaultsThatStillHold) {
   Rig rig(100U);
   FlakyCamera flaky(*rig.source);
@@ -400,6 +412,7 @@ TEST(Executive, AResetNodeIsToldAgainOfTheFaultsThatStillHold) {
   EXPECT_TRUE(rig.node.fault_active(Fault::kCanTxDropped));
 }
 
+// Verifies: REQ-LOOP-009
 TEST(Executive, LostBusDegradesAndRecoversByItself) {
   Rig rig(200U);
   ASSERT_TRUE(run_cycles(*rig.loop, 5));
@@ -440,6 +453,7 @@ class FitDegradingOracle final : public FeaturePipeline {
 
 // The cycle's record says why a valid solve was published degraded by the
 // model-guided rounds (CycleRecord::fit_disagrees), and only then.
+// Verifies: REQ-VISION-010
 TEST(Executive, TheRecordSaysWhenTheImageFitDegradedTheSolve) {
   for (const bool degrade : {true, false}) {
     Rig rig(3U);
@@ -459,6 +473,7 @@ TEST(Executive, TheRecordSaysWhenTheImageFitDegradedTheSolve) {
   }
 }
 
+// Verifies: REQ-LOOP-002, REQ-LOOP-003
 TEST(Executive, PeriodTriggerPublishesAtTheTickAndCountsOverrunsAndSlips) {
   Rig rig(100U);
   rig.config.loop.trigger = Trigger::kPeriod;
@@ -491,6 +506,7 @@ TEST(Executive, PeriodTriggerPublishesAtTheTickAndCountsOverrunsAndSlips) {
   EXPECT_EQ(rig.node.emcy_count(), 2U);                              // raised once, reset once
 }
 
+// Verifies: REQ-LOOP-015
 TEST(Executive, FrameLimitAndMismatchedCameraSize) {
   Rig rig(100U);
   rig.config.loop.frames = 7U;
@@ -507,6 +523,7 @@ TEST(Executive, FrameLimitAndMismatchedCameraSize) {
   EXPECT_EQ(Executive::create(rig.config, parts).error(), LoopError::kBadConfig);
 }
 
+// Verifies: REQ-LOOP-015
 TEST(Executive, StopFlagEndsTheRun) {
   Rig rig(100U);
   std::atomic<bool> stop{true};

@@ -84,6 +84,7 @@ std::unique_ptr<Run> run_rendered(const Models& m, std::uint32_t frames) {
 // The loop's start-up, its vision pipeline and its executive, with memory
 // running out at each of their allocations in turn: an out-of-memory error
 // from the part that ran out, everything taken before freed.
+// Verifies: REQ-ERR-007
 TEST(LoopWithUnits, StartUpReportsOutOfMemoryAtAnyOfItsAllocations) {
   if (!test::malloc_hook_active()) {
     GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
@@ -120,6 +121,7 @@ TEST(LoopWithUnits, StartUpReportsOutOfMemoryAtAnyOfItsAllocations) {
   EXPECT_GE(allocations, 14U);
 }
 
+// Verifies: REQ-LOOP-001
 TEST(LoopWithUnits, RenderedSequenceThroughVisionSolverAndCan) {
   Models m;
   const auto run = run_rendered(m, 40U);
@@ -150,6 +152,7 @@ TEST(LoopWithUnits, RenderedSequenceThroughVisionSolverAndCan) {
   }
 }
 
+// Verifies: REQ-LOOP-005
 TEST(LoopWithUnits, TwoRunsOnTheSameInputGiveBitIdenticalCanPayloads) {
   Models m;
   const auto a = run_rendered(m, 25U);
@@ -161,6 +164,7 @@ TEST(LoopWithUnits, TwoRunsOnTheSameInputGiveBitIdenticalCanPayloads) {
   }
 }
 
+// Verifies: REQ-LOOP-006
 TEST(LoopWithUnits, NoHeapAllocationPerCycleWithVisionOnRawFrames) {
   Models m;
   // A few rendered PAL frames as raw video, replayed in a loop.
@@ -221,6 +225,7 @@ namespace {
 
 // The SYNC trigger: the PDOs follow each SYNC and carry the latest finished
 // cycle's estimate; without SYNC nothing is published.
+// Verifies: REQ-LOOP-004
 TEST(LoopWithUnits, SyncTriggerAnswersEachSyncWithTheLatestEstimate) {
   Models m;
   MotionSequence motion;
@@ -275,6 +280,7 @@ TEST(LoopWithUnits, SyncTriggerAnswersEachSyncWithTheLatestEstimate) {
   EXPECT_EQ(loop.last().latency_ns, -1);
 }
 
+// Verifies: REQ-LOOP-002, REQ-LOOP-003
 TEST(LoopWithUnits, PeriodTriggerSendsTheTcpFrameFirstAtTheTickEvenAfterAnOverrun) {
   // The cycle-overrun EMCY is decided at the end of its cycle: it goes out
   // then, not at the next tick ahead of the TCP frame (which it would delay).

@@ -23,12 +23,14 @@ Status<Diagnostic> parse(const std::string& text, LoopConfig& config) {
   return read_loop_config(doc, config);
 }
 
+// Verifies: REQ-LOOP-014
 TEST(RtSetup, TheSafePrefaultIsWithinTheStackAndTheFixedBound) {
   const long long max_kb = max_prefault_stack_kb();
   EXPECT_GT(max_kb, 0);  // a test thread has some stack to spare
   EXPECT_LE(max_kb, kMaxPrefaultStackKb);
 }
 
+// Verifies: REQ-LOOP-014
 TEST(RtSetup, APrefaultBeyondTheStackIsRefusedByTheConfigurationWithItsRange) {
   const long long max_kb = max_prefault_stack_kb();
   const char* const too_large[] = {"rt:\n  prefault_stack_kb: 8192000\n", "rt:\n  prefault_stack_kb: -1\n"};
@@ -53,6 +55,7 @@ TEST(RtSetup, APrefaultBeyondTheStackIsRefusedByTheConfigurationWithItsRange) {
   EXPECT_EQ(config.rt.prefault_stack_kb, 16);
 }
 
+// Verifies: REQ-LOOP-014
 TEST(RtSetup, APrefaultBeyondTheStackIsSkippedAndReportedNotACrash) {
   RtSettings settings{0 != 0, 0, -1, 0};
   // 64 MiB: more than a default (8 MiB) stack, the size that crashed.

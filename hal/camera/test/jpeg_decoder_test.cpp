@@ -38,6 +38,7 @@ double mean_abs_difference(const std::vector<std::uint8_t>& rgb, const MutableIm
   return sum / (view.width * view.height * 3.0);
 }
 
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, DecodesBaselineIntoAStridedBuffer) {
   JpegDecoder decoder;
   ASSERT_TRUE(decoder.init(kW, kH).ok());
@@ -49,6 +50,7 @@ TEST(JpegDecoder, DecodesBaselineIntoAStridedBuffer) {
   EXPECT_LT(mean_abs_difference(rgb, out.view), 3.0);
 }
 
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, InspectReadsTheHeader) {
   JpegDecoder decoder;
   ASSERT_TRUE(decoder.init(kW, kH).ok());
@@ -60,6 +62,7 @@ TEST(JpegDecoder, InspectReadsTheHeader) {
   EXPECT_EQ(info.value().components, 3);
 }
 
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, WrongSizeIsAnErrorAndTheDecoderCarriesOn) {
   JpegDecoder decoder;
   ASSERT_TRUE(decoder.init(kW, kH).ok());
@@ -72,6 +75,7 @@ TEST(JpegDecoder, WrongSizeIsAnErrorAndTheDecoderCarriesOn) {
   EXPECT_TRUE(decoder.decode(good.data(), good.size(), out.view).ok());
 }
 
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, TruncatedIsAnError) {
   JpegDecoder decoder;
   ASSERT_TRUE(decoder.init(kW, kH).ok());
@@ -82,6 +86,7 @@ TEST(JpegDecoder, TruncatedIsAnError) {
   EXPECT_EQ(status.error(), CameraError::kTruncated);
 }
 
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, GarbageIsCorrupt) {
   JpegDecoder decoder;
   ASSERT_TRUE(decoder.init(kW, kH).ok());
@@ -99,6 +104,7 @@ TEST(JpegDecoder, GarbageIsCorrupt) {
 
 // Every prefix and many single-byte corruptions: each is ok or an error value,
 // never a crash, and a good image still decodes afterwards.
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, SurvivesEveryTruncationAndByteFlips) {
   JpegDecoder decoder;
   ASSERT_TRUE(decoder.init(kW, kH).ok());
@@ -121,6 +127,7 @@ TEST(JpegDecoder, SurvivesEveryTruncationAndByteFlips) {
   EXPECT_LT(mean_abs_difference(rgb, out.view), 3.0);
 }
 
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, GreyscaleIsExpandedToRgb) {
   JpegDecoder decoder;
   ASSERT_TRUE(decoder.init(kW, kH).ok());
@@ -133,6 +140,7 @@ TEST(JpegDecoder, GreyscaleIsExpandedToRgb) {
   EXPECT_EQ(out.view.row(10)[30], out.view.row(10)[32]);
 }
 
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, ProgressiveDecodesWithTheCountedFallback) {
   JpegDecoder decoder;
   ASSERT_TRUE(decoder.init(kW, kH).ok());
@@ -165,6 +173,7 @@ TEST(JpegDecoder, ProgressiveDecodesWithTheCountedFallback) {
 // Every sampling a baseline colour JPEG may have (luma 1x1 to 4x2, chroma
 // 1x1; at most 10 blocks per MCU) decodes at 720x576 within the default
 // arena, using less than 40 of its 64 RGB rows (hal/camera/README.md).
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, EverySamplingFitsTheDefaultArena) {
   constexpr int kPalW = 720;
   constexpr int kPalH = 576;
@@ -191,6 +200,7 @@ TEST(JpegDecoder, EverySamplingFitsTheDefaultArena) {
 // An arena too small for the image: kOutOfMemory at every decode, no
 // crash, no heap allocation instead, and the decoder stays usable (the
 // header reads); an arena of exactly the measured need decodes.
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, AnExhaustedArenaIsOutOfMemoryAndTheDecoderCarriesOn) {
   const auto rgb = make_pattern(kW, kH, 3);
   const auto jpeg = encode_jpeg(rgb, kW, kH);
@@ -223,6 +233,7 @@ TEST(JpegDecoder, AnExhaustedArenaIsOutOfMemoryAndTheDecoderCarriesOn) {
   EXPECT_EQ(refused.error(), CameraError::kBadArgument);
 }
 
+// Verifies: REQ-LOOP-006, REQ-HAL-001
 TEST(JpegDecoder, BaselineDecodeMakesNoHeapAllocation) {
   constexpr int kPalW = 720;
   constexpr int kPalH = 576;
@@ -246,6 +257,7 @@ TEST(JpegDecoder, BaselineDecodeMakesNoHeapAllocation) {
 // the arena, libjpeg's memory manager, its first pools): init() reports
 // kOutOfMemory, having freed what it took before, and the decoder stays
 // uninitialised.
+// Verifies: REQ-ERR-007
 TEST(JpegDecoder, InitRecoversWhenMemoryRunsOutAtAnyOfItsAllocations) {
   if (!test::malloc_hook_active()) {
     GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
@@ -267,6 +279,7 @@ TEST(JpegDecoder, InitRecoversWhenMemoryRunsOutAtAnyOfItsAllocations) {
   EXPECT_GE(allocations, 3U);
 }
 
+// Verifies: REQ-HAL-001
 TEST(JpegDecoder, UninitialisedOrBadViewIsAnError) {
   JpegDecoder decoder;
   std::uint8_t byte = 0U;

@@ -41,6 +41,7 @@ struct Image {
   }
 };
 
+// Verifies: REQ-HAL-002
 TEST(Y4mHeader, ParsesWhatFfmpegWrites) {
   const char line[] = "YUV4MPEG2 W720 H576 F25:1 Ip A64:45 C420jpeg XYSCSS=420JPEG";
   const auto h = parse_y4m_header(line, sizeof line - 1U);
@@ -58,6 +59,7 @@ TEST(Y4mHeader, ParsesWhatFfmpegWrites) {
   EXPECT_EQ(f.value().range, YuvRange::kFull);
 }
 
+// Verifies: REQ-HAL-002
 TEST(Y4mHeader, RefusesBadHeaders) {
   const char* bad[] = {"YUV4MPEG W720 H576", "YUV4MPEG2 W0 H576", "YUV4MPEG2 W720", "YUV4MPEG2 Wabc H5",
                        "YUV4MPEG2 W720 H576 F25:0", "YUV4MPEG2 W720 H576 C411", "YUV4MPEG2 W99999 H576"};
@@ -66,6 +68,7 @@ TEST(Y4mHeader, RefusesBadHeaders) {
   }
 }
 
+// Verifies: REQ-HAL-002
 TEST(PixelFormats, Yuv420RoundTripIsClose) {
   const int w = 33;
   const int h = 17;
@@ -85,6 +88,7 @@ TEST(PixelFormats, Yuv420RoundTripIsClose) {
 // Planar YUV of each layout, odd-sized: every pixel takes its luma and the
 // chroma sample of its block (2x2 for 4:2:0, 2x1 for 4:2:2, its own for
 // 4:4:4, none for mono), compared with the conversion of that one pixel.
+// Verifies: REQ-HAL-002
 TEST(PixelFormats, EveryPlanarLayoutTakesTheChromaOfItsBlock) {
   const int w = 33;
   const int h = 17;
@@ -175,6 +179,7 @@ TEST(Y4mSource, WriterAndSourceRoundTripWithoutAllocating) {
   EXPECT_EQ(scope.count(), 0U);
 }
 
+// Verifies: REQ-HAL-002
 TEST(Y4mSource, EndOfStreamTruncationAndWrongSize) {
   const std::string dir = temp_dir("y4m2");
   const std::string path = dir + "/clip.y4m";
@@ -215,6 +220,7 @@ TEST(Y4mSource, EndOfStreamTruncationAndWrongSize) {
 // per-frame parameters after FRAME (the format allows them): read and
 // converted like the planar frame itself; a file that ends inside a FRAME
 // line is truncated.
+// Verifies: REQ-HAL-002
 TEST(Y4mSource, A422ClipWithFrameParameters) {
   const std::string dir = temp_dir("y4m422");
   const int w = 6;
@@ -249,6 +255,7 @@ TEST(Y4mSource, A422ClipWithFrameParameters) {
 
 // Only 8-bit colour is taken; every other colour space is refused with its
 // tag named (C420p10 used to be read as 8-bit 4:2:0: wrong frame size, garbage).
+// Verifies: REQ-HAL-002
 TEST(Y4mHeader, RefusesHighBitDepthMonoAndUnknownColourSpacesNamingTheTag) {
   const char* refused[] = {"C420p10", "C420p12", "C420p16", "C444p10", "C422p10", "Cmono", "Cmono16",
                            "C444alpha", "C411", "C420jpegx", "C"};
@@ -291,6 +298,7 @@ std::vector<std::uint8_t> y4m_clip(int frames, std::size_t& header_bytes, std::s
 // A damaged frame tag ("FRAMX") used to consume 6 bytes per try: tens of
 // thousands of dropped frames from one bad byte. Now the frame is dropped
 // once and the stream resynchronises on the next FRAME tag.
+// Verifies: REQ-HAL-002
 TEST(Y4mSource, ADamagedFrameTagDropsOneFrameAndResynchronises) {
   const std::string dir = temp_dir("y4mframx");
   std::size_t header_bytes = 0U;
@@ -320,6 +328,7 @@ TEST(Y4mSource, ADamagedFrameTagDropsOneFrameAndResynchronises) {
 
 // A frame one byte short: its read takes the next tag's first byte, the next
 // tag is then misread, and the stream finds the tag that follows.
+// Verifies: REQ-HAL-002
 TEST(Y4mSource, AShortFrameDropsTheNextFrameNotTheRestOfTheStream) {
   const std::string dir = temp_dir("y4mshort");
   std::size_t header_bytes = 0U;
@@ -349,6 +358,7 @@ TEST(Y4mSource, AShortFrameDropsTheNextFrameNotTheRestOfTheStream) {
 // (end of stream, also when looping) and says why; it used to drop a frame
 // per 6 bytes of junk. The search is bounded: a FRAME tag further than
 // kY4mResyncFrames frame sizes away is not looked for.
+// Verifies: REQ-HAL-002
 TEST(Y4mSource, JunkAfterTheHeaderStopsTheSourceWithAReason) {
   const std::string dir = temp_dir("y4mjunk");
   std::size_t header_bytes = 0U;
@@ -379,6 +389,7 @@ TEST(Y4mSource, JunkAfterTheHeaderStopsTheSourceWithAReason) {
   EXPECT_NE(source.value()->stop_reason(), nullptr);
 }
 
+// Verifies: REQ-HAL-002
 TEST(Y4mSource, AHeaderOnlyFileIsAnEmptySourceSaidSo) {
   const std::string dir = temp_dir("y4mempty");
   std::size_t header_bytes = 0U;
@@ -397,6 +408,7 @@ TEST(Y4mSource, AHeaderOnlyFileIsAnEmptySourceSaidSo) {
   EXPECT_NE(std::strstr(detail, "'C420p10'"), nullptr) << detail;
 }
 
+// Verifies: REQ-HAL-002
 TEST(JpegFileSource, DirectorySortedWithACorruptFileDropped) {
   const std::string dir = temp_dir("jpg");
   const int w = 40;
@@ -425,6 +437,7 @@ TEST(JpegFileSource, DirectorySortedWithACorruptFileDropped) {
 // max_files keeps the first names in order, whatever order the file system
 // lists them in (here the reverse of their names' order, on most file
 // systems: created last to first).
+// Verifies: REQ-HAL-002
 TEST(JpegFileSource, DirectoryBeyondMaxFilesKeepsTheFirstNames) {
   const std::string dir = temp_dir("jpgmax");
   const int w = 16;
@@ -443,6 +456,7 @@ TEST(JpegFileSource, DirectoryBeyondMaxFilesKeepsTheFirstNames) {
   EXPECT_NE(std::string(source.value()->file_name(1)).find("/f1.jpg"), std::string::npos);
 }
 
+// Verifies: REQ-HAL-002
 TEST(JpegFileSource, ListFileWithRelativePaths) {
   const std::string dir = temp_dir("jpglist");
   const int w = 24;
@@ -470,6 +484,7 @@ TEST(JpegFileSource, ListFileWithRelativePaths) {
 // memory running out at each of its allocations in turn (the C library's
 // directory and file handles included): an error, everything taken before
 // freed.
+// Verifies: REQ-ERR-007
 TEST(FileSources, OpeningReportsOutOfMemoryAtAnyOfItsAllocations) {
   if (!test::malloc_hook_active()) {
     GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";
@@ -555,6 +570,7 @@ TEST(SimCamera, KeepsTheTruthBesideTheFrameAndLoops) {
   EXPECT_EQ(camera.acquire(wrong.view, info).error(), CameraError::kWrongSize);
 }
 
+// Verifies: REQ-HAL-002
 TEST(V4l2Source, MissingDeviceAndNonVideoDeviceAreErrors) {
   V4l2Options options;
   EXPECT_EQ(V4l2Source::open("/dev/video-does-not-exist", options).error(), CameraError::kNotFound);

@@ -26,6 +26,7 @@ std::vector<can::EmcyMessage> cycle(can::Node& node, BusFaultMonitor& monitor, c
   return emcy;
 }
 
+// Verifies: REQ-HAL-004
 TEST(BusFaultMonitor, BusOffRecoveryAndTxDropsBecomeEmcy) {
   SimBus bus;
   can::Node node;
@@ -58,6 +59,7 @@ TEST(BusFaultMonitor, BusOffRecoveryAndTxDropsBecomeEmcy) {
   EXPECT_EQ(emcy[0].fault_id, static_cast<std::uint8_t>(can::Fault::kCanBusOffRecovered));
 }
 
+// Verifies: REQ-CAN-011, REQ-HAL-004
 TEST(BusFaultMonitor, KernelDropsAreAnOverrun) {
   SimBus bus;
   can::Node node;

@@ -13,6 +13,7 @@ namespace tcpest {
 namespace hal {
 namespace {
 
+// Verifies: REQ-HAL-005
 TEST(CandumpLine, MatchesCandumpLogFormat) {
   can::Frame f;
   f.id = 0x190;
@@ -30,6 +31,7 @@ TEST(CandumpLine, MatchesCandumpLogFormat) {
   EXPECT_STREQ(line, "(0.000005) can0 080#\n");
 }
 
+// Verifies: REQ-HAL-005
 TEST(CandumpLine, RejectsInvalidInput) {
   can::Frame f;
   char line[kCandumpMaxLine];
@@ -44,6 +46,7 @@ TEST(CandumpLine, RejectsInvalidInput) {
   EXPECT_EQ(format_candump_line(f, 0, "can0", line, 10), 0U);
 }
 
+// Verifies: REQ-HAL-005
 TEST(CandumpLogWriter, WritesManyLinesThroughItsBuffer) {
   char path[] = "/tmp/tcpest_candump_XXXXXX";
   const int fd = mkstemp(path);
@@ -76,6 +79,7 @@ TEST(CandumpLogWriter, WritesManyLinesThroughItsBuffer) {
   std::remove(path);
 }
 
+// Verifies: REQ-HAL-005
 TEST(CandumpLogWriter, OpenFailureIsAnErrorValue) {
   CandumpLogWriter writer;
   EXPECT_FALSE(writer.open("/nonexistent-dir/x.log", "vcan0").ok());
@@ -85,6 +89,7 @@ TEST(CandumpLogWriter, OpenFailureIsAnErrorValue) {
 // Every failed write(2) is counted with its errno, also the one close()'s
 // flush makes (a short run's lines are all still buffered then): a full
 // disk used to lose the whole log with nothing counted.
+// Verifies: REQ-HAL-005
 TEST(CandumpLogWriter, WriteErrorsAreCountedAlsoAtClose) {
   if (::access("/dev/full", W_OK) != 0) {
     GTEST_SKIP() << "no /dev/full here";

@@ -20,6 +20,7 @@ can::Frame make_frame(std::uint32_t id, std::uint8_t first) {
   return f;
 }
 
+// Verifies: REQ-HAL-007
 TEST(SimBus, DeliversToOthersInOrderWithTime) {
   SimBus bus;
   bus.set_time_us(1000);
@@ -40,6 +41,7 @@ TEST(SimBus, DeliversToOthersInOrderWithTime) {
   EXPECT_EQ(bus.endpoint(1).stats().rx_frames, 2U);
 }
 
+// Verifies: REQ-HAL-007
 TEST(SimBus, ReceiveIsBoundedPerCall) {
   SimBus bus;
   for (int i = 0; i < 10; ++i) {
@@ -51,6 +53,7 @@ TEST(SimBus, ReceiveIsBoundedPerCall) {
   EXPECT_EQ(bus.endpoint(1).receive(rx.data(), 8).value(), 7U);
 }
 
+// Verifies: REQ-HAL-007
 TEST(SimBus, FiltersLikeTheKernel) {
   SimBus bus;
   const std::uint32_t ids[] = {0x000, 0x080, 0x210};
@@ -64,6 +67,7 @@ TEST(SimBus, FiltersLikeTheKernel) {
   EXPECT_FALSE(bus.endpoint(1).set_rx_ids(bad, 1).ok());
 }
 
+// Verifies: REQ-HAL-007
 TEST(SimBus, DropCorruptDelayBusOff) {
   SimBus bus;
   std::array<ReceivedFrame, 8> rx{};
@@ -112,6 +116,7 @@ TEST(SimBus, DropCorruptDelayBusOff) {
   EXPECT_EQ(delivered, 5 + 1);  // 5 of 10, plus the 0x104 still queued
 }
 
+// Verifies: REQ-HAL-007
 TEST(SimBus, FloodOverflowsTheQueueAndIsCounted) {
   SimBus bus;
   for (std::size_t i = 0; i < SimEndpoint::kQueueCapacity + 100; ++i) {
@@ -120,6 +125,7 @@ TEST(SimBus, FloodOverflowsTheQueueAndIsCounted) {
   EXPECT_EQ(bus.endpoint(1).stats().rx_kernel_dropped, 100U);
 }
 
+// Verifies: REQ-HAL-007
 TEST(SimBus, RejectsBadFramesAndDoesNotAllocate) {
   SimBus bus;
   can::Frame bad = make_frame(0x800, 0);

@@ -12,6 +12,7 @@ namespace tcpest {
 namespace hal {
 namespace {
 
+// Verifies: REQ-HAL-003
 TEST(SocketCanBus, UnopenedBusSaysSo) {
   SocketCanBus bus;
   can::Frame f;
@@ -22,6 +23,7 @@ TEST(SocketCanBus, UnopenedBusSaysSo) {
   EXPECT_EQ(bus.fd(), -1);
 }
 
+// Verifies: REQ-HAL-003
 TEST(SocketCanBus, BadArguments) {
   SocketCanBus bus;
   SocketCanConfig config;
@@ -32,6 +34,7 @@ TEST(SocketCanBus, BadArguments) {
   EXPECT_EQ(bus.open("vcan0", config).error(), CanBusError::kInvalidArgument);
 }
 
+// Verifies: REQ-HAL-003
 TEST(SocketCanBus, MissingInterfaceOrKernelSupportIsANamedError) {
   SocketCanBus bus;
   const auto opened = bus.open("tcpestnone0", SocketCanConfig{});
@@ -45,6 +48,7 @@ TEST(SocketCanBus, MissingInterfaceOrKernelSupportIsANamedError) {
   EXPECT_EQ(bus.send(too_long).error(), CanBusError::kBadFrame);
 }
 
+// Verifies: REQ-HAL-003
 TEST(CanBusError, ErrnoMappedOnce) {
   EXPECT_EQ(error_from_errno(EAFNOSUPPORT), CanBusError::kNotSupported);
   EXPECT_EQ(error_from_errno(ENODEV), CanBusError::kNoSuchInterface);

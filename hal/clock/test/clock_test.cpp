@@ -6,6 +6,7 @@ namespace tcpest {
 namespace hal {
 namespace {
 
+// Verifies: REQ-HAL-006
 TEST(MonotonicClock, NeverGoesBackAndSleepsToAbsoluteDeadlines) {
   MonotonicClock clock;
   const std::int64_t t0 = clock.now_ns();
@@ -17,6 +18,7 @@ TEST(MonotonicClock, NeverGoesBackAndSleepsToAbsoluteDeadlines) {
   EXPECT_FALSE(clock.sleep_until_ns(-1).ok());
 }
 
+// Verifies: REQ-HAL-006
 TEST(SimulatedClock, MovesOnlyWhenTold) {
   SimulatedClock clock(100);
   EXPECT_EQ(clock.now_ns(), 100);
@@ -28,6 +30,7 @@ TEST(SimulatedClock, MovesOnlyWhenTold) {
   EXPECT_EQ(clock.now_ns(), 425);
 }
 
+// Verifies: REQ-LOOP-003, REQ-HAL-006
 TEST(PeriodicTimer, DeadlinesAreAbsoluteAndDoNotDrift) {
   SimulatedClock clock(0);
   PeriodicTimer timer(clock, 40 * kNsPerMs);
@@ -41,6 +44,7 @@ TEST(PeriodicTimer, DeadlinesAreAbsoluteAndDoNotDrift) {
   }
 }
 
+// Verifies: REQ-LOOP-003, REQ-HAL-006
 TEST(PeriodicTimer, OverrunsSkipMissedPeriodsAndCountThem) {
   SimulatedClock clock(0);
   PeriodicTimer timer(clock, 10);
@@ -54,6 +58,7 @@ TEST(PeriodicTimer, OverrunsSkipMissedPeriodsAndCountThem) {
   EXPECT_EQ(timer.total_slips(), 3U);
 }
 
+// Verifies: REQ-HAL-006
 TEST(PeriodicTimer, ZeroPeriodIsAnError) {
   SimulatedClock clock(0);
   PeriodicTimer timer(clock, 0);
@@ -79,6 +84,7 @@ class InterruptedClock final : public Clock {
 };
 
 // Bad input is an error value with a name; simulated time never goes back.
+// Verifies: REQ-HAL-006
 TEST(Clocks, BadInputIsAnErrorValue) {
   SimulatedClock clock(100);
   const auto refused = clock.sleep_until_ns(-1);

@@ -42,6 +42,7 @@ class RendererTest : public ::testing::Test {
 solver::CameraModel* RendererTest::camera_ = nullptr;
 Renderer* RendererTest::renderer_ = nullptr;
 
+// Verifies: REQ-HAL-008
 TEST_F(RendererTest, SameSeedGivesByteIdenticalImages) {
   ASSERT_NE(renderer_, nullptr);
   test::Frame a(720, 576);
@@ -120,6 +121,7 @@ TEST_F(RendererTest, RenderDoesNotAllocate) {
   EXPECT_EQ(scope.count(), 0U);
 }
 
+// Verifies: REQ-HAL-008
 TEST_F(RendererTest, GroundTruthMatchesTheModel) {
   test::Frame f(720, 576);
   SceneSpec scene;
@@ -213,6 +215,7 @@ TEST_F(RendererTest, LabelsTellWhatEachPixelShows) {
   }
 }
 
+// Verifies: REQ-HAL-008
 TEST_F(RendererTest, InstrumentBehindTheCameraGivesAValidImageWithoutIt) {
   test::Frame f(720, 576);
   SceneSpec scene;
@@ -225,6 +228,7 @@ TEST_F(RendererTest, InstrumentBehindTheCameraGivesAValidImageWithoutIt) {
   EXPECT_EQ(covered_pixels(f), 0.0);
 }
 
+// Verifies: REQ-HAL-008
 TEST_F(RendererTest, InstrumentOutOfViewGivesAValidImageWithoutIt) {
   test::Frame f(720, 576);
   SceneSpec scene;
@@ -286,6 +290,7 @@ TEST_F(RendererTest, BadInputIsRefused) {
 // Memory running out at each of create()'s allocations in turn (the
 // renderer, its ray tables, scratch and textures): OutOfMemory, everything
 // taken before freed.
+// Verifies: REQ-ERR-007
 TEST_F(RendererTest, CreateReportsOutOfMemoryAtAnyOfItsAllocations) {
   if (!tcpest::test::malloc_hook_active()) {
     GTEST_SKIP() << "malloc belongs to the sanitizer's runtime in this build";

@@ -137,6 +137,7 @@ TEST(Sidecar, MinimalForeignAnnotationIsAccepted) {
   EXPECT_DOUBLE_EQ(s.instrument.corners[11].x(), 13.0);
 }
 
+// Verifies: REQ-ERR-003
 TEST(Sidecar, ErrorsNameTheField) {
   struct Case {
     const char* text;
@@ -171,6 +172,7 @@ TEST(Sidecar, ErrorsNameTheField) {
 // Seeded damage to a rendered sidecar: refused with the field named, or
 // read with every value it reports finite and within its array. Never a
 // crash or an overrun (the sanitizer build runs this).
+// Verifies: REQ-ERR-003
 TEST(Sidecar, DamagedFilesAreRefusedOrSound) {
   char valid[kSidecarMaxBytes];
   const std::size_t length = format_sidecar(rendered_sidecar(true), valid, sizeof valid);

@@ -178,6 +178,7 @@ void check_configuration(Renderer& renderer, test::Frame& frame, const PoseVecto
   }
 }
 
+// Verifies: REQ-HAL-008
 TEST(Silhouette, EdgesPassThroughTheAnalyticCornersPalCamera) {
   const auto camera = test::pal_camera();
   auto renderer = test::make_renderer(camera);
@@ -194,6 +195,7 @@ TEST(Silhouette, EdgesPassThroughTheAnalyticCornersPalCamera) {
   EXPECT_GT(stats.measured, 200);
 }
 
+// Verifies: REQ-HAL-008
 TEST(Silhouette, EdgesPassThroughTheAnalyticCornersDistortedHdCamera) {
   // A strongly distorted wide camera with tangential terms: the per-pixel
   // rays must follow the model exactly, not a warp of a pinhole image.
