@@ -263,6 +263,10 @@ bool check_distortion_model(const yaml::Document& doc, const CalibrationPaths& p
 bool read_distortion(const yaml::Document& doc, const CalibrationPaths& paths, CameraIntrinsics& k,
                      Diagnostic& error) noexcept {
   const MatrixPaths& m = paths.distortion;
+  if (!doc.has(m.data)) {
+    error = doc.error_at(nullptr, m.data, "missing (also read as distCoeffs or Distortion_Coefficients)");
+    return false;
+  }
   double d[14] = {};
   std::size_t count = 0U;
   const auto status = doc.numbers_upto(m.data, d, 14U, count);
@@ -335,6 +339,10 @@ bool read_image_size(const yaml::Document& doc, CameraIntrinsics& k, Diagnostic&
 // false with the field named.
 bool read_camera_matrix(const yaml::Document& doc, const MatrixPaths& paths, CameraIntrinsics& k,
                         Diagnostic& error) noexcept {
+  if (!doc.has(paths.data)) {
+    error = doc.error_at(nullptr, paths.data, "missing (also read as cameraMatrix or Camera_Matrix)");
+    return false;
+  }
   double m[9] = {};
   const auto status = doc.numbers(paths.data, m, 9U);
   if (!status.ok()) {

@@ -359,7 +359,8 @@ TEST(ConfigIo, NamesWhatIsWrongInAnOpenCvFile) {
       {"rows: 5\n   cols: 1\n   dt: d\n   data: [ -0.2, 0.1, 0., 0., 0. ]",
        "rows: 1\n   cols: 6\n   dt: d\n   data: [ -0.2, 0.1, 0., 0., 0., 0. ]", "distortion_coefficients.data", 12U,
        "6 coefficients"},
-      {"camera_matrix: !!opencv-matrix", "intrinsics: !!opencv-matrix", "camera_matrix.data", 0U, "missing"},
+      {"camera_matrix: !!opencv-matrix", "intrinsics: !!opencv-matrix", "camera_matrix.data", 0U,
+       "missing (also read as cameraMatrix"},
       {"distortion_coefficients: !!opencv-matrix", "distCoeffs: !!opencv-matrix", "", 0U, ""},  // accepted
       {"image_width: 720\n", "image_width: 720\ncameraMatrix: 1\n", "cameraMatrix", 14U, "also given as"},
       {"5.2e+02, 0., 3.6e+02, 0., 5.2e+02", "5.2e+09, 0., 3.6e+02, 0., 5.2e+02", "camera_matrix.data", 7U,
