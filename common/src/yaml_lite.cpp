@@ -89,9 +89,10 @@ bool append_char(char* out, std::size_t capacity, std::size_t& used, char c) noe
   return true;
 }
 
-// Adds the items of a flow sequence piece ("a, b" or "a, b]") to entry e.
-// Returns false on overflow; sets `closed` when the ']' is found.
-bool add_flow_items(Entry& e, Span piece, bool& closed, bool& nested) noexcept {
+// Adds the items of a flow sequence piece ("a, b" or "a, b]") to entry e,
+// or only checks them when e is not `stored`. Returns false on overflow;
+// sets `closed` when the ']' is found.
+bool add_flow_items(Entry& e, bool stored, Span piece, bool& closed, bool& nested) noexcept {
   closed = false;
   nested = false;
   std::size_t used = std::strlen(e.value);
@@ -105,7 +106,7 @@ bool add_flow_items(Entry& e, Span piece, bool& closed, bool& nested) noexcept {
     }
     if (c == ',' || c == ']') {
       Span item = unquote(trim(Span{piece.begin + start, i - start}));
-      if (item.size > 0U) {
+      if (stored && item.size > 0U) {
         if (used > 0U && !append_char(e.value, sizeof e.value, used, '\n')) {
           return false;
         }
@@ -136,14 +137,29 @@ struct Parser {
   std::size_t& count;
   const Document& doc;  // its find() sees the entries added so far
   const char* file = nullptr;
+  KeySet keep;
+  Entry* skipped = nullptr;  // the slot of an entry checked but not stored
   Level levels[kMaxDepth + 1U] = {};
   std::size_t depth = 0U;
   char path[kMaxPath] = {};
-  std::size_t open_key = kMaxEntries;  // entry whose value is still to come (mapping or block sequence)
-  bool open_flow = false;              // inside a flow sequence that continues on the next line
+  Entry* open_key = nullptr;   // entry whose value is still to come (mapping or block sequence)
+  Entry* last_key = nullptr;   // the last entry added (a flow sequence may continue it)
+  bool open_flow = false;      // inside a flow sequence that continues on the next line
   std::size_t open_flow_line = 0U;
   std::uint32_t line_number = 0U;
 };
+
+bool is_stored(const Parser& p, const Entry& e) noexcept { return &e != p.skipped; }
+
+// Whether the current path's top-level key is one to store.
+bool keeps_path(const Parser& p) noexcept {
+  if (p.keep.count == 0U) {
+    return true;
+  }
+  const char* dot = std::strchr(p.path, '.');
+  const std::size_t length = (dot != nullptr) ? static_cast<std::size_t>(dot - p.path) : std::strlen(p.path);
+  return p.keep.contains(p.path, length);
+}
 
 Status<Diagnostic> fail(const Parser& p, std::uint32_t line, const char* field, const char* message) noexcept {
   return Status<Diagnostic>::failure(Diagnostic::make(p.file, line, field, message));
@@ -152,10 +168,10 @@ Status<Diagnostic> fail(const Parser& p, std::uint32_t line, const char* field, 
 
 // Block sequence item: "- value", added to the key above it.
 Status<Diagnostic> add_sequence_item(Parser& p, std::size_t indent, Span content) noexcept {
-  if (p.open_key == kMaxEntries) {
+  if (p.open_key == nullptr) {
     return fail(p, p.line_number, "", "sequence item without a key above it");
   }
-  Entry& e = p.entries[p.open_key];
+  Entry& e = *p.open_key;
   // The key was pushed as a mapping level; a sequence opens none.
   if (p.depth > 0U && p.levels[p.depth].indent == kUnsetIndent &&
       p.levels[p.depth].path_length == std::strlen(e.path)) {
@@ -171,6 +187,9 @@ Status<Diagnostic> add_sequence_item(Parser& p, std::size_t indent, Span content
   }
   e.is_mapping = false;
   e.is_sequence = true;
+  if (!is_stored(p, e)) {
+    return ok_status<Diagnostic>();
+  }
   std::size_t used = std::strlen(e.value);
   if ((used > 0U && !append_char(e.value, sizeof e.value, used, '\n')) ||
       !append(e.value, sizeof e.value, used, item)) {
@@ -189,7 +208,7 @@ std::size_t key_colon(Span content) noexcept {
 
 // A flow sequence whose ']' never came: reported at its '['.
 Status<Diagnostic> unclosed_flow(const Parser& p) noexcept {
-  return fail(p, static_cast<std::uint32_t>(p.open_flow_line), p.entries[p.count - 1U].path,
+  return fail(p, static_cast<std::uint32_t>(p.open_flow_line), p.last_key->path,
               "flow sequence '[' not closed with ']'");
 }
 
@@ -197,14 +216,14 @@ Status<Diagnostic> unclosed_flow(const Parser& p) noexcept {
 // or a block item ("- v") cannot be one of its items: the '[' above was not
 // closed, and that is where the error is.
 Status<Diagnostic> continue_flow(Parser& p, Span content) noexcept {
-  Entry& e = p.entries[p.count - 1U];
+  Entry& e = *p.last_key;
   const bool block_item = content.begin[0] == '-' && (content.size == 1U || content.begin[1] == ' ');
   if (key_colon(content) != content.size || block_item) {
     return unclosed_flow(p);
   }
   bool closed = false;
   bool nested = false;
-  if (!add_flow_items(e, content, closed, nested)) {
+  if (!add_flow_items(e, is_stored(p, e), content, closed, nested)) {
     return fail(p, p.line_number, e.path, "sequence too long");
   }
   if (nested) {
@@ -255,7 +274,7 @@ Status<Diagnostic> set_value(Parser& p, Entry& e, Span value) noexcept {
       return fail(p, p.line_number, p.path, "nesting too deep");
     }
     e.is_mapping = true;
-    p.open_key = p.count - 1U;
+    p.open_key = &e;
     ++p.depth;
     p.levels[p.depth] = Level{kUnsetIndent, std::strlen(p.path)};  // indentation fixed by the first child
     return ok_status<Diagnostic>();
@@ -270,7 +289,7 @@ Status<Diagnostic> set_value(Parser& p, Entry& e, Span value) noexcept {
     e.is_sequence = true;
     bool closed = false;
     bool nested = false;
-    if (!add_flow_items(e, Span{value.begin + 1U, value.size - 1U}, closed, nested)) {
+    if (!add_flow_items(e, is_stored(p, e), Span{value.begin + 1U, value.size - 1U}, closed, nested)) {
       return fail(p, p.line_number, p.path, "sequence too long, or text after ']'");
     }
     if (nested) {
@@ -282,7 +301,7 @@ Status<Diagnostic> set_value(Parser& p, Entry& e, Span value) noexcept {
   }
   Span scalar = unquote(value);
   std::size_t value_used = 0U;
-  if (!append(e.value, sizeof e.value, value_used, scalar)) {
+  if (is_stored(p, e) && !append(e.value, sizeof e.value, value_used, scalar)) {
     return fail(p, p.line_number, p.path, "value too long");
   }
   return ok_status<Diagnostic>();
@@ -303,18 +322,22 @@ Status<Diagnostic> add_key(Parser& p, std::size_t indent, Span content) noexcept
   if (!placed.ok()) {
     return placed;
   }
-  if (p.doc.find(p.path) != nullptr) {
+  const bool stored = keeps_path(p);
+  if (stored && p.doc.find(p.path) != nullptr) {
     return fail(p, p.line_number, p.path, "duplicate key");
   }
-  if (p.count == kMaxEntries) {
+  if (stored && p.count == kMaxEntries) {
     return fail(p, p.line_number, p.path, "too many keys");
   }
-  Entry& e = p.entries[p.count];
+  Entry& e = stored ? p.entries[p.count] : *p.skipped;
   e = Entry{};
   copy_text(e.path, sizeof e.path, p.path);
   e.line = p.line_number;
-  ++p.count;
-  p.open_key = kMaxEntries;
+  if (stored) {
+    ++p.count;
+  }
+  p.last_key = &e;
+  p.open_key = nullptr;
   return set_value(p, e, value);
 }
 
@@ -371,7 +394,16 @@ bool parse_double(const char* text, double& out) noexcept {
   return true;
 }
 
-Status<Diagnostic> Document::load(const char* path) noexcept {
+bool KeySet::contains(const char* key, std::size_t length) const noexcept {
+  for (std::size_t i = 0U; i < count; ++i) {
+    if (std::strlen(keys[i]) == length && std::strncmp(keys[i], key, length) == 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+Status<Diagnostic> Document::load(const char* path, KeySet keep) noexcept {
   copy_text(file_, sizeof file_, path);
   std::FILE* f = std::fopen(path, "rb");
   if (f == nullptr) {
@@ -387,15 +419,15 @@ Status<Diagnostic> Document::load(const char* path) noexcept {
   if (too_big) {
     return Status<Diagnostic>::failure(Diagnostic::make(path, 0U, "", "file too large (256 KiB at most)"));
   }
-  return parse(buffer_, n, path);
+  return parse(buffer_, n, path, keep);
 }
 
-Status<Diagnostic> Document::parse(const char* text, std::size_t length, const char* file) noexcept {
+Status<Diagnostic> Document::parse(const char* text, std::size_t length, const char* file, KeySet keep) noexcept {
   if (file != file_) {
     copy_text(file_, sizeof file_, file);
   }
   count_ = 0U;
-  Parser p{entries_, count_, *this, file_};
+  Parser p{entries_, count_, *this, file_, keep, &skipped_};
   p.levels[0] = Level{0U, 0U};
   std::size_t pos = 0U;
   while (pos < length) {

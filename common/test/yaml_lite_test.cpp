@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
+#include <string>
 
 namespace tcpest {
 namespace yaml {
@@ -117,6 +119,54 @@ TEST(YamlLite, EmptyMappingAndNesting) {
   EXPECT_EQ(doc().integer("b.e").value(), 5);
   EXPECT_EQ(doc().integer("f").value(), 6);
   EXPECT_TRUE(doc().find("a")->is_mapping);
+}
+
+// Top-level entries outside the reader's key set are checked as YAML but not
+// stored: one of any size takes no entry and no value space; what is
+// stored keeps every limit.
+TEST(YamlLite, SkipsWhatTheReaderDoesNotKeep) {
+  const char* const keys[] = {"kept", "list"};
+  const KeySet keep{keys, 2U};
+  std::string text = "kept: 1\nimage_points: !!opencv-matrix\n   rows: 1\n   cols: 5000\n   dt: \"2f\"\n   data: [ 0.";
+  for (int i = 1; i < 10000; ++i) {
+    text += (i % 6 == 0) ? ",\n       1.23456789e+02" : ", 1.23456789e+02";
+  }
+  text += " ]\nbig:\n";
+  for (int i = 0; i < 2 * static_cast<int>(kMaxEntries); ++i) {
+    text += "  key" + std::to_string(i) + ":\n    - " + std::to_string(i) + "\n";
+  }
+  text += "list: [1, 2]\n";
+  ASSERT_TRUE(doc().parse(text.data(), text.size(), "test.yaml", keep).ok());
+  EXPECT_EQ(doc().size(), 2U);
+  EXPECT_EQ(doc().integer("kept").value(), 1);
+  EXPECT_FALSE(doc().has("image_points.data"));
+  EXPECT_FALSE(doc().has("big.key0"));
+  double list[2];
+  ASSERT_TRUE(doc().numbers("list", list, 2U).ok());
+  EXPECT_EQ(doc().find("list")->line, static_cast<std::uint32_t>(std::count(text.begin(), text.end(), '\n')));
+  // Stored, the same text is too large.
+  const auto whole = doc().parse(text.data(), text.size(), "test.yaml");
+  ASSERT_FALSE(whole.ok());
+  EXPECT_STREQ(whole.error().field, "image_points.data");
+  // A kept entry keeps its limits; a skipped one is still checked.
+  std::string long_kept = "list: [1";
+  for (int i = 0; i < 1000; ++i) {
+    long_kept += ", 1";
+  }
+  long_kept += "]\n";
+  const char* bad_skipped[] = {"other: [1, 2\nkept: 1\n", "other:\n  a: &x 1\n", "other:\n\tb: 1\n",
+                               "other:\n  - a: 1\n", "other: [[1]]\n"};
+  EXPECT_FALSE(doc().parse(long_kept.data(), long_kept.size(), "test.yaml", keep).ok());
+  for (const char* bad : bad_skipped) {
+    EXPECT_FALSE(doc().parse(bad, std::strlen(bad), "test.yaml", keep).ok()) << bad;
+  }
+  std::string deep = "other:\n";
+  for (std::size_t i = 1U; i <= 20U; ++i) {
+    deep += std::string(2U * i, ' ') + "k:\n";
+  }
+  const auto too_deep = doc().parse(deep.data(), deep.size(), "test.yaml", keep);
+  ASSERT_FALSE(too_deep.ok());
+  EXPECT_STREQ(too_deep.error().message, "nesting too deep");
 }
 
 // Verifies: REQ-ERR-001

@@ -204,6 +204,41 @@ TEST(SolveStream, EachLineSolvedIndependentlyAndMalformedLinesReported) {
   EXPECT_NEAR(z, c.tcp.z(), 1e-4);
 }
 
+// The shipped PAL camera in OpenCV's FileStorage form gives the estimates
+// of its ROS form, to the last digit printed.
+TEST(SolveStream, OpenCvAndRosCalibrationsGiveTheSameEstimates) {
+  ModelSetup ros;
+  ModelSetup opencv;
+  ASSERT_TRUE(load_model_setup("test", TCPEST_TEST_DATA_DIR "/../../config/pal_camera.yaml", nullptr, ros));
+  ASSERT_TRUE(load_model_setup("test", TCPEST_TEST_DATA_DIR "/../../config/pal_camera_opencv.yaml", nullptr, opencv));
+  solver::PoseVector truth;
+  truth << -13.3, 6.2, solver::deg_to_rad(10.0), 0.0, 22.0, 0.4, 0.9;
+  solver::CornerSet c;
+  ros.instrument.corners(ros.camera, truth, c);
+  for (std::size_t k = 0; k < c.pixel.size(); ++k) {
+    c.pixel[k] += solver::Vec2(0.3 * std::cos(1.7 * static_cast<double>(k)), 0.3 * std::sin(2.3 * static_cast<double>(k)));
+  }
+  const std::string line = corners_line(c, ", \"prior\": [24, 0.5, 0.75]") + "\n" + corners_line(c, "") + "\n";
+  std::string answers[2];
+  const ModelSetup* setups[2] = {&ros, &opencv};
+  for (int i = 0; i < 2; ++i) {
+    std::FILE* in = std::tmpfile();
+    std::FILE* out = std::tmpfile();
+    ASSERT_NE(in, nullptr);
+    ASSERT_NE(out, nullptr);
+    std::fputs(line.c_str(), in);
+    std::rewind(in);
+    const double prior[3] = {25.0, 0.3, 0.7};
+    const SolveStreamResult result = solve_stream(in, out, *setups[i], solver::SolveMode::Adaptive, prior);
+    EXPECT_EQ(result.solved, 2U);
+    answers[i] = read_all(out);
+    std::fclose(in);
+    std::fclose(out);
+  }
+  EXPECT_FALSE(answers[0].empty());
+  EXPECT_EQ(answers[0], answers[1]);
+}
+
 int run(std::initializer_list<const char*> words) {
   char storage[16][128];
   char* argv[16];

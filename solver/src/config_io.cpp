@@ -39,11 +39,129 @@ bool check_range(const yaml::Document& doc, const char* path, const char* what, 
   return false;
 }
 
+// The top-level keys of a camera calibration, every spelling included;
+// everything else in the file is skipped as it is parsed (yaml::KeySet).
+// ROS camera_info and OpenCV's calibration sample write camera_matrix /
+// distortion_coefficients; many OpenCV programs cameraMatrix / distCoeffs;
+// OpenCV's camera calibration tutorial Camera_Matrix / Distortion_Coefficients.
+constexpr const char* kCameraInfoKeys[] = {
+    "image_width",  "image_height", "distortion_model",        "camera_matrix", "distortion_coefficients",
+    "cameraMatrix", "distCoeffs",   "Camera_Matrix",           "Distortion_Coefficients",
+    "rectification_matrix", "projection_matrix"};
+constexpr std::size_t kFirstMatrixSpelling = 3U;  // then pairs: camera matrix, distortion
+constexpr std::size_t kMatrixSpellings = 3U;
+
+// The matrices' key in this file and the paths below it.
+struct MatrixPaths {
+  const char* key = "";
+  char rows[yaml::kMaxPath] = {};
+  char cols[yaml::kMaxPath] = {};
+  char dt[yaml::kMaxPath] = {};
+  char data[yaml::kMaxPath] = {};
+};
+
+void set_paths(MatrixPaths& m, const char* key) noexcept {
+  m.key = key;
+  // The keys are the short constants above: every path fits.
+  static_cast<void>(std::snprintf(m.rows, sizeof m.rows, "%s.rows", key));
+  static_cast<void>(std::snprintf(m.cols, sizeof m.cols, "%s.cols", key));
+  static_cast<void>(std::snprintf(m.dt, sizeof m.dt, "%s.dt", key));
+  static_cast<void>(std::snprintf(m.data, sizeof m.data, "%s.data", key));
+}
+
+struct CalibrationPaths {
+  MatrixPaths camera;
+  MatrixPaths distortion;
+  bool opencv = false;  // OpenCV FileStorage matrices (rows, cols, dt, data), no distortion_model
+};
+
+// Which spelling the file uses for each matrix (the first one when it has
+// none: the one a "missing" error names); false when it gives one matrix
+// under two spellings.
+bool find_matrix_keys(const yaml::Document& doc, CalibrationPaths& paths, Diagnostic& error) noexcept {
+  for (std::size_t which = 0U; which < 2U; ++which) {
+    MatrixPaths& m = (which == 0U) ? paths.camera : paths.distortion;
+    const char* found = nullptr;
+    for (std::size_t spelling = 0U; spelling < kMatrixSpellings; ++spelling) {
+      const char* key = kCameraInfoKeys[kFirstMatrixSpelling + 2U * spelling + which];
+      if (!doc.has(key)) {
+        continue;
+      }
+      if (found != nullptr) {
+        char message[128] = {};
+        static_cast<void>(std::snprintf(message, sizeof message, "the same matrix is also given as '%s'",
+                                        found));  // short constant names
+        error = doc.error_at(doc.find(key), key, message);
+        return false;
+      }
+      found = key;
+    }
+    set_paths(m, (found != nullptr) ? found : kCameraInfoKeys[kFirstMatrixSpelling + which]);
+  }
+  paths.opencv = !doc.has("distortion_model") && doc.has(paths.camera.dt);
+  return true;
+}
+
+// The number of items of a sequence entry (stored one a line).
+std::size_t item_count(const yaml::Entry& e) noexcept {
+  if (e.value[0] == '\0') {
+    return 0U;
+  }
+  std::size_t n = 1U;
+  for (const char* c = e.value; *c != '\0'; ++c) {
+    n += (*c == '\n') ? 1U : 0U;
+  }
+  return n;
+}
+
+// An OpenCV matrix: rows and cols (1..kMaxSide), dt d or f (double or
+// float: the values are read as doubles either way), and rows x cols
+// numbers in data. False with the field named.
+bool check_opencv_matrix(const yaml::Document& doc, const MatrixPaths& m, Diagnostic& error) noexcept {
+  constexpr long long kMaxSide = 14;  // the longest distortion vector OpenCV writes
+  const auto rows = doc.integer(m.rows);
+  const auto cols = doc.integer(m.cols);
+  if (!rows.ok() || !cols.ok()) {
+    error = rows.ok() ? cols.error() : rows.error();
+    return false;
+  }
+  const long long sides[2] = {rows.value(), cols.value()};
+  for (int i = 0; i < 2; ++i) {
+    if (sides[i] < 1 || sides[i] > kMaxSide) {
+      const char* path = (i == 0) ? m.rows : m.cols;
+      error = doc.error_at(doc.find(path), path, "must be 1..14");
+      return false;
+    }
+  }
+  char dt[8] = {};
+  const auto status = doc.text(m.dt, dt, sizeof dt);
+  if (!status.ok() || (std::strcmp(dt, "d") != 0 && std::strcmp(dt, "f") != 0)) {
+    error = doc.error_at(doc.find(m.dt), m.dt,
+                         status.ok() ? "element type must be d (double) or f (float)" : status.error().message);
+    return false;
+  }
+  const yaml::Entry* data = doc.find(m.data);
+  if (data == nullptr || !data->is_sequence) {
+    error = doc.error_at(data, m.data, (data == nullptr) ? "missing" : "expected a sequence of numbers");
+    return false;
+  }
+  const std::size_t count = item_count(*data);
+  if (static_cast<long long>(count) != sides[0] * sides[1]) {
+    char message[128] = {};
+    static_cast<void>(std::snprintf(message, sizeof message, "rows x cols = %lld x %lld, but data has %zu numbers",
+                                    sides[0], sides[1], count));  // fits
+    error = doc.error_at(data, m.data, message);
+    return false;
+  }
+  return true;
+}
+
 // The intrinsics read from the file within their plausible ranges
 // (camera.hpp, docs/model.md); false with the element named.
-bool check_intrinsic_ranges(const yaml::Document& doc, const CameraIntrinsics& k, Diagnostic& error) noexcept {
-  const char* matrix = "camera_matrix.data";
-  const char* dist = "distortion_coefficients.data";
+bool check_intrinsic_ranges(const yaml::Document& doc, const CalibrationPaths& paths, const CameraIntrinsics& k,
+                            Diagnostic& error) noexcept {
+  const char* matrix = paths.camera.data;
+  const char* dist = paths.distortion.data;
   const double w = k.width;
   const double h = k.height;
   return check_range(doc, matrix, "fx", k.fx, kMinFocalPx, kMaxFocalPx, "px", error) &&
@@ -114,35 +232,60 @@ bool check_unused_matrices(const yaml::Document& doc, Diagnostic& error) noexcep
   return true;
 }
 
-// distortion_model (plumb_bob only) and its coefficients into `k`; false
-// with the field named. rows x cols, when given, is the number of
-// coefficients (1 x N, or N x 1 as OpenCV writes them).
-bool read_distortion(const yaml::Document& doc, CameraIntrinsics& k, Diagnostic& error) noexcept {
+// distortion_model, when given, must be plumb_bob; an OpenCV file has none
+// (its distortion is plumb_bob with 4 or 5 coefficients). False with the
+// field named.
+bool check_distortion_model(const yaml::Document& doc, const CalibrationPaths& paths, Diagnostic& error) noexcept {
+  if (paths.opencv) {
+    return true;
+  }
   char model[32] = {};
-  auto status = doc.text("distortion_model", model, sizeof model);
+  const auto status = doc.text("distortion_model", model, sizeof model);
   if (!status.ok()) {
     error = status.error();
+    if (!doc.has("distortion_model")) {
+      copy_text(error.message, sizeof error.message,
+                "missing (a ROS camera_info names it; OpenCV's matrices have rows, cols, dt and data)");
+    }
     return false;
   }
   if (std::strcmp(model, "plumb_bob") != 0) {
     error = doc.error_at(doc.find("distortion_model"), "distortion_model", "only plumb_bob is supported");
     return false;
   }
+  return true;
+}
+
+// The distortion coefficients into `k`; false with the field named. rows x
+// cols, when given, is the number of coefficients (1 x N, or N x 1 as OpenCV
+// writes them). OpenCV's vectors have 4, 5, 8, 12 or 14 coefficients; those
+// beyond k3 (its rational, thin-prism and tilted models) must be zero.
+bool read_distortion(const yaml::Document& doc, const CalibrationPaths& paths, CameraIntrinsics& k,
+                     Diagnostic& error) noexcept {
+  const MatrixPaths& m = paths.distortion;
+  if (!doc.has(m.data)) {
+    error = doc.error_at(nullptr, m.data, "missing (also read as distCoeffs or Distortion_Coefficients)");
+    return false;
+  }
   double d[14] = {};
   std::size_t count = 0U;
-  status = doc.numbers_upto("distortion_coefficients.data", d, 14U, count);
+  const auto status = doc.numbers_upto(m.data, d, 14U, count);
   if (!status.ok()) {
     error = status.error();
     return false;
   }
-  const yaml::Entry* dist = doc.find("distortion_coefficients.data");
-  if (count < 4U) {
-    error = doc.error_at(dist, "distortion_coefficients.data", "expected 5 values (k1 k2 p1 p2 k3)");
+  const yaml::Entry* dist = doc.find(m.data);
+  const bool opencv_count = count == 4U || count == 5U || count == 8U || count == 12U || count == 14U;
+  if (count < 4U || (paths.opencv && !opencv_count)) {
+    char message[128] = {};
+    static_cast<void>(std::snprintf(message, sizeof message, "%zu coefficients: expected 5 (k1 k2 p1 p2 k3) or 4%s",
+                                    count, paths.opencv ? " (OpenCV also writes 8, 12 or 14)" : ""));  // fits
+    error = doc.error_at(dist, m.data, message);
     return false;
   }
-  if (doc.has("distortion_coefficients.rows") && doc.has("distortion_coefficients.cols")) {
-    const auto rows = doc.integer("distortion_coefficients.rows");
-    const auto cols = doc.integer("distortion_coefficients.cols");
+  if (doc.has(m.rows) && doc.has(m.cols)) {
+    const auto rows = doc.integer(m.rows);
+    const auto cols = doc.integer(m.cols);
     if (!rows.ok() || !cols.ok()) {
       error = rows.ok() ? cols.error() : rows.error();
       return false;
@@ -150,15 +293,18 @@ bool read_distortion(const yaml::Document& doc, CameraIntrinsics& k, Diagnostic&
     const bool in_range = rows.value() >= 1 && rows.value() <= 14 && cols.value() >= 1 && cols.value() <= 14;
     if (!in_range || rows.value() * cols.value() != static_cast<long long>(count) ||
         (rows.value() != 1 && cols.value() != 1)) {
-      error = doc.error_at(doc.find("distortion_coefficients.cols"), "distortion_coefficients.cols",
-                           "rows x cols is not the number of coefficients in data");
+      error = doc.error_at(doc.find(m.cols), m.cols, "rows x cols is not the number of coefficients in data");
       return false;
     }
   }
   for (std::size_t i = 5U; i < count; ++i) {
     if (d[i] != 0.0) {
-      error = doc.error_at(dist, "distortion_coefficients.data",
-                           "coefficients beyond k3 (rational/thin-prism models) are not supported");
+      char message[160] = {};
+      static_cast<void>(std::snprintf(message, sizeof message,
+                                      "%zu coefficients with k4.. not zero (rational, thin-prism or tilted model): "
+                                      "only plumb_bob's k1 k2 p1 p2 k3 are supported",
+                                      count));  // fits
+      error = doc.error_at(dist, m.data, message);
       return false;
     }
   }
@@ -170,43 +316,47 @@ bool read_distortion(const yaml::Document& doc, CameraIntrinsics& k, Diagnostic&
   return true;
 }
 
-}  // namespace
+// The image size into `k`; false with the field named.
+bool read_image_size(const yaml::Document& doc, CameraIntrinsics& k, Diagnostic& error) noexcept {
+  const char* const keys[2] = {"image_width", "image_height"};
+  int* const sides[2] = {&k.width, &k.height};
+  for (int i = 0; i < 2; ++i) {
+    const auto value = doc.integer(keys[i]);
+    if (!value.ok()) {
+      error = value.error();
+      return false;
+    }
+    if (value.value() <= 0 || value.value() > kMaxImageSide) {
+      error = doc.error_at(doc.find(keys[i]), keys[i], "must be 1..16384 px");
+      return false;
+    }
+    *sides[i] = static_cast<int>(value.value());
+  }
+  return true;
+}
 
-Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc) noexcept {
-  CameraIntrinsics k;
-  const auto width = doc.integer("image_width");
-  if (!width.ok()) {
-    return CameraResult::failure(width.error());
-  }
-  const auto height = doc.integer("image_height");
-  if (!height.ok()) {
-    return CameraResult::failure(height.error());
-  }
-  if (width.value() <= 0 || width.value() > kMaxImageSide) {
-    return CameraResult::failure(doc.error_at(doc.find("image_width"), "image_width", "must be 1..16384 px"));
-  }
-  if (height.value() <= 0 || height.value() > kMaxImageSide) {
-    return CameraResult::failure(doc.error_at(doc.find("image_height"), "image_height", "must be 1..16384 px"));
-  }
-  k.width = static_cast<int>(width.value());
-  k.height = static_cast<int>(height.value());
-
-  Diagnostic size_error;
-  if (!check_size(doc, "camera_matrix", 3, 3, size_error) || !check_unused_matrices(doc, size_error)) {
-    return CameraResult::failure(size_error);
+// The camera matrix [fx 0 cx; 0 fy cy; 0 0 1] (up to scale) into `k`;
+// false with the field named.
+bool read_camera_matrix(const yaml::Document& doc, const MatrixPaths& paths, CameraIntrinsics& k,
+                        Diagnostic& error) noexcept {
+  if (!doc.has(paths.data)) {
+    error = doc.error_at(nullptr, paths.data, "missing (also read as cameraMatrix or Camera_Matrix)");
+    return false;
   }
   double m[9] = {};
-  auto status = doc.numbers("camera_matrix.data", m, 9U);
+  const auto status = doc.numbers(paths.data, m, 9U);
   if (!status.ok()) {
-    return CameraResult::failure(status.error());
+    error = status.error();
+    return false;
   }
-  const yaml::Entry* matrix = doc.find("camera_matrix.data");
+  const yaml::Entry* matrix = doc.find(paths.data);
   if (m[1] != 0.0) {
-    return CameraResult::failure(doc.error_at(matrix, "camera_matrix.data", "skew is not supported (element 2 must be 0)"));
+    error = doc.error_at(matrix, paths.data, "skew is not supported (element 2 must be 0)");
+    return false;
   }
   if (m[3] != 0.0 || m[6] != 0.0 || m[7] != 0.0 || m[8] == 0.0) {
-    return CameraResult::failure(
-        doc.error_at(matrix, "camera_matrix.data", "not an upper-triangular camera matrix [fx 0 cx; 0 fy cy; 0 0 1]"));
+    error = doc.error_at(matrix, paths.data, "not an upper-triangular camera matrix [fx 0 cx; 0 fy cy; 0 0 1]");
+    return false;
   }
   // A matrix scaled by m[8] != 1 is the same camera.
   k.fx = m[0] / m[8];
@@ -214,20 +364,41 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
   k.fy = m[4] / m[8];
   k.cy = m[5] / m[8];
   if (!(k.fx > 0.0) || !(k.fy > 0.0)) {
-    return CameraResult::failure(
-        doc.error_at(matrix, "camera_matrix.data", "focal lengths must be positive (the matrix is singular)"));
+    error = doc.error_at(matrix, paths.data, "focal lengths must be positive (the matrix is singular)");
+    return false;
   }
+  return true;
+}
 
-  Diagnostic distortion_error;
-  if (!read_distortion(doc, k, distortion_error) || !check_intrinsic_ranges(doc, k, distortion_error)) {
-    return CameraResult::failure(distortion_error);
+}  // namespace
+
+yaml::KeySet camera_info_keys() noexcept {
+  return yaml::KeySet{kCameraInfoKeys, sizeof kCameraInfoKeys / sizeof kCameraInfoKeys[0]};
+}
+
+Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc) noexcept {
+  CameraIntrinsics k;
+  Diagnostic error;
+  CalibrationPaths paths;
+  if (!read_image_size(doc, k, error) || !find_matrix_keys(doc, paths, error)) {
+    return CameraResult::failure(error);
   }
-
+  // An OpenCV matrix (one with dt) is checked as such in a ROS file too.
+  const bool camera_ok = !doc.has(paths.camera.dt) || check_opencv_matrix(doc, paths.camera, error);
+  const bool distortion_ok = camera_ok && ((!paths.opencv && !doc.has(paths.distortion.dt)) ||
+                                           check_opencv_matrix(doc, paths.distortion, error));
+  const bool well_formed =
+      distortion_ok && check_size(doc, paths.camera.key, 3, 3, error) && check_unused_matrices(doc, error);
+  if (!well_formed || !read_camera_matrix(doc, paths.camera, k, error) ||
+      !check_distortion_model(doc, paths, error) || !read_distortion(doc, paths, k, error) ||
+      !check_intrinsic_ranges(doc, paths, k, error)) {
+    return CameraResult::failure(error);
+  }
   const auto model_check = CameraModel::create(k);
   if (!model_check.ok()) {
-    const char* field = "camera_matrix.data";
+    const char* field = paths.camera.data;
     if (model_check.error() == CameraError::NoValidRegion) {
-      field = "distortion_coefficients.data";
+      field = paths.distortion.data;
     }
     return CameraResult::failure(doc.error_at(doc.find(field), field, to_string(model_check.error())));
   }
@@ -235,7 +406,7 @@ Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc)
 }
 
 Result<CameraIntrinsics, Diagnostic> load_camera_info(const char* path, yaml::Document& scratch) noexcept {
-  const auto loaded = scratch.load(path);
+  const auto loaded = scratch.load(path, camera_info_keys());
   if (!loaded.ok()) {
     return CameraResult::failure(loaded.error());
   }

@@ -259,6 +259,146 @@ TEST(ConfigIo, MarkerColoursAreFiveBlueOrYellow) {
   }
 }
 
+Result<CameraIntrinsics, Diagnostic> camera_file(const std::string& path) {
+  return load_camera_info(path.c_str(), scratch());
+}
+
+// The same camera bit for bit: the same model, hence the same estimates.
+void expect_same_camera(const CameraIntrinsics& a, const CameraIntrinsics& b) {
+  EXPECT_EQ(a.width, b.width);
+  EXPECT_EQ(a.height, b.height);
+  const double pa[9] = {a.fx, a.fy, a.cx, a.cy, a.k1, a.k2, a.p1, a.p2, a.k3};
+  const double pb[9] = {b.fx, b.fy, b.cx, b.cy, b.k1, b.k2, b.p1, b.p2, b.k3};
+  for (int i = 0; i < 9; ++i) {
+    EXPECT_EQ(std::memcmp(&pa[i], &pb[i], sizeof(double)), 0) << "parameter " << i;
+  }
+  const auto ma = CameraModel::create(a);
+  const auto mb = CameraModel::create(b);
+  ASSERT_TRUE(ma.ok() && mb.ok());
+  EXPECT_EQ(ma.value().max_r2(), mb.value().max_r2());
+  Vec2 ua;
+  Vec2 ub;
+  const Vec3 point(3.0, -2.0, 40.0);
+  ASSERT_TRUE(ma.value().project(point, ua) && mb.value().project(point, ub));
+  EXPECT_EQ(ua.x(), ub.x());
+  EXPECT_EQ(ua.y(), ub.y());
+}
+
+// The shipped PAL camera as ROS and as OpenCV's FileStorage write it: the
+// same camera.
+TEST(ConfigIo, OpenCvAndRosFormsOfOneCalibrationAreTheSameCamera) {
+  const auto ros = camera_file(TCPEST_TEST_DATA_DIR "/../../config/pal_camera.yaml");
+  ASSERT_TRUE(ros.ok());
+  const auto opencv = camera_file(TCPEST_TEST_DATA_DIR "/../../config/pal_camera_opencv.yaml");
+  ASSERT_TRUE(opencv.ok()) << opencv.error().message;
+  expect_same_camera(ros.value(), opencv.value());
+}
+
+// OpenCV's calibration sample with -op -oe: its image points (4 views of a
+// 9 x 6 board, 432 numbers), extrinsics and per-view errors are skipped as
+// the file is parsed; the numbers as %.16e, with the emitter's line wraps.
+TEST(ConfigIo, ReadsTheCalibrationSampleOutput) {
+  const auto cam = camera_file(TCPEST_TEST_DATA_DIR "/calib/calibration_sample_4x9x6.yaml");
+  ASSERT_TRUE(cam.ok()) << cam.error().message;
+  const CameraIntrinsics& k = cam.value();
+  EXPECT_EQ(k.width, 720);
+  EXPECT_EQ(k.height, 576);
+  EXPECT_DOUBLE_EQ(k.fx, 5.2034567890123458e+02);
+  EXPECT_DOUBLE_EQ(k.fy, 5.1987654321098762e+02);
+  EXPECT_DOUBLE_EQ(k.cx, 3.5987654321098768e+02);
+  EXPECT_DOUBLE_EQ(k.cy, 2.8812345678901232e+02);
+  EXPECT_DOUBLE_EQ(k.k1, -2.9876543210987655e-01);
+  EXPECT_DOUBLE_EQ(k.k2, 1.0123456789012344e-01);
+  EXPECT_DOUBLE_EQ(k.p1, 1.2345678901234567e-04);
+  EXPECT_DOUBLE_EQ(k.p2, -2.3456789012345677e-04);
+  EXPECT_DOUBLE_EQ(k.k3, -1.2345678901234568e-02);
+  EXPECT_FALSE(scratch().has("image_points.data"));  // skipped, not stored
+  // Without the key set the image points do not fit an entry: the reason
+  // the reader skips them.
+  const std::string text = test::read_text_file(TCPEST_TEST_DATA_DIR "/calib/calibration_sample_4x9x6.yaml");
+  const auto whole = scratch().parse(text.data(), text.size(), "sample.yaml");
+  ASSERT_FALSE(whole.ok());
+  EXPECT_STREQ(whole.error().field, "image_points.data");
+  // Another program's spelling (cameraMatrix / distCoeffs, 1 x 5) and
+  // OpenCV 4's shortest round-trip numbers: the same camera.
+  const auto spelled = camera_file(TCPEST_TEST_DATA_DIR "/calib/opencv_cameraMatrix_distCoeffs.yaml");
+  ASSERT_TRUE(spelled.ok()) << spelled.error().message;
+  expect_same_camera(k, spelled.value());
+}
+
+Result<CameraIntrinsics, Diagnostic> opencv_camera_from(const std::string& text) {
+  const auto parsed = scratch().parse(text.data(), text.size(), "cam.yml", camera_info_keys());
+  if (!parsed.ok()) {
+    return Result<CameraIntrinsics, Diagnostic>::failure(parsed.error());
+  }
+  return read_camera_info(scratch());
+}
+
+const char* kOpenCv =
+    "%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+    "   data: [ 5.2e+02, 0., 3.6e+02, 0., 5.2e+02, 2.8e+02, 0., 0., 1. ]\n"
+    "distortion_coefficients: !!opencv-matrix\n   rows: 5\n   cols: 1\n   dt: d\n"
+    "   data: [ -0.2, 0.1, 0., 0., 0. ]\nimage_width: 720\nimage_height: 576\n";
+
+// Every damaged OpenCV file is refused with the field, the line and what is
+// wrong named.
+TEST(ConfigIo, NamesWhatIsWrongInAnOpenCvFile) {
+  const auto good = opencv_camera_from(kOpenCv);
+  ASSERT_TRUE(good.ok()) << good.error().message;
+  EXPECT_DOUBLE_EQ(good.value().fx, 520.0);
+  EXPECT_DOUBLE_EQ(good.value().k1, -0.2);
+  struct Damage {
+    const char* from;
+    const char* to;
+    const char* field;
+    unsigned line;
+    const char* message;  // a part of it
+  };
+  const Damage damages[] = {
+      {"   rows: 3\n   cols: 3", "   rows: 3\n   cols: 2", "camera_matrix.data", 7U, "3 x 2, but data has 9"},
+      {"   rows: 5\n   cols: 1", "   rows: 4\n   cols: 1", "distortion_coefficients.data", 12U, "but data has 5"},
+      {"   dt: d\n   data: [ 5.2e", "   dt: u\n   data: [ 5.2e", "camera_matrix.dt", 6U, "d (double) or f"},
+      {"   cols: 3\n   dt: d\n", "   cols: 3\n", "distortion_model", 0U, "dt"},  // then read as ROS
+      {"rows: 5\n   cols: 1\n   dt: d\n   data: [ -0.2, 0.1, 0., 0., 0. ]",
+       "rows: 8\n   cols: 1\n   dt: d\n   data: [ -0.2, 0.1, 0., 0., 0., 0.01, 0., 0. ]",
+       "distortion_coefficients.data", 12U, "8 coefficients with k4.. not zero"},
+      {"rows: 5\n   cols: 1\n   dt: d\n   data: [ -0.2, 0.1, 0., 0., 0. ]",
+       "rows: 8\n   cols: 1\n   dt: d\n   data: [ -0.2, 0.1, 0., 0., 0., 0., 0., 0. ]", "", 0U, ""},  // zeros: plumb_bob
+      {"rows: 5\n   cols: 1\n   dt: d\n   data: [ -0.2, 0.1, 0., 0., 0. ]",
+       "rows: 1\n   cols: 6\n   dt: d\n   data: [ -0.2, 0.1, 0., 0., 0., 0. ]", "distortion_coefficients.data", 12U,
+       "6 coefficients"},
+      {"camera_matrix: !!opencv-matrix", "intrinsics: !!opencv-matrix", "camera_matrix.data", 0U,
+       "missing (also read as cameraMatrix"},
+      {"distortion_coefficients: !!opencv-matrix", "distCoeffs: !!opencv-matrix", "", 0U, ""},  // accepted
+      {"image_width: 720\n", "image_width: 720\ncameraMatrix: 1\n", "cameraMatrix", 14U, "also given as"},
+      {"5.2e+02, 0., 3.6e+02, 0., 5.2e+02", "5.2e+09, 0., 3.6e+02, 0., 5.2e+02", "camera_matrix.data", 7U,
+       "fx = 5.2e+09 is outside"},
+      {"[ -0.2, 0.1, 0., 0., 0. ]", "[ -0.2, 0.1, 3., 0., 0. ]", "distortion_coefficients.data", 12U, "p1 = 3"},
+  };
+  for (const Damage& d : damages) {
+    std::string text(kOpenCv);
+    const std::size_t at = text.find(d.from);
+    ASSERT_NE(at, std::string::npos) << d.from;
+    text.replace(at, std::strlen(d.from), d.to);
+    const auto cam = opencv_camera_from(text);
+    if (d.field[0] == '\0') {
+      EXPECT_TRUE(cam.ok()) << text;
+      continue;
+    }
+    ASSERT_FALSE(cam.ok()) << text;
+    EXPECT_STREQ(cam.error().field, d.field) << text;
+    EXPECT_EQ(cam.error().line, d.line) << text;
+    EXPECT_NE(std::strstr(cam.error().message, d.message), nullptr) << d.message << " / " << cam.error().message;
+  }
+  // A ROS file that lost its distortion_model says what either form needs.
+  std::string ros(kGood);
+  ros.replace(ros.find("distortion_model: plumb_bob\n"), 28, "");
+  const auto no_model = camera_from(ros.c_str());
+  ASSERT_FALSE(no_model.ok());
+  EXPECT_STREQ(no_model.error().field, "distortion_model");
+  EXPECT_NE(std::strstr(no_model.error().message, "dt"), nullptr) << no_model.error().message;
+}
+
 // Seeded damage to the shipped files: each damaged file is refused with
 // the field named, or it is usable as it reads (a camera model that
 // projects, a geometry that validates). Never a crash or a half-read value.
@@ -266,13 +406,18 @@ TEST(ConfigIo, MarkerColoursAreFiveBlueOrYellow) {
 TEST(ConfigIo, DamagedFilesAreRefusedOrUsable) {
   const std::string camera_text = test::read_text_file(TCPEST_TEST_DATA_DIR "/../../config/pal_camera.yaml");
   const std::string geometry_text = test::read_text_file(TCPEST_TEST_DATA_DIR "/../../config/instrument.yaml");
+  const std::string opencv_text = test::read_text_file(TCPEST_TEST_DATA_DIR "/calib/calibration_sample_4x9x6.yaml");
   ASSERT_FALSE(camera_text.empty());
   ASSERT_FALSE(geometry_text.empty());
+  ASSERT_FALSE(opencv_text.empty());
   test::Mutator mutator(20261127U);
   int refused = 0;
   for (int i = 0; i < 20000; ++i) {
-    const std::string text = mutator.damage(i % 2 == 0 ? camera_text : geometry_text);
-    const auto parsed = scratch().parse(text.data(), text.size(), "damaged.yaml");
+    // Even: a camera, every other one in OpenCV's form (parsed as the loader does).
+    const bool opencv = i % 4 == 2;
+    const std::string text = mutator.damage(i % 2 == 1 ? geometry_text : opencv ? opencv_text : camera_text);
+    const auto parsed = scratch().parse(text.data(), text.size(), "damaged.yaml",
+                                        opencv ? camera_info_keys() : yaml::KeySet{});
     if (!parsed.ok()) {
       EXPECT_NE(parsed.error().message[0], '\0') << text;
       ++refused;

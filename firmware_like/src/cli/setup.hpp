@@ -12,7 +12,8 @@ namespace cli {
 
 // The options every model-using command takes, with one help text.
 constexpr OptionSpec kCalibOption{"calib", "CAM.yaml",
-                                  "camera calibration (ROS camera_info YAML); default: the PAL camera of model.md"};
+                                  "camera calibration (ROS camera_info or OpenCV FileStorage YAML); "
+                                  "default: the PAL camera of model.md"};
 constexpr OptionSpec kInstrumentConfigOption{"config", "CFG.yaml",
                                              "configuration: the instrument and the loop:/can:/rt: sections, as "
                                              "`tcpest run` reads them; default: the built-in geometry and defaults"};

@@ -7,7 +7,11 @@
 //
 // The document is flattened into entries keyed by their dotted path
 // ("camera_matrix.data"), each with its line, so that every error can name the
-// file, the line and the field. Storage is fixed; nothing allocates.
+// file, the line and the field. Storage is fixed; nothing allocates. A reader
+// that names the top-level keys it wants (KeySet) gets only those stored: every
+// other entry is still checked as YAML line by line but not stored, so an
+// unknown entry of any size (OpenCV's calibration writes matrices of
+// thousands of numbers) takes no entry and no value space.
 #pragma once
 
 #include <cstddef>
@@ -34,12 +38,20 @@ struct Entry {
   mutable bool used = false;  // set when read, to find unknown keys
 };
 
+// The top-level keys to store; an empty set (the default) stores every key.
+struct KeySet {
+  const char* const* keys = nullptr;
+  std::size_t count = 0U;
+  bool contains(const char* key, std::size_t length) const noexcept;
+};
+
 class Document {
  public:
-  // Parses text; `file` only names the source in diagnostics.
-  Status<Diagnostic> parse(const char* text, std::size_t length, const char* file) noexcept;
+  // Parses text; `file` only names the source in diagnostics. Top-level
+  // entries not in `keep` (when it is not empty) are checked, not stored.
+  Status<Diagnostic> parse(const char* text, std::size_t length, const char* file, KeySet keep = KeySet{}) noexcept;
   // Reads and parses a file (at most kMaxFileBytes; the buffer is a member).
-  Status<Diagnostic> load(const char* path) noexcept;
+  Status<Diagnostic> load(const char* path, KeySet keep = KeySet{}) noexcept;
 
   const char* file() const noexcept { return file_; }
   std::size_t size() const noexcept { return count_; }
@@ -67,6 +79,7 @@ class Document {
  private:
   Entry entries_[kMaxEntries];
   std::size_t count_ = 0U;
+  Entry skipped_{};  // the entry being checked but not stored (its value stays empty)
   char file_[256] = {};
   char buffer_[kMaxFileBytes] = {};
 };

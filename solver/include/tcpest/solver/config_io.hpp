@@ -13,11 +13,19 @@
 namespace tcpest {
 namespace solver {
 
-// Reads and validates a camera_info document. Required: image_width,
-// image_height, camera_matrix.data (9 values, [fx 0 cx; 0 fy cy; 0 0 1]),
-// distortion_model (plumb_bob), distortion_coefficients.data (4 or 5 values,
-// or more when the extra ones are zero).
+// Reads and validates a camera calibration (docs/model.md). Required:
+// image_width, image_height, camera_matrix.data (9 values, [fx 0 cx; 0 fy
+// cy; 0 0 1]) and distortion_coefficients.data (4 or 5 values, or more when
+// the extra ones are zero), and either distortion_model (plumb_bob: ROS) or
+// OpenCV matrices (rows, cols, dt d or f, rows x cols values in data; no
+// distortion_model). OpenCV's other spellings of the two matrices
+// (cameraMatrix / distCoeffs, Camera_Matrix / Distortion_Coefficients) are
+// read too.
 Result<CameraIntrinsics, Diagnostic> read_camera_info(const yaml::Document& doc) noexcept;
+// The top-level keys read_camera_info reads: parse a calibration with them
+// so that the rest of the file (an OpenCV calibration's image points, of any
+// size) is skipped, not stored.
+yaml::KeySet camera_info_keys() noexcept;
 // `scratch` is the (large) parse buffer; keep it in static storage.
 Result<CameraIntrinsics, Diagnostic> load_camera_info(const char* path, yaml::Document& scratch) noexcept;
 
