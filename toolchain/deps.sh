@@ -23,9 +23,11 @@ tcpest_install_deps() {
 
 # What building and running tcpest needs.
 TCPEST_BUILD_PACKAGES=(cmake make g++ libeigen3-dev libjpeg62-turbo-dev libturbojpeg0-dev pkg-config)
-# What the tests and checks need on top.
+# What the tests and checks need on top (dpkg-dev and file: cpack's Debian
+# package and its dependencies).
 TCPEST_TEST_PACKAGES=(libgtest-dev libgmock-dev libbenchmark-dev clang clang-tidy cppcheck
-                      can-utils user-mode-linux kmod iproute2 python3 g++-aarch64-linux-gnu)
+                      can-utils user-mode-linux kmod iproute2 python3 g++-aarch64-linux-gnu
+                      dpkg-dev file)
 # The vcan tests' qemu guest (tests/vcan/README.md), x86-64 hosts only; its
 # kernel is fetched by run-vcan.sh with apt-get download, not installed.
 if [ "$(uname -m)" = "x86_64" ]; then

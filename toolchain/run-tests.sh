@@ -19,6 +19,10 @@ cmake --preset default >/dev/null
 cmake --build build/default -j"$jobs"
 
 if [ "$quick" -eq 0 ]; then
+  step "install, a project built against it, the Debian package"
+  toolchain/check-install.sh build/default
+  toolchain/check-package.sh build/default
+
   step "static analysis"
   toolchain/lint.sh build/default
 

@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
     return argc < 2 ? tcpest::cli::kExitUsage : tcpest::cli::kExitOk;
   }
   if (std::strcmp(argv[1], "--version") == 0) {
-    std::printf("tcpest 0.1.0\n");
+    std::printf("tcpest %s\n", TCPEST_VERSION);
     return tcpest::cli::kExitOk;
   }
   int count = 0;

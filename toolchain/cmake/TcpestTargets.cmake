@@ -10,8 +10,19 @@ set(TCPEST_WARNINGS -Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Wsh
 # ARM64 and which rounds once where x86-64 rounds twice; and Eigen's scalar
 # paths, since its NEON kernels fuse and its packets sum in another order
 # than SSE's. libm's transcendental functions are replaced by common/dmath.
-add_compile_options(-ffp-contract=off)
-add_compile_definitions(EIGEN_DONT_VECTORIZE)
+# Every target built here gets them (tests, benchmarks and tools too, also
+# those that link no tcpest library). The interface target carries the same
+# flags, as usage requirements of every tcpest library, to the code of a
+# project that links the installed libraries: Eigen's types in the public
+# headers (the solver's) must be compiled alike on both sides.
+set(TCPEST_ARITHMETIC_OPTIONS -ffp-contract=off)
+set(TCPEST_ARITHMETIC_DEFINITIONS EIGEN_DONT_VECTORIZE)
+add_compile_options(${TCPEST_ARITHMETIC_OPTIONS})
+add_compile_definitions(${TCPEST_ARITHMETIC_DEFINITIONS})
+add_library(tcpest_arithmetic INTERFACE)
+target_compile_options(tcpest_arithmetic INTERFACE ${TCPEST_ARITHMETIC_OPTIONS})
+target_compile_definitions(tcpest_arithmetic INTERFACE ${TCPEST_ARITHMETIC_DEFINITIONS})
+set_target_properties(tcpest_arithmetic PROPERTIES EXPORT_NAME arithmetic)
 
 # float-cast-overflow is not part of GCC's "undefined": a double out of an
 # integer's range converts to INT_MIN on x86-64 and saturates on ARM64, so
@@ -32,6 +43,7 @@ function(tcpest_core_library name)
   add_library(${name} ${ARGN})
   target_compile_options(${name} PRIVATE ${TCPEST_WARNINGS} -fno-exceptions -fno-rtti)
   target_compile_features(${name} PUBLIC cxx_std_17)
+  target_link_libraries(${name} PUBLIC tcpest_arithmetic)
 endfunction()
 
 # Other first-party code (hal backends, the loop, the command): same warnings.
@@ -39,6 +51,7 @@ function(tcpest_library name)
   add_library(${name} ${ARGN})
   target_compile_options(${name} PRIVATE ${TCPEST_WARNINGS})
   target_compile_features(${name} PUBLIC cxx_std_17)
+  target_link_libraries(${name} PUBLIC tcpest_arithmetic)
 endfunction()
 
 # A GoogleTest program registered with CTest. LABELS default to "unit".

@@ -120,6 +120,75 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
   EXPECT_EQ(config.loop.estimator.classify_step, 0);
 }
 
+// config/deploy.yaml, the deployment example the package ships: it loads,
+// it lists every key of the three sections, and each key not marked
+// "deployed" there holds its default.
+TEST(LoopConfig, DeploymentExampleLoadsWithTheDefaultsItClaims) {
+  const std::string path = std::string(TCPEST_TEST_DATA_DIR) + "/../../config/deploy.yaml";
+  static yaml::Document doc;
+  LoopConfig config;
+  const auto loaded = load_loop_config(path.c_str(), doc, config);
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  const char* const every_key[] = {
+      "loop.trigger", "loop.period_us", "loop.pacing", "loop.frames", "loop.source", "loop.replay_loop",
+      "loop.v4l2_format", "loop.solve_mode", "loop.classify_step", "loop.track_drop_after",
+      "loop.min_corners_valid", "loop.max_rms_valid_px", "loop.encoder_check_lambda_mm",
+      "loop.encoder_check_bend_rad", "loop.outlier_rounds", "loop.guided_rounds", "loop.fallback_seeds",
+      "loop.shaft_recheck", "loop.alias_check", "loop.valid_start_check", "loop.base_rim_seed",
+      "loop.max_valid_tcp_disagreement_mm", "loop.camera_timeout_ms", "loop.camera_lost_after", "loop.retry_ms",
+      "loop.status_period_ms", "can.bus", "can.node_id", "can.heartbeat_ms", "can.prior_timeout_ms",
+      "can.prior_max_counter_gap", "can.autostart", "can.sync_timeout_ms", "rt.lock_memory", "rt.fifo_priority",
+      "rt.cpu", "rt.prefault_stack_kb", "rt.cpu_latency_us"};
+  for (const char* key : every_key) {
+    EXPECT_TRUE(doc.has(key)) << key;
+  }
+  // Deployed: a V4L2 camera, SocketCAN, the loop alone on an isolated core.
+  EXPECT_STREQ(config.loop.source, "/dev/video0");
+  EXPECT_STREQ(config.can.bus, "can0");
+  EXPECT_TRUE(config.rt.lock_memory);
+  EXPECT_EQ(config.rt.fifo_priority, 80);
+  EXPECT_EQ(config.rt.cpu, 3);
+  EXPECT_EQ(config.rt.cpu_latency_us, 0);
+  // Everything else: the defaults.
+  const LoopConfig d;
+  const LoopSettings& l = config.loop;
+  EXPECT_EQ(l.trigger, d.loop.trigger);
+  EXPECT_EQ(l.period_us, d.loop.period_us);
+  EXPECT_EQ(l.pacing, d.loop.pacing);
+  EXPECT_EQ(l.frames, d.loop.frames);
+  EXPECT_EQ(l.replay_loop, d.loop.replay_loop);
+  EXPECT_STREQ(l.v4l2_format, d.loop.v4l2_format);
+  EXPECT_EQ(l.track_drop_after, d.loop.track_drop_after);
+  EXPECT_EQ(l.camera_timeout_ms, d.loop.camera_timeout_ms);
+  EXPECT_EQ(l.camera_lost_after, d.loop.camera_lost_after);
+  EXPECT_EQ(l.retry_ms, d.loop.retry_ms);
+  EXPECT_EQ(l.status_period_ms, d.loop.status_period_ms);
+  const vision::EstimatorConfig& e = l.estimator;
+  const vision::EstimatorConfig& de = d.loop.estimator;
+  EXPECT_EQ(e.solve_mode, de.solve_mode);
+  EXPECT_EQ(e.classify_step, de.classify_step);
+  EXPECT_EQ(e.solve.min_corners_valid, de.solve.min_corners_valid);
+  EXPECT_EQ(e.solve.max_rms_valid_px, de.solve.max_rms_valid_px);
+  EXPECT_EQ(e.solve.outlier_rounds, de.solve.outlier_rounds);
+  EXPECT_EQ(e.encoder_check.lambda_tolerance_mm, de.encoder_check.lambda_tolerance_mm);
+  EXPECT_EQ(e.encoder_check.bend_tolerance_rad, de.encoder_check.bend_tolerance_rad);
+  EXPECT_EQ(e.guided.rounds, de.guided.rounds);
+  EXPECT_EQ(e.guided.fallback_seeds, de.guided.fallback_seeds);
+  EXPECT_EQ(e.guided.shaft_recheck, de.guided.shaft_recheck);
+  EXPECT_EQ(e.guided.alias_check, de.guided.alias_check);
+  EXPECT_EQ(e.guided.valid_start_check, de.guided.valid_start_check);
+  EXPECT_EQ(e.guided.base_rim_seed, de.guided.base_rim_seed);
+  EXPECT_EQ(e.guided.max_valid_tcp_disagreement_mm, de.guided.max_valid_tcp_disagreement_mm);
+  const CanSettings& c = config.can;
+  EXPECT_EQ(c.node_id, d.can.node_id);
+  EXPECT_EQ(c.heartbeat_ms, d.can.heartbeat_ms);
+  EXPECT_EQ(c.prior_timeout_ms, d.can.prior_timeout_ms);
+  EXPECT_EQ(c.prior_max_counter_gap, d.can.prior_max_counter_gap);
+  EXPECT_EQ(c.autostart, d.can.autostart);
+  EXPECT_EQ(c.sync_timeout_ms, d.can.sync_timeout_ms);
+  EXPECT_EQ(config.rt.prefault_stack_kb, d.rt.prefault_stack_kb);
+}
+
 }  // namespace
 }  // namespace loop
 }  // namespace tcpest
