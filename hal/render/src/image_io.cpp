@@ -1,8 +1,13 @@
 #include "tcpest/render/image_io.hpp"
 
+#include <fcntl.h>
 #include <turbojpeg.h>
+#include <unistd.h>
 
+#include <array>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <new>
 
 namespace tcpest {
@@ -129,13 +134,25 @@ std::uint32_t crc32_update(std::uint32_t crc, const std::uint8_t* data, std::siz
   return ~crc;
 }
 
-// Streams PNG chunks to a file, with the chunk CRC and the zlib Adler-32.
+// Streams PNG chunks to a file descriptor through a fixed buffer, with the
+// chunk CRC and the zlib Adler-32. No allocation (the recorder's writer
+// thread writes overlays with it); a failed write(2) keeps its errno.
 class PngStream {
  public:
-  explicit PngStream(std::FILE* file) noexcept : file_(file) {}
+  explicit PngStream(int fd) noexcept : fd_(fd) {}
   bool put(const void* data, std::size_t size) noexcept {
-    ok_ = ok_ && std::fwrite(data, 1U, size, file_) == size;
     crc_ = crc32_update(crc_, static_cast<const std::uint8_t*>(data), size);
+    const auto* bytes = static_cast<const std::uint8_t*>(data);
+    while (ok_ && size > 0U) {
+      const std::size_t n = size < buffer_.size() - used_ ? size : buffer_.size() - used_;
+      std::memcpy(buffer_.data() + used_, bytes, n);
+      used_ += n;
+      bytes += n;
+      size -= n;
+      if (used_ == buffer_.size()) {
+        ok_ = flush();
+      }
+    }
     return ok_;
   }
   bool put_u32(std::uint32_t v) noexcept {
@@ -152,10 +169,32 @@ class PngStream {
     const std::uint32_t crc = crc_;
     return put_u32(crc);
   }
+  // Writes what is buffered; false (errno set) when a write failed.
+  bool flush() noexcept {
+    std::size_t done = 0U;
+    int interrupted = 0;
+    while (ok_ && done < used_) {
+      const ssize_t n = ::write(fd_, buffer_.data() + done, used_ - done);
+      if (n > 0) {
+        done += static_cast<std::size_t>(n);
+      } else if (n < 0 && errno == EINTR && interrupted < 100) {
+        ++interrupted;
+      } else {
+        if (n == 0) {
+          errno = ENOSPC;  // no progress on a regular file: no room
+        }
+        ok_ = false;
+      }
+    }
+    used_ = 0U;
+    return ok_;
+  }
   bool ok() const noexcept { return ok_; }
 
  private:
-  std::FILE* file_;
+  int fd_;
+  std::array<std::uint8_t, 16384> buffer_{};
+  std::size_t used_ = 0U;
   std::uint32_t crc_ = 0U;
   bool ok_ = true;
 };
@@ -166,11 +205,11 @@ Status<ImageIoError> write_png_file(const ImageView& image, const char* path) no
   if (!image.valid() || image.width > 16384 || image.height > 16384) {
     return Status<ImageIoError>::failure(ImageIoError::BadImage);
   }
-  std::FILE* file = std::fopen(path, "wb");
-  if (file == nullptr) {
+  const int fd = ::open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) {
     return Status<ImageIoError>::failure(ImageIoError::OpenFailed);
   }
-  PngStream png(file);
+  PngStream png(fd);
   const std::uint8_t signature[8] = {0x89U, 'P', 'N', 'G', '\r', '\n', 0x1AU, '\n'};
   static_cast<void>(png.put(signature, 8U));  // errors accumulate in png.ok()
   static_cast<void>(png.begin_chunk("IHDR", 13U));
@@ -209,8 +248,13 @@ Status<ImageIoError> write_png_file(const ImageView& image, const char* path) no
   static_cast<void>(png.end_chunk());
   static_cast<void>(png.begin_chunk("IEND", 0U));
   static_cast<void>(png.end_chunk());
-  const int closed = std::fclose(file);
-  if (!png.ok() || closed != 0) {
+  const bool written = png.flush();
+  const int write_errno = errno;
+  const int closed = ::close(fd);
+  if (!written) {
+    errno = write_errno;  // the write's reason, not the close's
+  }
+  if (!written || closed != 0) {
     return Status<ImageIoError>::failure(ImageIoError::WriteFailed);
   }
   return ok_status<ImageIoError>();
