@@ -123,13 +123,15 @@ std::size_t format_cycles_csv_row(const loop::CycleRecord& r, const hal::FrameTr
 
 bool write_cycles_csv_header(std::FILE* out, bool with_truth) noexcept {
   char line[kCyclesCsvMaxLine];
-  return write_all(out, line, format_cycles_csv_header(with_truth, line, sizeof line));
+  const std::size_t length = format_cycles_csv_header(with_truth, line, sizeof line);
+  return write_all(out, line, length);
 }
 
 bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, const hal::FrameTruth* truth, bool with_truth,
                           std::int64_t t0_ns) noexcept {
   char line[kCyclesCsvMaxLine];
-  return write_all(out, line, format_cycles_csv_row(r, truth, with_truth, t0_ns, line, sizeof line));
+  const std::size_t length = format_cycles_csv_row(r, truth, with_truth, t0_ns, line, sizeof line);
+  return write_all(out, line, length);
 }
 
 }  // namespace cli
