@@ -123,15 +123,44 @@ Status<ImageIoError> write_ppm_file(const ImageView& image, const char* path) no
 
 namespace {
 
+// The CRC-32 of every byte value (PNG's polynomial), computed at compile time:
+// one lookup per byte instead of eight shifts (an overlay is 1.2 MB).
+constexpr std::array<std::uint32_t, 256> make_crc32_table() noexcept {
+  std::array<std::uint32_t, 256> table{};
+  for (std::uint32_t n = 0; n < 256U; ++n) {
+    std::uint32_t c = n;
+    for (int k = 0; k < 8; ++k) {
+      c = (c >> 1U) ^ (0xEDB88320U & (0U - (c & 1U)));
+    }
+    table[n] = c;
+  }
+  return table;
+}
+constexpr std::array<std::uint32_t, 256> kCrc32Table = make_crc32_table();
+
 std::uint32_t crc32_update(std::uint32_t crc, const std::uint8_t* data, std::size_t size) noexcept {
   crc = ~crc;
   for (std::size_t i = 0; i < size; ++i) {
-    crc ^= data[i];
-    for (int k = 0; k < 8; ++k) {
-      crc = (crc >> 1U) ^ (0xEDB88320U & (0U - (crc & 1U)));
-    }
+    crc = kCrc32Table[(crc ^ data[i]) & 0xFFU] ^ (crc >> 8U);
   }
   return ~crc;
+}
+
+// Adler-32 over `size` bytes; the modulo once per 5552 bytes (zlib's NMAX,
+// the most that cannot overflow 32 bits) instead of twice per byte.
+void adler32_update(std::uint32_t& a, std::uint32_t& b, const std::uint8_t* data, std::size_t size) noexcept {
+  constexpr std::size_t kMaxRun = 5552U;
+  while (size > 0U) {
+    const std::size_t run = size < kMaxRun ? size : kMaxRun;
+    for (std::size_t i = 0; i < run; ++i) {
+      a += data[i];
+      b += a;
+    }
+    a %= 65521U;
+    b %= 65521U;
+    data += run;
+    size -= run;
+  }
 }
 
 // Streams PNG chunks to a file descriptor through a fixed buffer, with the
@@ -239,10 +268,7 @@ Status<ImageIoError> write_png_file(const ImageView& image, const char* path) no
     adler_b = (adler_b + adler_a) % 65521U;  // the filter byte (0) adds nothing to a
     const std::uint8_t* row = image.row(static_cast<int>(y));
     static_cast<void>(png.put(row, row_bytes - 1U));
-    for (std::uint32_t i = 0; i + 1U < row_bytes; ++i) {
-      adler_a = (adler_a + row[i]) % 65521U;
-      adler_b = (adler_b + adler_a) % 65521U;
-    }
+    adler32_update(adler_a, adler_b, row, row_bytes - 1U);
   }
   static_cast<void>(png.put_u32((adler_b << 16U) | adler_a));
   static_cast<void>(png.end_chunk());
