@@ -1,6 +1,7 @@
 #include "cli/recorder.hpp"
 
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
@@ -27,8 +28,9 @@ namespace {
 constexpr int kWriterNice = 10;
 // The writer's stack: its buffers are on the heap (allocated at start-up).
 constexpr std::size_t kWriterStackBytes = std::size_t{256U} * 1024U;
-// How long the writer sleeps when the queue is empty.
-constexpr long kWriterIdleNs = 2'000'000L;
+// How long the writer sleeps when the queue is empty: it then writes what
+// came meanwhile in one go (a few wake-ups a second, not one per cycle).
+constexpr long kWriterIdleNs = 10'000'000L;
 // Bytes of the candump lines of one entry.
 constexpr std::size_t kTextBytes = kMaxFramesPerEntry * hal::kCandumpMaxLine;
 // The smallest share of the cap a file may have (a few rows).
@@ -377,8 +379,13 @@ bool Recorder::finish() noexcept {
 // ---- Recorder: the writer ---------------------------------------------------
 
 void* Recorder::writer_main(void* self) noexcept {
-  // Below the loop: a nice value for this thread alone (Linux threads have their own).
-  static_cast<void>(::setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kWriterNice));  // a preference
+  // Below the loop: SCHED_BATCH (its wake-ups do not preempt a running
+  // thread, the loop's in particular) and a nice value for this thread alone
+  // (Linux threads have their own). Both are preferences: without them the
+  // writer still only reads copies.
+  const sched_param batch{};
+  static_cast<void>(::pthread_setschedparam(::pthread_self(), SCHED_BATCH, &batch));
+  static_cast<void>(::setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kWriterNice));
   static_cast<Recorder*>(self)->writer_loop();
   return nullptr;
 }
