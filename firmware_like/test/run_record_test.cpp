@@ -131,6 +131,16 @@ TEST_F(RunRecordTest, ATargetThatCannotBeCreatedExitsOne) {
   EXPECT_NE(err.find("--record /dev/full"), std::string::npos) << err;
 }
 
+TEST_F(RunRecordTest, ACapTooSmallForTheStreamsIsAUsageError) {
+  const std::string record = fresh_dir("run_record_small");
+  std::string out;
+  testing::internal::CaptureStderr();
+  const int code = run({"--no-pacing", "--quiet", "--bus", "sim", "--record", record, "--record-max-mb", "0.001"}, out);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(code, kExitUsage);
+  EXPECT_NE(err.find("--record-max-mb too small"), std::string::npos) << err;
+}
+
 TEST_F(RunRecordTest, StatusJsonLinesAreObjectsWithTheFields) {
   const std::string dir = fresh_dir("run_status_json");
   const std::string config = dir + "/status.yaml";

@@ -132,14 +132,16 @@ bool parse_record_options(const Args& args, RecorderOptions& options) noexcept {
 }
 
 // The recorder of this rig (its writer thread started), tapping the CAN
-// node; nullptr (reported) when it cannot be started.
-std::unique_ptr<Recorder> start_recorder(RecorderOptions options, LoopRig& rig) noexcept {
+// node; nullptr (reported) when it cannot be started, with the exit code in
+// `code` (2: a cap too small for the options, 1: anything else).
+std::unique_ptr<Recorder> start_recorder(RecorderOptions options, LoopRig& rig, int& code) noexcept {
   options.width = rig.source->width();
   options.height = rig.source->height();
   options.with_truth = rig.sim != nullptr;
   options.can_interface = rig.node->log_interface();
   auto created = Recorder::create(options, rig.models);
   if (!created.ok()) {
+    code = created.error() == RecorderError::kBadOptions ? kExitUsage : kExitFailure;
     if (created.error() == RecorderError::kBadOptions) {
       std::fprintf(stderr, "tcpest run: --record %s: --record-max-mb too small for %u file(s) per stream%s\n",
                    options.dir, options.keep_files, options.overlay_every > 0U ? " and one overlay" : "");
@@ -230,9 +232,10 @@ int cmd_run(int argc, char** argv) {
   // The writer thread starts before the real-time settings: it keeps the normal policy.
   std::unique_ptr<Recorder> recorder;
   if (record_options.dir != nullptr) {
-    recorder = start_recorder(record_options, rig);
+    int record_code = kExitOk;
+    recorder = start_recorder(record_options, rig, record_code);
     if (!recorder) {
-      return kExitFailure;
+      return record_code;
     }
   }
   const loop::RtReport rt = loop::apply_rt_settings(rig.config.rt);  // its latency request lasts until the return
