@@ -1,5 +1,6 @@
-// cycles.csv: every row has the header's columns, and the row says why its
-// estimate has its status (the last four columns).
+// cycles.csv: every row has the header's columns, the row says why its
+// estimate has its status (the last four columns), and "none" is an empty
+// field, never a sentinel.
 #include "cli/cycles_csv.hpp"
 
 #include <gtest/gtest.h>
@@ -38,14 +39,14 @@ hal::FrameTruth truth_at_50mm() {
 }
 
 std::vector<std::vector<std::string>> header_and_row(const loop::CycleRecord& r, std::int64_t t0_ns,
-                                                     const hal::FrameTruth* truth) {
+                                                     const hal::FrameTruth* truth, bool with_truth = true) {
   std::FILE* f = std::tmpfile();
   EXPECT_NE(f, nullptr);
   if (f == nullptr) {
     return {};
   }
-  EXPECT_TRUE(write_cycles_csv_header(f));
-  EXPECT_TRUE(write_cycles_csv_row(f, r, truth, t0_ns));
+  EXPECT_TRUE(write_cycles_csv_header(f, with_truth));
+  EXPECT_TRUE(write_cycles_csv_row(f, r, truth, with_truth, t0_ns));
   std::rewind(f);
   std::vector<std::vector<std::string>> lines;
   char buffer[4096];
@@ -135,6 +136,24 @@ TEST(CyclesCsv, TheRowSaysWhyTheEstimateIsDegraded) {
                          {"failed_stage", ""}});
 }
 
+TEST(CyclesCsv, WithoutTruthThereAreNoTruthColumnsAndNothingIsAnEmptyField) {
+  loop::CycleRecord r = degraded_by_the_image_fit();
+  r.publication.status = loop::EstimateStatus::kInvalid;
+  r.latency_ns = -1;
+  r.send_offset_ns = -1;
+  const auto lines = header_and_row(r, r.trigger_ns, nullptr, false);
+  ASSERT_EQ(lines.size(), 2U);
+  EXPECT_EQ(lines[1].size(), lines[0].size());
+  for (const std::string& name : lines[0]) {
+    EXPECT_EQ(name.find("truth"), std::string::npos) << name;
+    EXPECT_NE(name, "error_mm");
+  }
+  expect_columns(lines, {{"latency_ms", ""}, {"send_offset_ms", ""}, {"tcp_x_mm", ""}, {"rms_px", ""}});
+  for (const std::string& field : lines[1]) {
+    EXPECT_NE(field, "-1.000");
+  }
+}
+
 TEST(CyclesCsv, AFailedStageAndNoTruthAreSaidSo) {
   loop::CycleRecord r = degraded_by_the_image_fit();
   r.failed_stage = 1;  // classify
@@ -148,8 +167,9 @@ TEST(CyclesCsv, AFailedStageAndNoTruthAreSaidSo) {
   ASSERT_EQ(lines.size(), 2U);
   expect_columns(lines, {{"failed_stage", loop::kSchedule[1].name},
                          {"solve_status", ""},
-                         {"error_mm", "-1.000"},
-                         {"latency_ms", "-1.000"},
+                         {"error_mm", ""},
+                         {"truth_x_mm", ""},
+                         {"latency_ms", ""},
                          {"encoder_disagrees", "1"},
                          {"fit_disagrees", "0"}});
 }
@@ -158,8 +178,8 @@ TEST(CyclesCsv, AFailedStageAndNoTruthAreSaidSo) {
 TEST(CyclesCsv, AStreamThatRefusesTheWriteIsReported) {
   std::FILE* read_only = std::fopen("/dev/null", "r");
   ASSERT_NE(read_only, nullptr);
-  EXPECT_FALSE(write_cycles_csv_header(read_only));
-  EXPECT_FALSE(write_cycles_csv_row(read_only, degraded_by_the_image_fit(), nullptr, 0));
+  EXPECT_FALSE(write_cycles_csv_header(read_only, true));
+  EXPECT_FALSE(write_cycles_csv_row(read_only, degraded_by_the_image_fit(), nullptr, true, 0));
   static_cast<void>(std::fclose(read_only));  // opened for reading: nothing to flush
 }
 

@@ -57,6 +57,9 @@ void CanNodePort::set_bus_time(std::int64_t now_ns) noexcept {
 }
 
 void CanNodePort::log(const can::Frame& frame, std::int64_t now_ns) noexcept {
+  if (tap_ != nullptr) {
+    tap_->on_frame(frame, to_us(now_ns + wall_offset_ns_));
+  }
   if (log_ != nullptr) {
     // A full disk loses log lines, never a cycle: the writer counts its failures (write_errors()),
     // which the command reports at the end of the run.

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "cli/args.hpp"
+#include "cli/cycle_overlay.hpp"
 #include "cli/cycles_csv.hpp"
 #include "cli/commands.hpp"
 #include "cli/joint_errors.hpp"
@@ -25,7 +26,6 @@
 #include "cli/setup.hpp"
 #include "tcpest/can_iface/messages.hpp"
 #include "tcpest/render/image_io.hpp"
-#include "tcpest/vision/overlay.hpp"
 
 namespace tcpest {
 namespace cli {
@@ -120,7 +120,7 @@ class DemoObserver final : public loop::CycleObserver {
       return false;
     }
     encoder_ = std::move(encoder.value());
-    return write_cycles_csv_header(csv_);
+    return write_cycles_csv_header(csv_, true);
   }
 
   void on_cycle(const loop::CycleRecord& r, const ImageView& frame) noexcept override {
@@ -139,7 +139,7 @@ class DemoObserver final : public loop::CycleObserver {
     const hal::FrameTruth truth =
         r.have_frame && rig_.sim != nullptr ? rig_.sim->last_truth() : hal::FrameTruth{};
     // A refused row is reported once, with the outputs, at the end.
-    csv_failed_ = !write_cycles_csv_row(csv_, r, &truth, t0_ns_) || csv_failed_;
+    csv_failed_ = !write_cycles_csv_row(csv_, r, &truth, true, t0_ns_) || csv_failed_;
     // The cycle that finds the sequence ended has its row, but it is not a
     // frame: the accuracy counts frames (a dropped frame is one, without an
     // estimate).
@@ -172,34 +172,8 @@ class DemoObserver final : public loop::CycleObserver {
  private:
   void write_overlay(const loop::CycleRecord& r, const hal::FrameTruth& truth, const ImageView& frame) noexcept {
     const MutableImageView out{overlay_.get(), frame.width, frame.height, static_cast<std::size_t>(frame.width) * 3U};
-    for (int y = 0; y < frame.height; ++y) {
-      std::memcpy(out.row(y), frame.row(y), static_cast<std::size_t>(frame.width) * 3U);
-    }
-    vision::ReprojectedModel model;
-    if (r.solved) {
-      solver::CornerSet corners;
-      rig_.models.instrument.corners(rig_.models.camera, r.publication.r, corners, nullptr);
-      model.valid = true;
-      for (std::size_t k = 0; k < static_cast<std::size_t>(vision::kNumCorners); ++k) {
-        model.present[k] = corners.present[k];
-        model.corners[k] = vision::Point{corners.pixel[k].x(), corners.pixel[k].y()};
-      }
-      solver::Vec2 tcp_px;
-      if (rig_.models.camera.project(corners.tcp, tcp_px)) {
-        model.tcp_valid = true;
-        model.tcp = vision::Point{tcp_px.x(), tcp_px.y()};
-      }
-    }
-    if (rig_.vision != nullptr) {
-      vision::draw_extraction(out, rig_.vision->extractor().result(), model);
-    }
-    if (truth.valid) {
-      solver::Vec2 truth_px;
-      const solver::Vec3 truth_tcp(truth.tcp_mm[0], truth.tcp_mm[1], truth.tcp_mm[2]);
-      if (rig_.models.camera.project(truth_tcp, truth_px)) {
-        vision::draw_cross(out, vision::Point{truth_px.x(), truth_px.y()}, 9, 0U, 255U, 0U);  // truth: green cross
-      }
-    }
+    draw_cycle_overlay(out, frame, rig_.vision != nullptr ? &rig_.vision->extractor().result() : nullptr, rig_.models,
+                       r, &truth);
     char path[512];
     static_cast<void>(std::snprintf(path, sizeof path, "%s/frame_%04u.png", overlay_dir_, r.frame_sequence));  // short paths
     if (!render::write_png_file(out.view(), path).ok()) {

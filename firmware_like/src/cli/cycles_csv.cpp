@@ -1,6 +1,7 @@
 #include "cli/cycles_csv.hpp"
 
 #include <cmath>
+#include <cstdarg>
 #include <cstddef>
 
 #include "cli/loop_rig.hpp"
@@ -13,53 +14,124 @@ namespace {
 // 0/1 for the CSV's flags.
 int flag(bool b) noexcept { return b ? 1 : 0; }
 
+// Appends to a fixed buffer; remembers when it did not fit.
+class LineBuffer {
+ public:
+  LineBuffer(char* out, std::size_t capacity) noexcept : out_(out), capacity_(capacity) {
+    if (capacity_ > 0U) {
+      out_[0] = '\0';
+    }
+  }
+  // NOLINTNEXTLINE(cert-dcl50-cpp): printf-style formatting into a fixed buffer, checked by the compiler's format attribute
+  __attribute__((format(printf, 2, 3))) void add(const char* format, ...) noexcept {
+    if (!ok_) {
+      return;
+    }
+    va_list args;
+    va_start(args, format);
+    const int n = std::vsnprintf(out_ + used_, capacity_ - used_, format, args);
+    va_end(args);
+    if (n < 0 || static_cast<std::size_t>(n) >= capacity_ - used_) {
+      ok_ = false;
+      return;
+    }
+    used_ += static_cast<std::size_t>(n);
+  }
+  // A number with three decimals, or nothing.
+  void number_or_empty(bool present, double value) noexcept {
+    if (present) {
+      add(",%.3f", value);
+    } else {
+      add(",");
+    }
+  }
+  std::size_t length() const noexcept { return ok_ ? used_ : 0U; }
+
+ private:
+  char* out_;
+  std::size_t capacity_;
+  std::size_t used_ = 0U;
+  bool ok_ = true;
+};
+
+bool write_all(std::FILE* out, const char* text, std::size_t length) noexcept {
+  return length > 0U && std::fwrite(text, 1U, length, out) == length;
+}
+
 }  // namespace
 
-bool write_cycles_csv_header(std::FILE* out) noexcept {
-  bool ok = std::fprintf(out,
-                         "cycle,frame,t_ms,status,prior,failed_stage,solve_status,corners_detected,corners_used,rms_px,"
-                         "latency_ms,send_offset_ms,total_ms") >= 0;
+std::size_t format_cycles_csv_header(bool with_truth, char* out, std::size_t capacity) noexcept {
+  if (capacity == 0U) {
+    return 0U;
+  }
+  LineBuffer line(out, capacity);
+  line.add("cycle,frame,t_ms,status,prior,failed_stage,solve_status,corners_detected,corners_used,rms_px,"
+           "latency_ms,send_offset_ms,total_ms");
   for (int i = 0; i < loop::kNumSteps; ++i) {
-    ok = std::fprintf(out, ",%s_ms", loop::kSchedule[static_cast<std::size_t>(i)].name) >= 0 && ok;
+    line.add(",%s_ms", loop::kSchedule[static_cast<std::size_t>(i)].name);
+  }
+  line.add(",overrun,slipped,tcp_x_mm,tcp_y_mm,tcp_z_mm");
+  if (with_truth) {
+    line.add(",truth_x_mm,truth_y_mm,truth_z_mm,error_mm");
   }
   // The last four say why an estimate has its status: the model-guided
   // rounds gave it (refined), corners the solve dropped, and the two
   // demotions from valid (the encoders', the image fit's).
-  ok = std::fprintf(out,
-                    ",overrun,slipped,tcp_x_mm,tcp_y_mm,tcp_z_mm,truth_x_mm,truth_y_mm,truth_z_mm,error_mm,"
-                    "refined,corners_rejected,encoder_disagrees,fit_disagrees\n") >= 0 &&
-       ok;
-  return ok;
+  line.add(",refined,corners_rejected,encoder_disagrees,fit_disagrees\n");
+  return line.length();
 }
 
-bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, const hal::FrameTruth* truth,
-                          std::int64_t t0_ns) noexcept {
+std::size_t format_cycles_csv_row(const loop::CycleRecord& r, const hal::FrameTruth* truth, bool with_truth,
+                                  std::int64_t t0_ns, char* out, std::size_t capacity) noexcept {
+  if (capacity == 0U) {
+    return 0U;
+  }
   const loop::Publication& p = r.publication;
-  const hal::FrameTruth t = truth != nullptr ? *truth : hal::FrameTruth{};
-  double error_mm = -1.0;  // -1: nothing estimated, or no truth to compare with
-  if (t.valid && p.status <= loop::EstimateStatus::kDegraded) {
-    const double dx = p.tcp_mm[0] - t.tcp_mm[0];
-    const double dy = p.tcp_mm[1] - t.tcp_mm[1];
-    const double dz = p.tcp_mm[2] - t.tcp_mm[2];
-    error_mm = std::sqrt(dx * dx + dy * dy + dz * dz);
-  }
-  bool ok = std::fprintf(out, "%llu,%u,%.3f,%s,%s,%s,%s,%u,%u,%.3f,%.3f,%.3f,%.3f",
-                         static_cast<unsigned long long>(r.cycle), r.frame_sequence, ms(r.trigger_ns - t0_ns),
-                         can::to_string(p.status), vision::to_string(r.prior),
-                         r.failed_stage >= 0 ? loop::kSchedule[static_cast<std::size_t>(r.failed_stage)].name : "",
-                         r.failed_stage < 0 && r.have_frame ? solver::to_string(r.solve_status) : "",
-                         static_cast<unsigned>(p.corners_detected), static_cast<unsigned>(p.corners_used), p.rms_px,
-                         r.latency_ns >= 0 ? ms(r.latency_ns) : -1.0,
-                         r.send_offset_ns >= 0 ? ms(r.send_offset_ns) : -1.0, ms(r.total_ns)) >= 0;
+  // Held repeats the last estimate; invalid carries none.
+  const bool estimate = p.status != loop::EstimateStatus::kInvalid;
+  LineBuffer line(out, capacity);
+  line.add("%llu,%u,%.3f,%s,%s,%s,%s,%u,%u", static_cast<unsigned long long>(r.cycle), r.frame_sequence,
+           ms(r.trigger_ns - t0_ns), can::to_string(p.status), vision::to_string(r.prior),
+           r.failed_stage >= 0 ? loop::kSchedule[static_cast<std::size_t>(r.failed_stage)].name : "",
+           r.failed_stage < 0 && r.have_frame ? solver::to_string(r.solve_status) : "",
+           static_cast<unsigned>(p.corners_detected), static_cast<unsigned>(p.corners_used));
+  line.number_or_empty(estimate, p.rms_px);
+  line.number_or_empty(r.latency_ns >= 0, ms(r.latency_ns));
+  line.number_or_empty(r.send_offset_ns >= 0, ms(r.send_offset_ns));
+  line.add(",%.3f", ms(r.total_ns));
   for (int i = 0; i < loop::kNumSteps; ++i) {
-    ok = std::fprintf(out, ",%.3f", ms(r.step_ns[static_cast<std::size_t>(i)])) >= 0 && ok;
+    line.add(",%.3f", ms(r.step_ns[static_cast<std::size_t>(i)]));
   }
-  ok = std::fprintf(out, ",%d,%u,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%d,%d\n", flag(r.overrun), r.slipped,
-                    p.tcp_mm[0], p.tcp_mm[1], p.tcp_mm[2], t.tcp_mm[0], t.tcp_mm[1], t.tcp_mm[2],
-                    error_mm, flag(r.refined), r.corners_rejected, flag(r.encoder_disagrees),
-                    flag(r.fit_disagrees)) >= 0 &&
-       ok;
-  return ok;
+  line.add(",%d,%u", flag(r.overrun), r.slipped);
+  for (std::size_t i = 0; i < 3U; ++i) {
+    line.number_or_empty(estimate, p.tcp_mm[i]);
+  }
+  if (with_truth) {
+    const bool known = truth != nullptr && truth->valid;
+    double error_mm = 0.0;
+    for (std::size_t i = 0; i < 3U; ++i) {
+      const double d = known ? p.tcp_mm[i] - truth->tcp_mm[i] : 0.0;
+      error_mm += d * d;
+      line.number_or_empty(known, known ? truth->tcp_mm[i] : 0.0);
+    }
+    // The error of this frame's own estimate (valid or degraded), against this frame's truth.
+    line.number_or_empty(known && p.status <= loop::EstimateStatus::kDegraded, std::sqrt(error_mm));
+  }
+  line.add(",%d,%d,%d,%d\n", flag(r.refined), r.corners_rejected, flag(r.encoder_disagrees), flag(r.fit_disagrees));
+  return line.length();
+}
+
+bool write_cycles_csv_header(std::FILE* out, bool with_truth) noexcept {
+  char line[kCyclesCsvMaxLine];
+  const std::size_t length = format_cycles_csv_header(with_truth, line, sizeof line);
+  return write_all(out, line, length);
+}
+
+bool write_cycles_csv_row(std::FILE* out, const loop::CycleRecord& r, const hal::FrameTruth* truth, bool with_truth,
+                          std::int64_t t0_ns) noexcept {
+  char line[kCyclesCsvMaxLine];
+  const std::size_t length = format_cycles_csv_row(r, truth, with_truth, t0_ns, line, sizeof line);
+  return write_all(out, line, length);
 }
 
 }  // namespace cli

@@ -23,6 +23,21 @@ namespace loop {
 // The NodeConfig the loop's settings ask for.
 can::NodeConfig node_config(const LoopConfig& config) noexcept;
 
+// Sees every frame the port sends or receives, stamped as the candump log
+// stamps it (microseconds of wall-clock time): a recorder that writes the
+// log off the cycle. Called inside the cycle: it must neither block nor
+// allocate.
+class FrameTap {
+ public:
+  FrameTap() noexcept = default;
+  virtual ~FrameTap() = default;
+  FrameTap(const FrameTap&) = delete;
+  FrameTap& operator=(const FrameTap&) = delete;
+  FrameTap(FrameTap&&) = delete;
+  FrameTap& operator=(FrameTap&&) = delete;
+  virtual void on_frame(const can::Frame& frame, std::int64_t wall_us) noexcept = 0;
+};
+
 class CanNodePort final : public NodePort {
  public:
   // `sim` (optional): the simulated bus whose time follows the loop's clock.
@@ -34,6 +49,10 @@ class CanNodePort final : public NodePort {
   Status<can::CanError> configure(const can::NodeConfig& config) noexcept;
   // With SocketCAN, wait_sync() sleeps in poll() on its socket.
   void set_socket(const hal::SocketCanBus* socket) noexcept { socket_ = socket; }
+  // Every frame sent or received also goes to `tap` (nullptr: none).
+  void set_tap(FrameTap* tap) noexcept { tap_ = tap; }
+  // The interface name the candump lines carry.
+  const char* log_interface() const noexcept { return log_interface_; }
 
   Status<PortError> receive(std::int64_t now_ns) noexcept override;
   NodeMode mode() const noexcept override;
@@ -59,6 +78,7 @@ class CanNodePort final : public NodePort {
   hal::SimBus* sim_;
   const hal::SocketCanBus* socket_ = nullptr;
   hal::CandumpLogWriter* log_;
+  FrameTap* tap_ = nullptr;
   char log_interface_[16] = {};
   std::int64_t wall_offset_ns_ = 0;  // CLOCK_REALTIME - loop clock, fixed at construction
   can::Node node_{};

@@ -54,7 +54,8 @@ class JpegEncoder {
 Status<ImageIoError> write_ppm_file(const ImageView& image, const char* path) noexcept;
 
 // PNG (8-bit RGB, uncompressed deflate blocks: large files, no zlib needed;
-// meant for previews and documentation figures).
+// meant for previews and documentation figures). No allocation: written with
+// write(2) through a fixed buffer; on WriteFailed errno says why.
 Status<ImageIoError> write_png_file(const ImageView& image, const char* path) noexcept;
 
 // Writes `size` bytes to `path` (created or truncated).
