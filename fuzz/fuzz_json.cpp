@@ -42,6 +42,43 @@ void walk(const json::Document& doc) {
   }
 }
 
+char g_formatted[65536];
+
+// A model or sidecar the reader accepts must be one the product can write
+// back and read again (the training command and the renderer write them).
+void round_trip_color_model(const vision::ColorModel& model) {
+  const std::size_t n = vision::format_color_model(model, g_formatted, sizeof g_formatted);
+  if (n == 0U || !vision::parse_color_model(g_formatted, n, "formatted.json").ok()) {
+    __builtin_trap();
+  }
+}
+
+void round_trip_sidecar(const render::Sidecar& sidecar) {
+  const std::size_t n = render::format_sidecar(sidecar, g_formatted, sizeof g_formatted);
+  if (n == 0U || !render::parse_sidecar(g_formatted, n, "formatted.json").ok()) {
+    __builtin_trap();
+  }
+}
+
+// What `tcpest solve` does with an accepted line (cli::solve_one): solve from
+// the line's prior, format the result.
+void solve(const cli::CornersInput& input) {
+  static const auto camera = solver::CameraModel::create(solver::default_pal_camera());
+  static const auto instrument = solver::InstrumentModel::create(solver::InstrumentGeometry{});
+  if (!camera.ok() || !instrument.ok()) {
+    __builtin_trap();  // the harness itself is broken
+  }
+  static solver::PoseSolver pose_solver(camera.value(), instrument.value());
+  const double coarse[3] = {20.0, 0.3, 0.8};
+  const double* joints = input.has_prior ? input.prior : coarse;
+  solver::PoseVector r = instrument.value().geometry().nominal_pose(joints[0], joints[1], joints[2]);
+  const solver::PoseVector start = r;
+  const solver::SolveSummary summary = pose_solver.solve(input.observed, solver::SolveMode::Adaptive, r);
+  r = solver::nearest_equivalent_joints(r, start);
+  char line[4096] = {};
+  static_cast<void>(cli::format_solve_json(summary, r, instrument.value().tcp(r), line, sizeof line));
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -50,10 +87,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (doc.parse(text, size).ok()) {
     walk(doc);
   }
-  static_cast<void>(vision::parse_color_model(text, size, "fuzz.json"));  // refusal is a valid outcome
-  static_cast<void>(render::parse_sidecar(text, size, "fuzz.json"));
+  const auto model = vision::parse_color_model(text, size, "fuzz.json");  // refusal is a valid outcome
+  if (model.ok()) {
+    round_trip_color_model(model.value());
+  }
+  static render::Sidecar sidecar;
+  const auto parsed = render::parse_sidecar(text, size, "fuzz.json");
+  if (parsed.ok()) {
+    sidecar = parsed.value();
+    round_trip_sidecar(sidecar);
+  }
   static cli::CornersInput corners;
   char error[256] = {};
-  static_cast<void>(cli::parse_corners_json(text, size, corners, error, sizeof error));
+  corners = cli::CornersInput{};
+  if (cli::parse_corners_json(text, size, corners, error, sizeof error)) {
+    solve(corners);
+  }
   return 0;
 }

@@ -8,7 +8,9 @@
 
 #include "tcpest/common/yaml_lite.hpp"
 #include "tcpest/loop/config.hpp"
+#include "tcpest/solver/camera.hpp"
 #include "tcpest/solver/config_io.hpp"
+#include "tcpest/solver/instrument.hpp"
 
 namespace {
 
@@ -30,6 +32,21 @@ void read_every_entry(const yaml::Document& doc) {
   static_cast<void>(doc.first_unused(""));
 }
 
+// What start-up does with an accepted file: build the models, then project
+// the instrument's corners at its nominal pose (as `tcpest project` does).
+void use_models(const Result<solver::CameraIntrinsics, Diagnostic>& intrinsics,
+                const Result<solver::InstrumentGeometry, Diagnostic>& geometry) {
+  const auto camera = solver::CameraModel::create(intrinsics.ok() ? intrinsics.value() : solver::default_pal_camera());
+  const auto instrument = solver::InstrumentModel::create(geometry.ok() ? geometry.value() : solver::InstrumentGeometry{});
+  if (!camera.ok() || !instrument.ok() || (!intrinsics.ok() && !geometry.ok())) {
+    return;
+  }
+  solver::CornerSet corners;
+  instrument.value().corners(camera.value(), instrument.value().geometry().nominal_pose(20.0, 0.3, 0.8), corners);
+  solver::Vec2 normalised;
+  static_cast<void>(camera.value().undistort(solver::Vec2(0.0, 0.0), normalised));  // any outcome is fine
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -43,8 +60,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (!g_doc.parse(text, size, "fuzz.yaml").ok()) {
     return 0;
   }
-  static_cast<void>(solver::read_camera_info(g_doc));  // refusal is a valid outcome
-  static_cast<void>(solver::read_instrument_config(g_doc));
+  const auto intrinsics = solver::read_camera_info(g_doc);  // refusal is a valid outcome
+  const auto geometry = solver::read_instrument_config(g_doc);
+  use_models(intrinsics, geometry);
   static loop::LoopConfig config;
   config = loop::LoopConfig{};
   static_cast<void>(loop::read_loop_config(g_doc, config));
