@@ -61,13 +61,25 @@ can::Frame frame_from(const std::uint8_t* record, std::uint8_t node_id) {
   return frame;
 }
 
+// The estimates the loop may hand over, normal or not: the node saturates
+// what does not fit and must never convert out of range.
+double extreme(std::uint8_t selector) {
+  constexpr double kValues[8] = {0.0, 12.5, -7.25, 1e300, -1e300, __builtin_inf(), -__builtin_inf(), __builtin_nan("")};
+  return kValues[selector & 0x07U];
+}
+
 void end_cycle(can::Node& node, const can::Frame* frames, std::size_t count, const std::uint8_t* record,
                Clock& clock) {
   static_cast<void>(node.receive(frames, count, clock.now_us));  // the summary is not checked here
   static_cast<void>(node.encoder_prior(clock.now_us));
   can::Estimate estimate;
   estimate.status = static_cast<can::EstimateStatus>(record[9] & 0x03U);
-  estimate.tcp_z_mm = static_cast<double>(record[10]);
+  estimate.tcp_x_mm = extreme(record[10]);
+  estimate.tcp_z_mm = extreme(static_cast<std::uint8_t>(record[10] >> 3U));
+  estimate.theta_rad = extreme(static_cast<std::uint8_t>(record[11] >> 4U));
+  estimate.psi_rad = extreme(record[9] >> 2U);
+  estimate.rms_px = extreme(record[9] >> 5U);
+  estimate.latency_us = static_cast<std::int64_t>(static_cast<std::int8_t>(record[11])) * 1000;
   estimate.corners_used = static_cast<std::uint8_t>(record[11] & 0x0FU);
   static_cast<void>(node.publish(estimate));
   if ((record[0] & 0x10U) != 0U) {

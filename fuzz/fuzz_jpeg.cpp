@@ -2,11 +2,14 @@
 // decoder's arena and its one error guard): header inspection, then a decode
 // into a buffer of the image's size, or of a wrong size when the image is
 // larger than the decoder was sized for. Every failure must be an error
-// value, and the decoder must stay usable after it.
+// value, and the decoder must stay usable after it: a reference frame
+// (made by the renderer's encoder) must decode after every input.
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 
 #include "tcpest/hal/camera/jpeg_decoder.hpp"
+#include "tcpest/render/image_io.hpp"
 
 namespace {
 
@@ -16,10 +19,32 @@ constexpr int kMaxWidth = 320;
 constexpr int kMaxHeight = 240;
 std::uint8_t g_pixels[static_cast<std::size_t>(kMaxWidth) * kMaxHeight * 3U];
 
+constexpr int kReferenceWidth = 24;
+constexpr int kReferenceHeight = 16;
+std::uint8_t g_reference[4096];
+std::size_t g_reference_size = 0U;
+
+void make_reference() {
+  static std::uint8_t rgb[kReferenceWidth * kReferenceHeight * 3];
+  for (std::size_t i = 0U; i < sizeof rgb; ++i) {
+    rgb[i] = static_cast<std::uint8_t>(i * 7U);
+  }
+  auto encoder = render::JpegEncoder::create(kReferenceWidth, kReferenceHeight);
+  const ImageView image{rgb, kReferenceWidth, kReferenceHeight, kReferenceWidth * 3U};
+  if (!encoder.ok() || !encoder.value()->encode(image, 80).ok() || encoder.value()->size() > sizeof g_reference) {
+    __builtin_trap();  // the harness itself is broken
+  }
+  g_reference_size = encoder.value()->size();
+  std::memcpy(g_reference, encoder.value()->data(), g_reference_size);
+}
+
 hal::JpegDecoder& decoder() {
   static hal::JpegDecoder instance;
-  if (!instance.initialised() && !instance.init(kMaxWidth, kMaxHeight).ok()) {
-    __builtin_trap();  // the harness itself is broken
+  if (!instance.initialised()) {
+    if (!instance.init(kMaxWidth, kMaxHeight).ok()) {
+      __builtin_trap();  // the harness itself is broken
+    }
+    make_reference();
   }
   return instance;
 }
@@ -38,5 +63,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   static_cast<void>(jpeg.decode(data, size, out));  // refusal is a valid outcome
   static_cast<void>(jpeg.last_message());
+  const MutableImageView reference{g_pixels, kReferenceWidth, kReferenceHeight, kReferenceWidth * 3U};
+  if (!jpeg.decode(g_reference, g_reference_size, reference).ok()) {
+    __builtin_trap();  // the last input left the decoder unusable
+  }
   return 0;
 }
