@@ -17,34 +17,39 @@ using namespace tcpest;
 
 constexpr int kMaxWidth = 320;
 constexpr int kMaxHeight = 240;
-std::uint8_t g_pixels[static_cast<std::size_t>(kMaxWidth) * kMaxHeight * 3U];
-
 constexpr int kReferenceWidth = 24;
 constexpr int kReferenceHeight = 16;
-std::uint8_t g_reference[4096];
-std::size_t g_reference_size = 0U;
 
-void make_reference() {
-  static std::uint8_t rgb[kReferenceWidth * kReferenceHeight * 3];
+// The decoder (made once, as the loop makes it), its output buffer, and the
+// reference frame.
+struct Harness {
+  hal::JpegDecoder decoder;
+  std::uint8_t pixels[static_cast<std::size_t>(kMaxWidth) * kMaxHeight * 3U] = {};
+  std::uint8_t reference[4096] = {};
+  std::size_t reference_size = 0U;
+};
+
+void make_reference(Harness& h) {
+  static std::uint8_t rgb[static_cast<std::size_t>(kReferenceWidth) * kReferenceHeight * 3U];
   for (std::size_t i = 0U; i < sizeof rgb; ++i) {
     rgb[i] = static_cast<std::uint8_t>(i * 7U);
   }
   auto encoder = render::JpegEncoder::create(kReferenceWidth, kReferenceHeight);
-  const ImageView image{rgb, kReferenceWidth, kReferenceHeight, kReferenceWidth * 3U};
-  if (!encoder.ok() || !encoder.value()->encode(image, 80).ok() || encoder.value()->size() > sizeof g_reference) {
+  const ImageView image{rgb, kReferenceWidth, kReferenceHeight, static_cast<std::size_t>(kReferenceWidth) * 3U};
+  if (!encoder.ok() || !encoder.value()->encode(image, 80).ok() || encoder.value()->size() > sizeof h.reference) {
     __builtin_trap();  // the harness itself is broken
   }
-  g_reference_size = encoder.value()->size();
-  std::memcpy(g_reference, encoder.value()->data(), g_reference_size);
+  h.reference_size = encoder.value()->size();
+  std::memcpy(h.reference, encoder.value()->data(), h.reference_size);
 }
 
-hal::JpegDecoder& decoder() {
-  static hal::JpegDecoder instance;
-  if (!instance.initialised()) {
-    if (!instance.init(kMaxWidth, kMaxHeight).ok()) {
+Harness& harness() {
+  static Harness instance;
+  if (!instance.decoder.initialised()) {
+    if (!instance.decoder.init(kMaxWidth, kMaxHeight).ok()) {
       __builtin_trap();  // the harness itself is broken
     }
-    make_reference();
+    make_reference(instance);
   }
   return instance;
 }
@@ -52,19 +57,20 @@ hal::JpegDecoder& decoder() {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  hal::JpegDecoder& jpeg = decoder();
-  const auto info = jpeg.inspect(data, size);
-  MutableImageView out{g_pixels, 8, 8, 8U * 3U};  // wrong size for most images: kWrongSize
+  Harness& h = harness();
+  const auto info = h.decoder.inspect(data, size);
+  MutableImageView out{h.pixels, 8, 8, std::size_t{8U} * 3U};  // wrong size for most images: kWrongSize
   if (info.ok() && info.value().width > 0 && info.value().height > 0 && info.value().width <= kMaxWidth &&
       info.value().height <= kMaxHeight) {
     out.width = info.value().width;
     out.height = info.value().height;
     out.stride_bytes = static_cast<std::size_t>(out.width) * 3U;
   }
-  static_cast<void>(jpeg.decode(data, size, out));  // refusal is a valid outcome
-  static_cast<void>(jpeg.last_message());
-  const MutableImageView reference{g_pixels, kReferenceWidth, kReferenceHeight, kReferenceWidth * 3U};
-  if (!jpeg.decode(g_reference, g_reference_size, reference).ok()) {
+  static_cast<void>(h.decoder.decode(data, size, out));  // refusal is a valid outcome
+  static_cast<void>(h.decoder.last_message());
+  const MutableImageView reference{h.pixels, kReferenceWidth, kReferenceHeight,
+                                   static_cast<std::size_t>(kReferenceWidth) * 3U};
+  if (!h.decoder.decode(h.reference, h.reference_size, reference).ok()) {
     __builtin_trap();  // the last input left the decoder unusable
   }
   return 0;

@@ -15,7 +15,7 @@ namespace {
 using namespace tcpest;
 
 constexpr std::size_t kTokens = 4096U;
-json::Token g_tokens[kTokens];
+constexpr std::size_t kFormatted = 65536U;
 
 // Every accessor on every token: lookups run on whatever the parser built.
 void walk(const json::Document& doc) {
@@ -42,20 +42,20 @@ void walk(const json::Document& doc) {
   }
 }
 
-char g_formatted[65536];
-
 // A model or sidecar the reader accepts must be one the product can write
 // back and read again (the training command and the renderer write them).
 void round_trip_color_model(const vision::ColorModel& model) {
-  const std::size_t n = vision::format_color_model(model, g_formatted, sizeof g_formatted);
-  if (n == 0U || !vision::parse_color_model(g_formatted, n, "formatted.json").ok()) {
+  static char formatted[kFormatted];
+  const std::size_t n = vision::format_color_model(model, formatted, sizeof formatted);
+  if (n == 0U || !vision::parse_color_model(formatted, n, "formatted.json").ok()) {
     __builtin_trap();
   }
 }
 
 void round_trip_sidecar(const render::Sidecar& sidecar) {
-  const std::size_t n = render::format_sidecar(sidecar, g_formatted, sizeof g_formatted);
-  if (n == 0U || !render::parse_sidecar(g_formatted, n, "formatted.json").ok()) {
+  static char formatted[kFormatted];
+  const std::size_t n = render::format_sidecar(sidecar, formatted, sizeof formatted);
+  if (n == 0U || !render::parse_sidecar(formatted, n, "formatted.json").ok()) {
     __builtin_trap();
   }
 }
@@ -83,7 +83,8 @@ void solve(const cli::CornersInput& input) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const char* text = reinterpret_cast<const char*>(data);  // NOLINT(cppcoreguidelines-pro-type-reinterpret-cast): bytes as text
-  json::Document doc(g_tokens, kTokens);
+  static json::Token tokens[kTokens];
+  json::Document doc(tokens, kTokens);
   if (doc.parse(text, size).ok()) {
     walk(doc);
   }

@@ -19,7 +19,6 @@ using namespace tcpest;
 
 constexpr int kMaxPixels = 128 * 128;
 constexpr int kMaxFrames = 8;
-std::uint8_t g_pixels[static_cast<std::size_t>(kMaxPixels) * 3U];
 
 int memory_file() {
   static const int fd = static_cast<int>(::memfd_create("fuzz_y4m", MFD_CLOEXEC));
@@ -42,7 +41,8 @@ bool fill(int fd, const std::uint8_t* data, std::size_t size) {
 }
 
 void read_frames(hal::Y4mSource& source) {
-  MutableImageView out{g_pixels, source.width(), source.height(), static_cast<std::size_t>(source.width()) * 3U};
+  static std::uint8_t pixels[static_cast<std::size_t>(kMaxPixels) * 3U];
+  MutableImageView out{pixels, source.width(), source.height(), static_cast<std::size_t>(source.width()) * 3U};
   hal::FrameInfo info{};
   for (int pass = 0; pass < 2; ++pass) {
     for (int i = 0; i < kMaxFrames; ++i) {

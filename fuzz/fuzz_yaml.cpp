@@ -16,8 +16,6 @@ namespace {
 
 using namespace tcpest;
 
-yaml::Document g_doc;  // large (the file buffer is a member): static
-
 void read_every_entry(const yaml::Document& doc) {
   char text[64] = {};
   double numbers[8] = {};
@@ -57,15 +55,16 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   double value = 0.0;
   static_cast<void>(yaml::parse_double(scalar, value));
 
-  if (!g_doc.parse(text, size, "fuzz.yaml").ok()) {
+  static yaml::Document doc;  // large (the file buffer is a member): static
+  if (!doc.parse(text, size, "fuzz.yaml").ok()) {
     return 0;
   }
-  const auto intrinsics = solver::read_camera_info(g_doc);  // refusal is a valid outcome
-  const auto geometry = solver::read_instrument_config(g_doc);
+  const auto intrinsics = solver::read_camera_info(doc);  // refusal is a valid outcome
+  const auto geometry = solver::read_instrument_config(doc);
   use_models(intrinsics, geometry);
   static loop::LoopConfig config;
   config = loop::LoopConfig{};
-  static_cast<void>(loop::read_loop_config(g_doc, config));
-  read_every_entry(g_doc);
+  static_cast<void>(loop::read_loop_config(doc, config));
+  read_every_entry(doc);
   return 0;
 }
