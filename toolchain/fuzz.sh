@@ -19,7 +19,8 @@ cmake --preset fuzz >/dev/null
 nice cmake --build build/fuzz -j"$(nproc)" --target tcpest_fuzz_all
 
 # Target and its largest input: a few times the seeds' size, so that the
-# mutations stay close to real files.
+# mutations stay close to real files. No input that small may make a reader
+# take more than 256 MB at once (-malloc_limit_mb).
 targets=(fuzz_json:16384 fuzz_yaml:16384 fuzz_jpeg:32768 fuzz_y4m:16384 fuzz_can:2048)
 
 work="$(mktemp -d)"
@@ -33,7 +34,7 @@ for entry in "${targets[@]}"; do
   cp -r "fuzz/corpus/$name" "$work/$name"
   log="$work/$name.log"
   status=0
-  nice "build/fuzz/fuzz/$name" -max_total_time="$seconds" -timeout=5 -rss_limit_mb=2048 -max_len="$max_len" \
+  nice "build/fuzz/fuzz/$name" -max_total_time="$seconds" -timeout=5 -rss_limit_mb=2048 -malloc_limit_mb=256 -max_len="$max_len" \
        -dict="fuzz/$name.dict" -artifact_prefix="$findings/$name-" -print_final_stats=1 \
        "$work/$name" >"$log" 2>&1 || status=$?
   runs="$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -n 1)"
