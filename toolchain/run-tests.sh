@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Every test and check of tcpest, as CI runs it: installs what is missing,
 # builds (release, sanitizers, clang, aarch64 cross), runs the unit and
-# integration tests, the static analysers, the requirements trace, and the
-# vcan tests (on the host or in a guest: tests/vcan/README.md). `--quick`
+# integration tests, the static analysers, the requirements trace, a short
+# fuzzing run (fuzz/), and the vcan tests (on the host or in a guest:
+# tests/vcan/README.md). `--quick`
 # runs only the release build and its tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -37,6 +38,9 @@ if [ "$quick" -eq 0 ]; then
   step "clang build"
   cmake --preset clang >/dev/null
   cmake --build build/clang -j"$jobs"
+
+  step "fuzz targets (libFuzzer, ASan + UBSan), 30 s each over their seed corpora"
+  toolchain/fuzz.sh 30
 
   step "aarch64 cross build, its tests under qemu-user, the same bits as the host's"
   toolchain/cross-aarch64.sh --test

@@ -32,6 +32,16 @@ if(TCPEST_SANITIZE)
                       -fno-sanitize-recover=all)
   add_link_options(-fsanitize=address,undefined,float-cast-overflow)
 endif()
+# Fuzzing (fuzz/, docs/fuzzing.md): every library the targets link carries
+# libFuzzer's coverage hooks and the sanitizers; fuzz/ links the fuzzer's main.
+if(TCPEST_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "TCPEST_FUZZ needs clang (libFuzzer): configure with the fuzz preset")
+  endif()
+  add_compile_options(-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=all
+                      -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=address,undefined)
+endif()
 if(TCPEST_COVERAGE)
   add_compile_options(--coverage -O0 -g)
   add_link_options(--coverage)

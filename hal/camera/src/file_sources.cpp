@@ -19,6 +19,8 @@ namespace {
 
 constexpr std::size_t kMaxPath = 4096U;
 constexpr std::size_t kMaxHeaderLine = 512U;
+// A Y4M frame's tag: "FRAME" and the '\n' (or ' ' before parameters) after it.
+constexpr std::size_t kY4mFrameTagBytes = 6U;
 
 CameraError from_errno(int error) noexcept {
   switch (error) {
@@ -527,12 +529,24 @@ Result<std::unique_ptr<Y4mSource>, CameraError> Y4mSource::open(const char* path
     return R::failure(CameraError::kWrongSize);
   }
   source->data_offset_ = static_cast<long long>(length) + 1;
-  struct stat st {};
-  if (::fstat(source->fd_, &st) == 0 && S_ISREG(st.st_mode) && static_cast<long long>(st.st_size) <= source->data_offset_) {
-    return R::failure(explain(detail, detail_capacity, CameraError::kEndOfStream, "%s",
-                              "no frame after the header (an empty stream)"));
-  }
   source->frame_bytes_ = planar_frame_bytes(source->header_.width, source->header_.height, source->header_.layout);
+  struct stat st {};
+  if (::fstat(source->fd_, &st) == 0 && S_ISREG(st.st_mode)) {
+    const long long file_bytes = static_cast<long long>(st.st_size);
+    if (file_bytes <= source->data_offset_) {
+      return R::failure(explain(detail, detail_capacity, CameraError::kEndOfStream, "%s",
+                                "no frame after the header (an empty stream)"));
+    }
+    // A file too short for one frame is refused before its buffer is taken:
+    // a few bytes must not make the source allocate up to 805 MB.
+    const long long first_frame_end = source->data_offset_ + static_cast<long long>(kY4mFrameTagBytes) +
+                                      static_cast<long long>(source->frame_bytes_);
+    if (file_bytes < first_frame_end) {
+      return R::failure(explain(detail, detail_capacity, CameraError::kTruncated,
+                                "the file's %lld bytes hold no complete %dx%d frame (%zu bytes after its FRAME tag)",
+                                file_bytes, source->header_.width, source->header_.height, source->frame_bytes_));
+    }
+  }
   source->frame_.reset(new (std::nothrow) std::uint8_t[source->frame_bytes_]);
   if (!source->frame_) {
     return R::failure(CameraError::kOutOfMemory);
@@ -609,7 +623,7 @@ Status<CameraError> Y4mSource::resync(long long from) noexcept {
 
 Status<CameraError> Y4mSource::read_frame() noexcept {
   // "FRAME" then optional parameters, then '\n'.
-  std::uint8_t tag[6] = {};
+  std::uint8_t tag[kY4mFrameTagBytes] = {};
   auto got = read_fully(fd_, tag, sizeof tag);
   if (!got.ok()) {
     return Status<CameraError>::failure(got.error());

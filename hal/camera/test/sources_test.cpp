@@ -408,6 +408,30 @@ TEST(Y4mSource, AHeaderOnlyFileIsAnEmptySourceSaidSo) {
   EXPECT_NE(std::strstr(detail, "'C420p10'"), nullptr) << detail;
 }
 
+// Found by fuzz_y4m (docs/fuzzing.md): a 44-byte file whose header claims a
+// 16384 x 16384 4:4:4 frame made open() allocate and pre-fault 805 MB before
+// the first read found the frame truncated. A file too short for one frame
+// is refused at open, saying so.
+TEST(Y4mSource, AFileTooShortForOneFrameIsRefusedBeforeItsBuffer) {
+  const std::string dir = temp_dir("y4mshort");
+  const std::string text = "YUV4MPEG2 W16384 H16384 F25:1 C444\nFRAME\nabc";
+  write_bytes(dir + "/short.y4m", std::vector<std::uint8_t>(text.begin(), text.end()));
+  char detail[192] = {};
+  const auto opened = Y4mSource::open((dir + "/short.y4m").c_str(), ReplayOptions{}, detail, sizeof detail);
+  ASSERT_FALSE(opened.ok());
+  EXPECT_EQ(opened.error(), CameraError::kTruncated);
+  EXPECT_NE(std::strstr(detail, "16384x16384"), nullptr) << detail;
+  // One byte short of a whole small frame: refused too; the whole frame opens.
+  const std::string header = "YUV4MPEG2 W4 H2 C420\nFRAME\n";
+  std::vector<std::uint8_t> clip(header.begin(), header.end());
+  clip.resize(clip.size() + planar_frame_bytes(4, 2, ChromaLayout::k420) - 1U, 128U);
+  write_bytes(dir + "/cut.y4m", clip);
+  EXPECT_EQ(Y4mSource::open((dir + "/cut.y4m").c_str(), ReplayOptions{}).error(), CameraError::kTruncated);
+  clip.push_back(128U);
+  write_bytes(dir + "/whole.y4m", clip);
+  EXPECT_TRUE(Y4mSource::open((dir + "/whole.y4m").c_str(), ReplayOptions{}).ok());
+}
+
 // Verifies: REQ-HAL-002
 TEST(JpegFileSource, DirectorySortedWithACorruptFileDropped) {
   const std::string dir = temp_dir("jpg");
