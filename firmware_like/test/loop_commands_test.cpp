@@ -37,10 +37,35 @@ TEST(RunCommand, ReplaysAClipOntoTheSimulatedBusAndLogsInCandumpFormat) {
   const std::string dir = temp_dir();
   write_clip(dir + "/clip.y4m", 720, 576, 5);
   const std::string log = dir + "/can.log";
-  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet"}), kExitOk);
+  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet",
+                 "--start-operational"}),
+            kExitOk);
   const std::string s = slurp(log);
   EXPECT_NE(s.find(" sim0 710#00\n"), std::string::npos) << s;  // boot-up
   EXPECT_EQ(count_of(s, " sim0 190#"), 5U);                      // one TCP message per frame
+}
+
+// Without --start-operational (or can.start_operational) the node waits in
+// pre-operational for an NMT start that no one sends on this bus: boot-up
+// and heartbeats, no PDO (CiA 301's default, docs/can-protocol.md).
+TEST(RunCommand, WaitsForTheNmtStartByDefault) {
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 5);
+  const std::string log = dir + "/can.log";
+  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet"}), kExitOk);
+  const std::string s = slurp(log);
+  EXPECT_NE(s.find(" sim0 710#00\n"), std::string::npos) << s;  // boot-up
+  EXPECT_EQ(count_of(s, " sim0 190#"), 0U) << s;
+  // The old key is refused with its new name.
+  const std::string cfg = dir + "/old.yaml";
+  {
+    std::ofstream out(cfg);
+    out << "can:\n  autostart: true\n";
+  }
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", "--config", cfg, "--source", dir + "/clip.y4m", "--bus", "sim", "--quiet"}), kExitConfig);
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("can.start_operational"), std::string::npos) << said;
 }
 
 // The loop as deployed, paced at the source's 25 Hz (no --no-pacing) and
@@ -52,7 +77,7 @@ TEST(RunCommand, PacedRunPrintsAStatusLineEverySecond) {
   write_clip(dir + "/clip.y4m", 720, 576, 30);
   const std::string log = dir + "/can.log";
   testing::internal::CaptureStdout();
-  const int code = run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log});
+  const int code = run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--start-operational"});
   const std::string printed = testing::internal::GetCapturedStdout();
   ASSERT_EQ(code, kExitOk) << printed;
   EXPECT_NE(printed.find("(720x576, y4m)"), std::string::npos) << printed;

@@ -45,7 +45,7 @@ const char* const kEverySection =
     "  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n  shaft_recheck: true\n  alias_check: true\n  base_rim_seed: false\n"
     "  valid_start_check: true\n  max_valid_tcp_disagreement_mm: 3.5\n"
     "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
-    "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
+    "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  start_operational: true\n"
     "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n"
     "  cpu_latency_us: 0\n";
 
@@ -77,7 +77,7 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_DOUBLE_EQ(config.loop.estimator.encoder_check.bend_tolerance_rad, 0.0);
   EXPECT_STREQ(config.can.bus, "vcan0");
   EXPECT_EQ(config.can.node_id, 33U);
-  EXPECT_FALSE(config.can.autostart);
+  EXPECT_TRUE(config.can.start_operational);
   EXPECT_TRUE(config.rt.lock_memory);
   EXPECT_EQ(config.rt.fifo_priority, 80);
   EXPECT_EQ(config.rt.cpu, 1);

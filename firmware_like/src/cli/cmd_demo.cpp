@@ -392,7 +392,7 @@ int load_demo_rig(const RigRequest& request, const DemoOptions& o, const char* l
   rig.config.loop.pacing = true;
   rig.config.loop.replay_loop = false;
   rig.config.loop.frames = 0U;
-  rig.config.can.autostart = false;  // the simulated robot starts the node, as the real one would
+  rig.config.can.start_operational = false;  // the simulated robot starts the node, as the real one would
   std::printf("tcpest demo: rendering %llu frames of a motion sequence (seed %llu) ...\n", o.frames, o.seed);
   // The simulated camera, with this seed.
   {
