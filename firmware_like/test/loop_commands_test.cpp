@@ -68,6 +68,67 @@ TEST(RunCommand, WaitsForTheNmtStartByDefault) {
   EXPECT_NE(said.find("can.start_operational"), std::string::npos) << said;
 }
 
+// `tcpest listen` on what `tcpest run` logged: every frame decoded, no E2E
+// failure; one flipped bit in a TCP frame is refused (bad CRC) and fails the
+// listen (exit 1); a line that is not candump's is named and exits 3.
+TEST(ListenCommand, ChecksARunsLogAndRefusesACorruptedFrame) {
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 6);
+  const std::string log = dir + "/can.log";
+  ASSERT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet",
+                 "--start-operational"}),
+            kExitOk);
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--bus", "log:" + log}), kExitOk);
+  std::string printed = testing::internal::GetCapturedStdout();
+  EXPECT_EQ(count_of(printed, ") tcp "), 6U) << printed;
+  EXPECT_EQ(count_of(printed, ") quality "), 6U) << printed;
+  EXPECT_NE(printed.find(") heartbeat  boot-up\n"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("E2E failures 0 "), std::string::npos) << printed;
+  EXPECT_NE(printed.find("counter jumps 0, "), std::string::npos) << printed;
+  EXPECT_NE(printed.find("boot-ups 1, "), std::string::npos) << printed;  // too short a run for a heartbeat
+
+  std::string text = slurp(log);
+  const std::size_t tcp = text.find(" sim0 190#");
+  ASSERT_NE(tcp, std::string::npos);
+  char& digit = text[tcp + 11U];  // the low nibble of byte 0
+  digit = digit == '0' ? '1' : '0';
+  const std::string bad_log = dir + "/bad.log";
+  {
+    std::ofstream out(bad_log);
+    out << text;
+  }
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", bad_log, "--json"}), kExitFailure);
+  printed = testing::internal::GetCapturedStdout();
+  std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(printed.find("\"id\": \"190\", \"error\": \"bad CRC\""), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\"e2e_failures\": 1,"), std::string::npos) << printed;
+  EXPECT_NE(said.find("1 E2E failure(s)"), std::string::npos) << said;
+
+  {
+    std::ofstream out(bad_log, std::ios::app);
+    out << "this is not candump\n";
+  }
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", bad_log, "--quiet"}), kExitConfig);
+  static_cast<void>(testing::internal::GetCapturedStdout());
+  said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("bad.log, line "), std::string::npos) << said;
+
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--help"}), kExitOk);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen"}), kExitUsage);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", log, "--bus", "vcan0"}), kExitUsage);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", log, "--node-id", "0"}), kExitUsage);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--bus", "sim"}), kExitUsage);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", log, "stray"}), kExitUsage);
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", dir + "/missing.log"}), kExitConfig);
+  static_cast<void>(testing::internal::GetCapturedStderr());
+}
+
 // The loop as deployed, paced at the source's 25 Hz (no --no-pacing) and
 // not quiet: a status line once a second, then the summary, one TCP
 // message per frame. (The simulated camera, the default source, renders
