@@ -127,6 +127,12 @@ TEST(ListenCommand, ChecksARunsLogAndRefusesACorruptedFrame) {
   testing::internal::CaptureStderr();
   EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", dir + "/missing.log"}), kExitConfig);
   static_cast<void>(testing::internal::GetCapturedStderr());
+  // An interface that is not there (or no CAN in this kernel): said, exit 1.
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--bus", "no-such-can0", "--seconds", "0.1"}),
+            kExitFailure);
+  said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("CAN interface no-such-can0: "), std::string::npos) << said;
 }
 
 // The loop as deployed, paced at the source's 25 Hz (no --no-pacing) and
