@@ -68,6 +68,7 @@ std::vector<Sent> run_node(int cycles, std::int64_t period_us = kCycleUs) {
   return sent;
 }
 
+// Verifies: REQ-CAN-015
 TEST(Receiver, DecodesWhatTheNodeSends) {
   const std::vector<Sent> sent = run_node(50);
   Receiver rx;
@@ -122,6 +123,7 @@ Frame first_tcp(const std::vector<Sent>& sent, std::size_t skip = 0U) {
   return Frame{};
 }
 
+// Verifies: REQ-CAN-015
 TEST(Receiver, RefusesACorruptedCrcAndKeepsTheLastGoodValue) {
   const std::vector<Sent> sent = run_node(4);
   Receiver rx;
@@ -143,6 +145,7 @@ TEST(Receiver, RefusesACorruptedCrcAndKeepsTheLastGoodValue) {
   EXPECT_EQ(rx.counters().e2e_failures, 2U);
 }
 
+// Verifies: REQ-CAN-015
 TEST(Receiver, RefusesARepeatedCounterAndCountsAJump) {
   Receiver rx;
   auto tcp_frame = [](std::uint8_t counter) {
@@ -170,6 +173,7 @@ TEST(Receiver, RefusesARepeatedCounterAndCountsAJump) {
   EXPECT_NEAR(rx.tcp().value().value.x_mm, 0.0, 1e-9);
 }
 
+// Verifies: REQ-CAN-015
 TEST(Receiver, ASilentNodeMakesTheEstimateStaleOnce) {
   const std::vector<Sent> sent = run_node(6);
   Receiver rx;  // timeout 100 ms
@@ -204,6 +208,7 @@ TEST(Receiver, ASilentNodeMakesTheEstimateStaleOnce) {
   EXPECT_EQ(rx.counters().counter_jumps, 0U);
 }
 
+// Verifies: REQ-CAN-015
 TEST(Receiver, NoTcpYetIsInvalidAndABootUpRestartsTheCounters) {
   Receiver rx;
   EXPECT_EQ(rx.estimate_status(0), EstimateStatus::kInvalid);
@@ -221,6 +226,7 @@ TEST(Receiver, NoTcpYetIsInvalidAndABootUpRestartsTheCounters) {
   EXPECT_EQ(rx.counters().counter_jumps, 0U);
 }
 
+// Verifies: REQ-CAN-015
 TEST(Receiver, EmcyOtherNodesAndBadFrames) {
   Receiver rx;
   Frame emcy;
@@ -255,6 +261,7 @@ TEST(Receiver, EmcyOtherNodesAndBadFrames) {
   EXPECT_EQ(rx.configure(bad).error(), CanError::kInvalidArgument);
 }
 
+// Verifies: REQ-CAN-015
 TEST(Receiver, ReceivingDoesNotAllocate) {
   const std::vector<Sent> sent = run_node(30);
   Receiver rx;
@@ -270,6 +277,7 @@ TEST(Receiver, ReceivingDoesNotAllocate) {
 // the first cycle at or after each due time: on a 25 Hz cycle a controller
 // sees gaps of 80 and 120 ms, never more than the period plus one cycle
 // period late and never drifting (docs/can-protocol.md, HEARTBEAT).
+// Verifies: REQ-CAN-008
 TEST(Receiver, HeartbeatLateByAtMostOneCyclePeriod) {
   for (const std::int64_t period_us : {kCycleUs, std::int64_t{33333}, std::int64_t{20000}}) {
     const std::vector<Sent> sent = run_node(2000, period_us);

@@ -114,6 +114,7 @@ TEST(CmdRender, BadInputIsRefusedClearly) {
 
 // --out a/b/c makes the missing a and a/b too (the help says the directory
 // is created); a parent that is a file is refused, the message naming it.
+// Verifies: REQ-ERR-010
 TEST(CmdRender, CreatesNestedOutputDirectories) {
   const std::string root = temp_dir("render_nested_" + std::to_string(::getpid()));
   const std::string nested = root + "/a//b/c/";

@@ -109,6 +109,7 @@ std::string json_text(const std::string& line, const std::string& key) {
 // The controllers' side on the demo's own traffic: `tcpest listen --log`
 // and can::Receiver read the demo's can.log with no E2E failure, no counter
 // jump, and the TCP values and statuses the loop wrote in cycles.csv.
+// Verifies: REQ-CAN-016, REQ-LOOP-017
 TEST(ListenCommand, DecodesTheDemosLogAsTheLoopPublishedIt) {
   const std::string dir = temp_dir() + "/out";
   testing::internal::CaptureStdout();

@@ -48,6 +48,7 @@ TEST(RunCommand, ReplaysAClipOntoTheSimulatedBusAndLogsInCandumpFormat) {
 // Without --start-operational (or can.start_operational) the node waits in
 // pre-operational for an NMT start that no one sends on this bus: boot-up
 // and heartbeats, no PDO (CiA 301's default, docs/can-protocol.md).
+// Verifies: REQ-LOOP-016
 TEST(RunCommand, WaitsForTheNmtStartByDefault) {
   const std::string dir = temp_dir();
   write_clip(dir + "/clip.y4m", 720, 576, 5);
@@ -71,6 +72,7 @@ TEST(RunCommand, WaitsForTheNmtStartByDefault) {
 // `tcpest listen` on what `tcpest run` logged: every frame decoded, no E2E
 // failure; one flipped bit in a TCP frame is refused (bad CRC) and fails the
 // listen (exit 1); a line that is not candump's is named and exits 3.
+// Verifies: REQ-CAN-016
 TEST(ListenCommand, ChecksARunsLogAndRefusesACorruptedFrame) {
   const std::string dir = temp_dir();
   write_clip(dir + "/clip.y4m", 720, 576, 6);

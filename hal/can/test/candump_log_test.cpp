@@ -47,6 +47,7 @@ TEST(CandumpLine, RejectsInvalidInput) {
 }
 
 // What the writer formats, the reader reads back; anything else is refused.
+// Verifies: REQ-HAL-005
 TEST(CandumpLine, ReadsBackWhatItWrites) {
   can::Frame f;
   f.id = 0x710;
