@@ -137,7 +137,7 @@ TEST(LoopConfig, DeploymentExampleLoadsWithTheDefaultsItClaims) {
       "loop.shaft_recheck", "loop.alias_check", "loop.valid_start_check", "loop.base_rim_seed",
       "loop.max_valid_tcp_disagreement_mm", "loop.camera_timeout_ms", "loop.camera_lost_after", "loop.retry_ms",
       "loop.status_period_ms", "can.bus", "can.node_id", "can.heartbeat_ms", "can.prior_timeout_ms",
-      "can.prior_max_counter_gap", "can.autostart", "can.sync_timeout_ms", "rt.lock_memory", "rt.fifo_priority",
+      "can.prior_max_counter_gap", "can.start_operational", "can.sync_timeout_ms", "rt.lock_memory", "rt.fifo_priority",
       "rt.cpu", "rt.prefault_stack_kb", "rt.cpu_latency_us"};
   for (const char* key : every_key) {
     EXPECT_TRUE(doc.has(key)) << key;
@@ -184,7 +184,7 @@ TEST(LoopConfig, DeploymentExampleLoadsWithTheDefaultsItClaims) {
   EXPECT_EQ(c.heartbeat_ms, d.can.heartbeat_ms);
   EXPECT_EQ(c.prior_timeout_ms, d.can.prior_timeout_ms);
   EXPECT_EQ(c.prior_max_counter_gap, d.can.prior_max_counter_gap);
-  EXPECT_EQ(c.autostart, d.can.autostart);
+  EXPECT_EQ(c.start_operational, d.can.start_operational);
   EXPECT_EQ(c.sync_timeout_ms, d.can.sync_timeout_ms);
   EXPECT_EQ(config.rt.prefault_stack_kb, d.rt.prefault_stack_kb);
 }
