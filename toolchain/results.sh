@@ -64,7 +64,7 @@ evaluate ind_hd "$hd" "$independent/hd_lab"
 run() {  # NAME CALIB DIR
   local calib_args=()
   [ -n "$2" ] && calib_args=(--calib "$2")
-  "$tcpest" run "${calib_args[@]}" "${config_args[@]}" --source "$3" --bus "log:$out/run_$1.log" --no-pacing --quiet >"$out/run_$1.txt"
+  "$tcpest" run "${calib_args[@]}" "${config_args[@]}" --source "$3" --bus "log:$out/run_$1.log" --no-pacing --start-operational --quiet >"$out/run_$1.txt"
 }
 run own_seq "" "$out/own_seq"
 run ind_seq "$pal" "$independent/pal_seq"

@@ -1,6 +1,7 @@
 // tcpest render end to end: files and sidecars written, same seed -> same
 // bytes, bad input refused with the documented exit codes.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <fstream>
@@ -38,7 +39,7 @@ std::string slurp(const std::string& path) {
   return data;
 }
 
-std::string temp_dir(const char* name) { return ::testing::TempDir() + name; }
+std::string temp_dir(const std::string& name) { return ::testing::TempDir() + name; }
 
 TEST(CmdRender, LabWritesImagesAndSidecarsDeterministically) {
   const std::string a = temp_dir("render_lab_a");
@@ -109,6 +110,33 @@ TEST(CmdRender, BadInputIsRefusedClearly) {
   }
   EXPECT_EQ(run({"--set", "lab", "--n", "1", "--calib", calib, "--out", dir}), kExitConfig);
   EXPECT_EQ(run({"--set", "lab", "--n", "1", "--calib", temp_dir("missing.yaml"), "--out", dir}), kExitConfig);
+}
+
+// --out a/b/c makes the missing a and a/b too (the help says the directory
+// is created); a parent that is a file is refused, the message naming it.
+// Verifies: REQ-ERR-010
+TEST(CmdRender, CreatesNestedOutputDirectories) {
+  const std::string root = temp_dir("render_nested_" + std::to_string(::getpid()));
+  const std::string nested = root + "/a//b/c/";
+  ASSERT_EQ(run({"--set", "lab", "--n", "1", "--start", "150", "--out", nested, "--quiet"}), kExitOk);
+  EXPECT_FALSE(slurp(root + "/a/b/c/0150.json").empty());
+  // Again into the same (now existing) directories.
+  ASSERT_EQ(run({"--set", "lab", "--n", "1", "--start", "150", "--out", nested, "--quiet"}), kExitOk);
+  {
+    std::ofstream file(root + "/a/file");
+    file << "not a directory\n";
+  }
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"--set", "lab", "--n", "1", "--out", root + "/a/file/d/e", "--quiet"}), kExitFailure);
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("'" + root + "/a/file': Not a directory"), std::string::npos) << said;
+  // Deeper than the bound: refused before anything is made.
+  std::string deep = root + "/deep";
+  for (int i = 0; i < 40; ++i) {
+    deep += "/d";
+  }
+  EXPECT_EQ(run({"--set", "lab", "--n", "1", "--out", deep, "--quiet"}), kExitFailure);
+  EXPECT_TRUE(slurp(root + "/deep/d").empty());
 }
 
 }  // namespace

@@ -6,12 +6,16 @@
 #include <dirent.h>
 
 #include <algorithm>
+#include <cmath>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "cli/commands.hpp"
 #include "command_test_support.hpp"
+#include "tcpest/can_iface/receiver.hpp"
+#include "tcpest/hal/can/candump_log.hpp"
 
 namespace tcpest {
 namespace cli {
@@ -73,6 +77,126 @@ TEST(DemoCommand, RunsTheLoopOnTheSimulatedBusAndWritesItsOutputs) {
   std::vector<std::string> overlays = files_in(dir + "/overlays");
   std::sort(overlays.begin(), overlays.end());
   EXPECT_EQ(overlays, (std::vector<std::string>{"frame_0000.png", "frame_0005.png", "frame_0010.png"}));
+}
+
+std::vector<std::string> split(const std::string& text, char separator) {
+  std::vector<std::string> parts;
+  std::stringstream in(text);
+  std::string part;
+  while (std::getline(in, part, separator)) {
+    parts.push_back(part);
+  }
+  return parts;
+}
+
+// The number after `"key": ` in a JSON line (the listener's flat objects).
+double json_number(const std::string& line, const std::string& key) {
+  const std::size_t at = line.find("\"" + key + "\": ");
+  EXPECT_NE(at, std::string::npos) << key << " in " << line;
+  return at == std::string::npos ? std::nan("") : std::stod(line.substr(at + key.size() + 4U));
+}
+
+std::string json_text(const std::string& line, const std::string& key) {
+  const std::size_t at = line.find("\"" + key + "\": \"");
+  EXPECT_NE(at, std::string::npos) << key << " in " << line;
+  if (at == std::string::npos) {
+    return "";
+  }
+  const std::size_t from = at + key.size() + 5U;
+  return line.substr(from, line.find('"', from) - from);
+}
+
+// The controllers' side on the demo's own traffic: `tcpest listen --log`
+// and can::Receiver read the demo's can.log with no E2E failure, no counter
+// jump, and the TCP values and statuses the loop wrote in cycles.csv.
+// Verifies: REQ-CAN-016, REQ-LOOP-017
+TEST(ListenCommand, DecodesTheDemosLogAsTheLoopPublishedIt) {
+  const std::string dir = temp_dir() + "/out";
+  testing::internal::CaptureStdout();
+  const int demo = run(cmd_demo, {"demo", "--out", dir, "--frames", "8", "--bus", "sim", "--overlay-every", "0"});
+  static_cast<void>(testing::internal::GetCapturedStdout());
+  ASSERT_EQ(demo, kExitOk);
+  const std::string log = dir + "/can.log";
+
+  // The loop's record of what it published, one row per cycle.
+  const std::vector<std::string> rows = split(slurp(dir + "/cycles.csv"), '\n');
+  ASSERT_GT(rows.size(), 8U);
+  const std::vector<std::string> header = split(rows[0], ',');
+  auto column = [&header](const char* name) {
+    const auto at = std::find(header.begin(), header.end(), name);
+    EXPECT_NE(at, header.end()) << name;
+    return static_cast<std::size_t>(at - header.begin());
+  };
+  const std::size_t status_col = column("status");
+  const std::size_t x_col = column("tcp_x_mm");
+  const std::size_t used_col = column("corners_used");
+  const std::size_t detected_col = column("corners_detected");
+
+  testing::internal::CaptureStdout();
+  const int code = run(cmd_listen, {"listen", "--log", log, "--json"});
+  const std::string printed = testing::internal::GetCapturedStdout();
+  ASSERT_EQ(code, kExitOk) << printed;
+  std::vector<std::string> tcp_lines;
+  std::vector<std::string> quality_lines;
+  std::string summary;
+  for (const std::string& line : split(printed, '\n')) {
+    if (line.find("\"msg\": \"tcp\"") != std::string::npos) {
+      tcp_lines.push_back(line);
+    } else if (line.find("\"msg\": \"quality\"") != std::string::npos) {
+      quality_lines.push_back(line);
+    } else if (line.find("\"msg\": \"summary\"") != std::string::npos) {
+      summary = line;
+    }
+    EXPECT_EQ(line.find("\"error\""), std::string::npos) << line;
+  }
+  EXPECT_EQ(json_number(summary, "e2e_failures"), 0.0) << summary;
+  EXPECT_EQ(json_number(summary, "counter_jumps"), 0.0) << summary;
+  EXPECT_EQ(json_text(summary, "nmt_state"), "operational") << summary;
+  ASSERT_EQ(tcp_lines.size(), 8U) << printed;  // one per frame
+  ASSERT_EQ(quality_lines.size(), 8U) << printed;
+  int compared = 0;
+  for (std::size_t i = 0U; i < tcp_lines.size(); ++i) {
+    const std::vector<std::string> row = split(rows[i + 1U], ',');
+    ASSERT_GT(row.size(), x_col + 2U);
+    const std::string status = json_text(tcp_lines[i], "status");
+    EXPECT_EQ(status, row[status_col]) << "cycle " << i;
+    // QUALITY: what the row says, used never above detected.
+    EXPECT_EQ(json_number(quality_lines[i], "corners_detected"), std::stod(row[detected_col])) << i;
+    EXPECT_EQ(json_number(quality_lines[i], "corners_used"), std::stod(row[used_col])) << i;
+    EXPECT_LE(std::stod(row[used_col]), std::stod(row[detected_col])) << i;
+    if (status == "valid" || status == "degraded") {
+      const char* keys[3] = {"x_mm", "y_mm", "z_mm"};
+      for (std::size_t a = 0U; a < 3U; ++a) {
+        // CSV: 0.001 mm; wire: 0.01 mm, rounded.
+        EXPECT_NEAR(json_number(tcp_lines[i], keys[a]), std::stod(row[x_col + a]), 0.0051) << i << " " << keys[a];
+      }
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 4);
+
+  // can::Receiver on the same lines: the same verdict.
+  can::Receiver rx;
+  std::int64_t last_us = 0;
+  for (const std::string& line : split(slurp(log), '\n')) {
+    can::Frame frame;
+    std::int64_t t_us = 0;
+    ASSERT_TRUE(hal::parse_candump_line(line.c_str(), frame, t_us)) << line;
+    static_cast<void>(rx.receive(frame, t_us));  // refusals are counted, checked below
+    last_us = t_us;
+  }
+  EXPECT_EQ(rx.counters().e2e_failures, 0U);
+  EXPECT_EQ(rx.counters().counter_jumps, 0U);
+  EXPECT_EQ(rx.tcp_e2e().accepted, 8U);
+  EXPECT_EQ(rx.joints_e2e().accepted, 8U);
+  EXPECT_EQ(rx.counters().boot_ups, 1U);
+  ASSERT_TRUE(rx.tcp().ok());
+  const std::vector<std::string> last = split(rows[8], ',');
+  if (last[status_col] == "valid" || last[status_col] == "degraded") {
+    EXPECT_NEAR(rx.tcp().value().value.x_mm, std::stod(last[x_col]), 0.0051);
+  }
+  EXPECT_EQ(std::string(can::to_string(rx.tcp().value().value.status)), last[status_col]);
+  static_cast<void>(last_us);
 }
 
 // Verifies: REQ-ERR-004

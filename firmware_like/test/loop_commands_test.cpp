@@ -37,10 +37,104 @@ TEST(RunCommand, ReplaysAClipOntoTheSimulatedBusAndLogsInCandumpFormat) {
   const std::string dir = temp_dir();
   write_clip(dir + "/clip.y4m", 720, 576, 5);
   const std::string log = dir + "/can.log";
-  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet"}), kExitOk);
+  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet",
+                 "--start-operational"}),
+            kExitOk);
   const std::string s = slurp(log);
   EXPECT_NE(s.find(" sim0 710#00\n"), std::string::npos) << s;  // boot-up
   EXPECT_EQ(count_of(s, " sim0 190#"), 5U);                      // one TCP message per frame
+}
+
+// Without --start-operational (or can.start_operational) the node waits in
+// pre-operational for an NMT start that no one sends on this bus: boot-up
+// and heartbeats, no PDO (CiA 301's default, docs/can-protocol.md).
+// Verifies: REQ-LOOP-016
+TEST(RunCommand, WaitsForTheNmtStartByDefault) {
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 5);
+  const std::string log = dir + "/can.log";
+  EXPECT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet"}), kExitOk);
+  const std::string s = slurp(log);
+  EXPECT_NE(s.find(" sim0 710#00\n"), std::string::npos) << s;  // boot-up
+  EXPECT_EQ(count_of(s, " sim0 190#"), 0U) << s;
+  // The old key is refused with its new name.
+  const std::string cfg = dir + "/old.yaml";
+  {
+    std::ofstream out(cfg);
+    out << "can:\n  autostart: true\n";
+  }
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"run", "--config", cfg, "--source", dir + "/clip.y4m", "--bus", "sim", "--quiet"}), kExitConfig);
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("can.start_operational"), std::string::npos) << said;
+}
+
+// `tcpest listen` on what `tcpest run` logged: every frame decoded, no E2E
+// failure; one flipped bit in a TCP frame is refused (bad CRC) and fails the
+// listen (exit 1); a line that is not candump's is named and exits 3.
+// Verifies: REQ-CAN-016
+TEST(ListenCommand, ChecksARunsLogAndRefusesACorruptedFrame) {
+  const std::string dir = temp_dir();
+  write_clip(dir + "/clip.y4m", 720, 576, 6);
+  const std::string log = dir + "/can.log";
+  ASSERT_EQ(run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--no-pacing", "--quiet",
+                 "--start-operational"}),
+            kExitOk);
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--bus", "log:" + log}), kExitOk);
+  std::string printed = testing::internal::GetCapturedStdout();
+  EXPECT_EQ(count_of(printed, ") tcp "), 6U) << printed;
+  EXPECT_EQ(count_of(printed, ") quality "), 6U) << printed;
+  EXPECT_NE(printed.find(") heartbeat  boot-up\n"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("E2E failures 0 "), std::string::npos) << printed;
+  EXPECT_NE(printed.find("counter jumps 0, "), std::string::npos) << printed;
+  EXPECT_NE(printed.find("boot-ups 1, "), std::string::npos) << printed;  // too short a run for a heartbeat
+
+  std::string text = slurp(log);
+  const std::size_t tcp = text.find(" sim0 190#");
+  ASSERT_NE(tcp, std::string::npos);
+  char& digit = text[tcp + 11U];  // the low nibble of byte 0
+  digit = digit == '0' ? '1' : '0';
+  const std::string bad_log = dir + "/bad.log";
+  {
+    std::ofstream out(bad_log);
+    out << text;
+  }
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", bad_log, "--json"}), kExitFailure);
+  printed = testing::internal::GetCapturedStdout();
+  std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(printed.find("\"id\": \"190\", \"error\": \"bad CRC\""), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\"e2e_failures\": 1,"), std::string::npos) << printed;
+  EXPECT_NE(said.find("1 E2E failure(s)"), std::string::npos) << said;
+
+  {
+    std::ofstream out(bad_log, std::ios::app);
+    out << "this is not candump\n";
+  }
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", bad_log, "--quiet"}), kExitConfig);
+  static_cast<void>(testing::internal::GetCapturedStdout());
+  said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("bad.log, line "), std::string::npos) << said;
+
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--help"}), kExitOk);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen"}), kExitUsage);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", log, "--bus", "vcan0"}), kExitUsage);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", log, "--node-id", "0"}), kExitUsage);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--bus", "sim"}), kExitUsage);
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", log, "stray"}), kExitUsage);
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--log", dir + "/missing.log"}), kExitConfig);
+  static_cast<void>(testing::internal::GetCapturedStderr());
+  // An interface that is not there (or no CAN in this kernel): said, exit 1.
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(command_test::run_command(cmd_listen, {"listen", "--bus", "no-such-can0", "--seconds", "0.1"}),
+            kExitFailure);
+  said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("CAN interface no-such-can0: "), std::string::npos) << said;
 }
 
 // The loop as deployed, paced at the source's 25 Hz (no --no-pacing) and
@@ -52,7 +146,7 @@ TEST(RunCommand, PacedRunPrintsAStatusLineEverySecond) {
   write_clip(dir + "/clip.y4m", 720, 576, 30);
   const std::string log = dir + "/can.log";
   testing::internal::CaptureStdout();
-  const int code = run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log});
+  const int code = run({"run", "--source", dir + "/clip.y4m", "--bus", "log:" + log, "--start-operational"});
   const std::string printed = testing::internal::GetCapturedStdout();
   ASSERT_EQ(code, kExitOk) << printed;
   EXPECT_NE(printed.find("(720x576, y4m)"), std::string::npos) << printed;

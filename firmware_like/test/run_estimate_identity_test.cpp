@@ -63,7 +63,7 @@ TEST(RunAndEstimate, SendTheSameTcpAndJointsPayloadsForTheSameSequence) {
   const std::string run_log = dir + "/run.log";
   testing::internal::CaptureStdout();
   const int run_code = command_test::run_command(
-      cmd_run, {"run", "--source", frames, "--bus", "log:" + run_log, "--no-pacing", "--quiet"});
+      cmd_run, {"run", "--source", frames, "--bus", "log:" + run_log, "--no-pacing", "--quiet", "--start-operational"});
   static_cast<void>(testing::internal::GetCapturedStdout());
   ASSERT_EQ(run_code, kExitOk);
   const std::string estimate_log = dir + "/estimate.log";

@@ -98,6 +98,8 @@ cfg="$out/loop-jitter.yaml"
   echo "  trigger: period"
   echo "  period_us: $period_us"
   echo "  source: sim"
+  echo "can:"
+  echo "  start_operational: true  # no NMT master on this bus"
   if [ "$rt" = 1 ]; then
     echo "rt:"
     echo "  lock_memory: true"

@@ -147,6 +147,29 @@ void FrameEstimator::report_corners(FrameEstimate& out) const noexcept {
   }
 }
 
+bool measured_in_image(CornerSource source) noexcept {
+  return source == CornerSource::kStage4 || source == CornerSource::kRemeasured;
+}
+
+int corners_measured(const FrameEstimate& estimate) noexcept {
+  int n = 0;
+  for (const EstimatedCorner& c : estimate.corners) {
+    n += measured_in_image(c.source) ? 1 : 0;
+  }
+  return n;
+}
+
+int measured_corners_used(const FrameEstimate& estimate) noexcept {
+  if (!estimate.solved()) {
+    return 0;
+  }
+  int n = 0;
+  for (std::size_t k = 0U; k < estimate.corners.size(); ++k) {
+    n += measured_in_image(estimate.corners[k].source) && estimate.estimate.summary.used[k] ? 1 : 0;
+  }
+  return n;
+}
+
 FrameEstimate FrameEstimator::estimate(const ImageView& image, const FramePrior& prior,
                                        StepObserver* observer) noexcept {
   FrameEstimate out;

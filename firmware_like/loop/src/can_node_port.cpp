@@ -28,7 +28,7 @@ can::NodeConfig node_config(const LoopConfig& config) noexcept {
   n.node_id = config.can.node_id;
   n.heartbeat_period_us = static_cast<std::int64_t>(config.can.heartbeat_ms) * 1000;
   n.sync_mode = config.loop.trigger == Trigger::kSync;
-  n.start_operational = config.can.autostart;
+  n.start_operational = config.can.start_operational;
   n.prior_expected = false;
   n.prior_e2e.max_counter_step = static_cast<std::uint8_t>(config.can.prior_max_counter_gap);
   n.prior_e2e.timeout_us = static_cast<std::int64_t>(config.can.prior_timeout_ms) * 1000;

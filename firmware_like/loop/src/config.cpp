@@ -196,7 +196,11 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
   TCPEST_TRY(read_int_as(doc, "can.heartbeat_ms", 10, 60000, c.heartbeat_ms));
   TCPEST_TRY(read_int_as(doc, "can.prior_timeout_ms", 1, 60000, c.prior_timeout_ms));
   TCPEST_TRY(read_int_as(doc, "can.prior_max_counter_gap", 1, 14, c.prior_max_counter_gap));
-  TCPEST_TRY(read_bool(doc, "can.autostart", c.autostart));
+  if (doc.has("can.autostart")) {
+    return S::failure(doc.error_at(doc.find("can.autostart"), "can.autostart",
+                                   "renamed: can.start_operational (default false: wait for the NMT start)"));
+  }
+  TCPEST_TRY(read_bool(doc, "can.start_operational", c.start_operational));
   TCPEST_TRY(read_int_as(doc, "can.sync_timeout_ms", 1, 600000, c.sync_timeout_ms));
 
   RtSettings& r = out.rt;

@@ -431,14 +431,15 @@ std::int64_t Executive::run_pipeline() noexcept {
     record_.failed_stage = index_of(step_of(e.failed_step));
     record_.stage_error = static_cast<std::uint8_t>(e.stage_error);
   }
-  record_.publication.corners_detected = static_cast<std::uint8_t>(e.corners_detected);
+  // QUALITY's counts: corners measured in the image, and those the final solve used.
+  record_.publication.corners_detected = static_cast<std::uint8_t>(vision::corners_measured(e));
   record_.refined = e.guided.rounds_kept > 0;
   record_.fit_disagrees = record_.refined && e.guided.disagreement_demoted;
   record_.encoder_disagrees = e.encoder_disagrees;
   record_.solve_status = e.estimate.summary.status;
   record_.quality = e.estimate.quality;
   record_.corners_rejected = e.estimate.corners_rejected;
-  record_.publication.corners_used = static_cast<std::uint8_t>(e.estimate.summary.corners_used);
+  record_.publication.corners_used = static_cast<std::uint8_t>(vision::measured_corners_used(e));
   record_.publication.rms_px = e.estimate.summary.rms_px;
   record_.solved = e.solved();
   if (track_.update(e)) {

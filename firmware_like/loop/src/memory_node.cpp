@@ -3,9 +3,9 @@
 namespace tcpest {
 namespace loop {
 
-MemoryNode::MemoryNode(hal::Clock& clock, bool autostart, std::int64_t heartbeat_ns,
+MemoryNode::MemoryNode(hal::Clock& clock, bool start_operational, std::int64_t heartbeat_ns,
                        std::int64_t prior_timeout_ns) noexcept
-    : clock_(clock), autostart_(autostart), heartbeat_ns_(heartbeat_ns), prior_timeout_ns_(prior_timeout_ns) {}
+    : clock_(clock), start_operational_(start_operational), heartbeat_ns_(heartbeat_ns), prior_timeout_ns_(prior_timeout_ns) {}
 
 Status<PortError> MemoryNode::receive(std::int64_t now_ns) noexcept {
   static_cast<void>(now_ns);
@@ -13,8 +13,8 @@ Status<PortError> MemoryNode::receive(std::int64_t now_ns) noexcept {
     return Status<PortError>::failure(PortError::kBusDown);
   }
   if (mode_ == NodeMode::kBootUp) {
-    // CiA 301: boot-up, then pre-operational by itself (operational with autostart).
-    mode_ = autostart_ ? NodeMode::kOperational : NodeMode::kPreOperational;
+    // CiA 301: boot-up, then pre-operational by itself (operational with start_operational).
+    mode_ = start_operational_ ? NodeMode::kOperational : NodeMode::kPreOperational;
   }
   return ok_status<PortError>();
 }

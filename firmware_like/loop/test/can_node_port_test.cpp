@@ -22,14 +22,14 @@ namespace {
 constexpr std::uint8_t kNodeId = 0x10U;
 
 // The port on endpoint 0 of a simulated bus; the robot on endpoint 1. The
-// node waits for the robot's NMT start (can.autostart off).
+// node waits for the robot's NMT start (can.start_operational off, the default).
 struct PortRig {
   hal::SimulatedClock clock{5 * hal::kNsPerS};
   hal::SimBus bus;
   LoopConfig config;
   CanNodePort port{clock, bus.endpoint(0), &bus, nullptr, "sim0"};
   PortRig() {
-    config.can.autostart = false;
+    config.can.start_operational = false;
     EXPECT_TRUE(port.configure(node_config(config)).ok());
   }
   void robot_sends_nmt(can::NmtCommand command) {

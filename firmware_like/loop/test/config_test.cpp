@@ -45,7 +45,7 @@ const char* const kEverySection =
     "  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n  shaft_recheck: true\n  alias_check: true\n  base_rim_seed: false\n"
     "  valid_start_check: true\n  max_valid_tcp_disagreement_mm: 3.5\n"
     "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
-    "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
+    "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  start_operational: true\n"
     "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n"
     "  cpu_latency_us: 0\n";
 
@@ -77,7 +77,7 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_DOUBLE_EQ(config.loop.estimator.encoder_check.bend_tolerance_rad, 0.0);
   EXPECT_STREQ(config.can.bus, "vcan0");
   EXPECT_EQ(config.can.node_id, 33U);
-  EXPECT_FALSE(config.can.autostart);
+  EXPECT_TRUE(config.can.start_operational);
   EXPECT_TRUE(config.rt.lock_memory);
   EXPECT_EQ(config.rt.fifo_priority, 80);
   EXPECT_EQ(config.rt.cpu, 1);
@@ -137,7 +137,7 @@ TEST(LoopConfig, DeploymentExampleLoadsWithTheDefaultsItClaims) {
       "loop.shaft_recheck", "loop.alias_check", "loop.valid_start_check", "loop.base_rim_seed",
       "loop.max_valid_tcp_disagreement_mm", "loop.camera_timeout_ms", "loop.camera_lost_after", "loop.retry_ms",
       "loop.status_period_ms", "can.bus", "can.node_id", "can.heartbeat_ms", "can.prior_timeout_ms",
-      "can.prior_max_counter_gap", "can.autostart", "can.sync_timeout_ms", "rt.lock_memory", "rt.fifo_priority",
+      "can.prior_max_counter_gap", "can.start_operational", "can.sync_timeout_ms", "rt.lock_memory", "rt.fifo_priority",
       "rt.cpu", "rt.prefault_stack_kb", "rt.cpu_latency_us"};
   for (const char* key : every_key) {
     EXPECT_TRUE(doc.has(key)) << key;
@@ -184,7 +184,7 @@ TEST(LoopConfig, DeploymentExampleLoadsWithTheDefaultsItClaims) {
   EXPECT_EQ(c.heartbeat_ms, d.can.heartbeat_ms);
   EXPECT_EQ(c.prior_timeout_ms, d.can.prior_timeout_ms);
   EXPECT_EQ(c.prior_max_counter_gap, d.can.prior_max_counter_gap);
-  EXPECT_EQ(c.autostart, d.can.autostart);
+  EXPECT_EQ(c.start_operational, d.can.start_operational);
   EXPECT_EQ(c.sync_timeout_ms, d.can.sync_timeout_ms);
   EXPECT_EQ(config.rt.prefault_stack_kb, d.rt.prefault_stack_kb);
 }

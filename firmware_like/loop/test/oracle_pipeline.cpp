@@ -27,6 +27,11 @@ vision::FrameEstimate OraclePipeline::estimate(const ImageView& image, const vis
       const std::uint64_t key = (static_cast<std::uint64_t>(sequence) << 8U) + static_cast<std::uint64_t>(2 * k);
       corners.pixel[i] = solver::Vec2(truth.corners_px[i][0] + noise_px_ * unit_noise(key),
                                       truth.corners_px[i][1] + noise_px_ * unit_noise(key + 1U));
+      if (corners.visible[i]) {  // reported as stage 4's, as the real pipeline does without guided rounds
+        out.corners[i].source = vision::CornerSource::kStage4;
+        out.corners[i].pixel = vision::Point{corners.pixel[i].x(), corners.pixel[i].y()};
+        out.corners[i].confidence = 1.0;
+      }
     }
     out.extraction_ok = true;
     out.corners_detected = corners.count_visible();

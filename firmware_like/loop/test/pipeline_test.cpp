@@ -55,6 +55,7 @@ std::unique_ptr<Run> run_rendered(const Models& m, std::uint32_t frames) {
   hal::SimulatedClock clock(5 * hal::kNsPerS);
   auto bus = std::make_unique<hal::SimBus>();
   LoopConfig config;
+  config.can.start_operational = true;  // no NMT master on this simulated bus
   CanNodePort node(clock, bus->endpoint(0), bus.get(), nullptr, "sim0");
   EXPECT_TRUE(node.configure(node_config(config)).ok());
   LoopParts parts{&source, &clock, pipeline.value().get(), &node, &m.camera, &m.model};
@@ -194,6 +195,7 @@ TEST(LoopWithUnits, NoHeapAllocationPerCycleWithVisionOnRawFrames) {
   hal::SimulatedClock clock(hal::kNsPerS);
   auto bus = std::make_unique<hal::SimBus>();
   LoopConfig config;
+  config.can.start_operational = true;  // no NMT master on this simulated bus
   CanNodePort node(clock, bus->endpoint(0), bus.get(), nullptr, "sim0");
   ASSERT_TRUE(node.configure(node_config(config)).ok());
   LoopParts parts{source.value().get(), &clock, pipeline.value().get(), &node, &m.camera, &m.model};
@@ -237,6 +239,7 @@ TEST(LoopWithUnits, SyncTriggerAnswersEachSyncWithTheLatestEstimate) {
   hal::SimulatedClock clock(hal::kNsPerS);
   auto bus = std::make_unique<hal::SimBus>();
   LoopConfig config;
+  config.can.start_operational = true;  // no NMT master on this simulated bus
   config.loop.trigger = Trigger::kSync;
   CanNodePort node(clock, bus->endpoint(0), bus.get(), nullptr, "sim0");
   ASSERT_TRUE(node.configure(node_config(config)).ok());
@@ -295,6 +298,7 @@ TEST(LoopWithUnits, PeriodTriggerSendsTheTcpFrameFirstAtTheTickEvenAfterAnOverru
   SlowOracle slow(clock, oracle);
   auto bus = std::make_unique<hal::SimBus>();
   LoopConfig config;
+  config.can.start_operational = true;  // no NMT master on this simulated bus
   config.loop.trigger = Trigger::kPeriod;
   config.loop.period_us = 40000;
   CanNodePort node(clock, bus->endpoint(0), bus.get(), nullptr, "sim0");

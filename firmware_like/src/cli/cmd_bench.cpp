@@ -66,7 +66,7 @@ std::int64_t throughput(const char* label, const RigRequest& request, const solv
   rig->config.loop.trigger = loop::Trigger::kFrame;
   rig->config.loop.pacing = false;
   rig->config.loop.frames = cycles;
-  rig->config.can.autostart = true;
+  rig->config.can.start_operational = true;  // no NMT master on the bench's bus
   std::snprintf(rig->config.can.bus, sizeof rig->config.can.bus, "sim");
   loop::PrerenderOptions options;
   options.frames = dataset;
@@ -115,7 +115,7 @@ int jitter(const RigRequest& request, std::int64_t period_us, double seconds, co
   rig->config.loop.trigger = loop::Trigger::kPeriod;
   rig->config.loop.period_us = period_us;
   rig->config.loop.frames = 0U;
-  rig->config.can.autostart = true;
+  rig->config.can.start_operational = true;  // no NMT master on the bench's bus
   std::snprintf(rig->config.can.bus, sizeof rig->config.can.bus, "sim");
   loop::PrerenderOptions options;
   options.frames = 20U;

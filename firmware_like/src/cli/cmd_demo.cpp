@@ -24,7 +24,9 @@
 #include "cli/joint_errors.hpp"
 #include "cli/loop_rig.hpp"
 #include "cli/setup.hpp"
+#include "tcpest/can_iface/e2e.hpp"
 #include "tcpest/can_iface/messages.hpp"
+#include "tcpest/can_iface/receiver.hpp"
 #include "tcpest/render/image_io.hpp"
 
 namespace tcpest {
@@ -56,10 +58,15 @@ struct Sample {
   double total_ms = 0.0;
 };
 
-// The robot's side of the bus: NMT start, then an ENCODER_PRIOR per frame.
+// The robot's side of the bus: NMT start, then an ENCODER_PRIOR per frame;
+// what the estimator sends goes through the controllers' reference receiver.
 class Robot {
  public:
-  Robot(hal::CanBus& bus, std::uint8_t node_id) noexcept : bus_(bus), node_id_(node_id) {}
+  Robot(hal::CanBus& bus, std::uint8_t node_id) noexcept : bus_(bus), node_id_(node_id) {
+    can::ReceiverConfig config;
+    config.node_id = node_id;
+    static_cast<void>(rx_.configure(config));  // the loop's node ID, already validated
+  }
   void start_node() noexcept {
     can::Frame f;
     if (can::encode_nmt(can::NmtMessage{can::NmtCommand::kStart, node_id_}, f).ok()) {
@@ -72,8 +79,7 @@ class Robot {
     m.phi_rad = j.phi_rad;
     m.theta_rad = j.theta_rad;
     m.status = can::EstimateStatus::kValid;
-    m.counter = counter_;
-    counter_ = static_cast<std::uint8_t>(counter_ >= can::kMaxAliveCounter ? 0U : counter_ + 1U);
+    m.counter = counter_.take();
     can::Frame f;
     if (can::encode_encoder_prior(node_id_, m, f).ok()) {
       count(bus_.send(f).ok());
@@ -88,16 +94,21 @@ class Robot {
         break;
       }
       received_ += got.value();
+      for (std::size_t k = 0U; k < got.value(); ++k) {
+        static_cast<void>(rx_.receive(rx[k].frame, rx[k].timestamp_us));  // refusals are counted in rx_
+      }
     }
   }
   std::uint64_t received() const noexcept { return received_; }
+  const can::Receiver& receiver() const noexcept { return rx_; }
   std::uint64_t send_failures() const noexcept { return failures_; }
 
  private:
   void count(bool ok) noexcept { failures_ += ok ? 0U : 1U; }
   hal::CanBus& bus_;
   std::uint8_t node_id_;
-  std::uint8_t counter_ = 0U;
+  can::AliveCounter counter_{};
+  can::Receiver rx_{};
   std::uint64_t received_ = 0U;
   std::uint64_t failures_ = 0U;
 };
@@ -392,7 +403,7 @@ int load_demo_rig(const RigRequest& request, const DemoOptions& o, const char* l
   rig.config.loop.pacing = true;
   rig.config.loop.replay_loop = false;
   rig.config.loop.frames = 0U;
-  rig.config.can.autostart = false;  // the simulated robot starts the node, as the real one would
+  rig.config.can.start_operational = false;  // the simulated robot starts the node, as the real one would
   std::printf("tcpest demo: rendering %llu frames of a motion sequence (seed %llu) ...\n", o.frames, o.seed);
   // The simulated camera, with this seed.
   {
@@ -476,8 +487,11 @@ bool report_run(const LoopRig& rig, const Robot& robot, const std::vector<Sample
   print_accuracy(samples);
   std::printf("\n== timing\n");
   print_summary(stdout, *rig.executive);
-  std::printf("robot side: %llu frames received from the estimator\n",
-              static_cast<unsigned long long>(robot.received()));
+  const can::ReceiverCounters& rx = robot.receiver().counters();
+  std::printf("robot side: %llu frames received from the estimator, decoded %u, E2E failures %u, counter jumps %u, "
+              "stale events %u\n",
+              static_cast<unsigned long long>(robot.received()), rx.decoded, rx.e2e_failures, rx.counter_jumps,
+              rx.stale_events);
   const bool svg_ok = write_tcp_svg(paths.tcp_svg, samples) && write_latency_svg(paths.latency_svg, samples);
   std::printf("\nwritten: %s, %s, %s, %s, %s/\n", paths.log_path, paths.csv_path, paths.tcp_svg, paths.latency_svg,
               paths.overlay_dir);

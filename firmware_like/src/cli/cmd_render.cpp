@@ -308,9 +308,11 @@ int make_render_tools(const RenderOptions& o, const ModelSetup& setup, RenderToo
     return kExitFailure;
   }
   t.view = MutableImageView{t.frame.get(), t.width, t.height, static_cast<std::size_t>(t.width) * 3U};
-  if (!make_directory(o.out_dir)) {
-    std::fprintf(stderr, "tcpest render: cannot create the output directory '%s': %s\n", o.out_dir,
-                 std::strerror(errno));
+  char failed[kMaxDirectoryPath + 1U] = {};
+  if (!make_directories(o.out_dir, failed, sizeof failed)) {
+    const int why = errno;
+    std::fprintf(stderr, "tcpest render: cannot create the output directory '%s': '%s': %s\n", o.out_dir, failed,
+                 std::strerror(why));
     return kExitFailure;
   }
   if (o.sheet_path != nullptr && !t.sheet.init(t.width, t.height)) {

@@ -32,6 +32,9 @@ constexpr OptionSpec kOptions[] = {
     {"bus", "BUS", "IFACE (SocketCAN) | log:FILE (simulated bus, candump log) | sim (overrides can.bus)"},
     {"frames", "N", "stop after N cycles (overrides loop.frames; 0 = until the source ends)"},
     {"no-pacing", nullptr, "replay as fast as possible instead of at the source's rate"},
+    {"start-operational", nullptr,
+     "go operational after boot-up without waiting for an NMT start (sets can.start_operational; for a bus "
+     "without an NMT master, e.g. log:FILE)"},
     {"quiet", nullptr, "no status line"},
     {"status-json", nullptr, "the status line as one JSON object per line (docs/cli.md)"},
     {"record", "DIR", "write DIR/cycles.csv, DIR/can.log and DIR/overlays/ off the cycle (docs/loop.md)"},
@@ -190,10 +193,12 @@ int cmd_run(int argc, char** argv) {
   }
   if (args.help_requested()) {
     print_usage("tcpest run [--config CFG] [--calib CAM.yaml] [--source SRC] [--bus BUS] [--frames N] [--no-pacing]\n"
-                "           [--record DIR [--overlay-every N] [--record-max-mb M] [--record-keep K]] [--status-json]",
+                "           [--start-operational] [--record DIR [--overlay-every N] [--record-max-mb M] "
+                "[--record-keep K]] [--status-json]",
                 "The estimation loop as deployed: frames in, TCP estimates out on CAN, every cycle timed.\n"
                 "Without a config file the documented defaults apply (docs/loop.md): the simulated camera,\n"
-                "the simulated bus logging to can.log, the frame trigger at 25 Hz.\n"
+                "the simulated bus logging to can.log, the frame trigger at 25 Hz. The CAN node sends its PDOs\n"
+                "once operational: after the robot's NMT start, or at once with --start-operational.\n"
                 "Exit codes: 0 done, 1 failure (a recording's or log's write too), 2 usage, 3 configuration/input,\n"
                 "4 stopped by SIGINT/SIGTERM.",
                 kOptions, kOptionCount);
@@ -210,6 +215,7 @@ int cmd_run(int argc, char** argv) {
   request.source = args.value("source");
   request.bus = args.value("bus");
   request.no_pacing = args.flag("no-pacing");
+  request.start_operational = args.flag("start-operational");
   request.quiet = args.flag("quiet");
   if (args.value("frames") != nullptr) {
     unsigned long long frames = 0U;

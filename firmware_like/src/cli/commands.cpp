@@ -7,6 +7,8 @@ const Command* commands(int& count) noexcept {
   static const Command kCommands[] = {
       {"demo", "run the full loop on the built-in synthetic scene and report accuracy and timing", cmd_demo},
       {"run", "the estimation loop as deployed: frames in, TCP estimates out on CAN", cmd_run},
+      {"listen", "the controllers' side: decode and check the estimator's CAN frames (interface or candump log)",
+       cmd_listen},
       {"estimate", "extract corners and solve the pose on image files", cmd_estimate},
       {"evaluate", "run the pipeline over an annotated dataset and score it against its ground truth",
        cmd_evaluate},

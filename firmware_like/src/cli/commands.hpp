@@ -32,6 +32,7 @@ int cmd_evaluate(int argc, char** argv);
 int cmd_run(int argc, char** argv);
 int cmd_demo(int argc, char** argv);
 int cmd_bench(int argc, char** argv);
+int cmd_listen(int argc, char** argv);
 
 // The table, in the order `tcpest --help` lists it.
 const Command* commands(int& count) noexcept;

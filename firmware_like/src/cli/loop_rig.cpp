@@ -96,6 +96,9 @@ int LoopRig::load(const RigRequest& r) noexcept {
   if (r.no_pacing) {
     config.loop.pacing = false;
   }
+  if (r.start_operational) {
+    config.can.start_operational = true;
+  }
   return kExitOk;
 }
 

@@ -31,6 +31,7 @@ struct RigRequest {
   const char* bus = nullptr;     // overrides can.bus
   long long frames = -1;         // overrides loop.frames when >= 0
   bool no_pacing = false;
+  bool start_operational = false;  // sets can.start_operational (no NMT master on the bus)
   std::uint32_t sim_frames = 100U;  // frames rendered for the "sim" source
   bool quiet = false;
 };

@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <cstring>
 
 #include "tcpest/common/yaml_lite.hpp"
 #include "tcpest/solver/config_io.hpp"
@@ -53,9 +54,50 @@ bool load_model_setup(const char* command, const char* calib_path, const char* c
 bool make_directory(const char* path) noexcept {
   if (::mkdir(path, 0755) == 0 || errno == EEXIST) {
     struct stat st {};
-    return ::stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+    if (::stat(path, &st) == 0 && S_ISDIR(st.st_mode)) {
+      return true;
+    }
+    errno = ENOTDIR;
   }
   return false;
+}
+
+bool make_directories(const char* path, char* failed, std::size_t failed_capacity) noexcept {
+  auto fail = [&](const char* which) noexcept {
+    if (failed != nullptr && failed_capacity > 0U) {
+      static_cast<void>(std::snprintf(failed, failed_capacity, "%s", which));  // for the message: truncation is harmless
+    }
+    return false;
+  };
+  if (path == nullptr || path[0] == '\0') {
+    errno = ENOENT;
+    return fail("");
+  }
+  char partial[kMaxDirectoryPath + 1U];
+  const std::size_t length = std::strlen(path);
+  if (length > kMaxDirectoryPath) {
+    errno = ENAMETOOLONG;
+    return fail(path);
+  }
+  std::memcpy(partial, path, length + 1U);
+  std::size_t depth = 0U;
+  for (std::size_t i = 1U; i < length; ++i) {
+    // Each parent, once: at a '/' that ends a name (not a run of slashes).
+    if (partial[i] != '/' || partial[i - 1U] == '/') {
+      continue;
+    }
+    if (++depth >= kMaxDirectoryDepth) {
+      errno = ENAMETOOLONG;
+      return fail(path);
+    }
+    partial[i] = '\0';
+    const bool made = make_directory(partial);
+    if (!made) {
+      return fail(partial);
+    }
+    partial[i] = '/';
+  }
+  return make_directory(path) || fail(path);
 }
 
 }  // namespace cli

@@ -3,6 +3,8 @@
 // defaults), reporting any problem on stderr with file, line and field.
 #pragma once
 
+#include <cstddef>
+
 #include "cli/args.hpp"
 #include "tcpest/solver/camera.hpp"
 #include "tcpest/solver/instrument.hpp"
@@ -48,8 +50,17 @@ bool load_model_setup(const char* command, const char* calib_path, const char* c
                       ModelSetup& out) noexcept;
 
 // Creates a directory (one level) unless it exists; true when `path` is a
-// directory afterwards.
+// directory afterwards (errno ENOTDIR when it exists as something else).
 bool make_directory(const char* path) noexcept;
+
+// Creates `path` and its missing parents, at most kMaxDirectoryDepth levels
+// deep (paths up to kMaxDirectoryPath characters); true when `path` is a
+// directory afterwards. On failure `failed` holds the directory that could
+// not be made (the whole path when it is too long or too deep) and errno
+// says why.
+constexpr std::size_t kMaxDirectoryDepth = 32U;
+constexpr std::size_t kMaxDirectoryPath = 4095U;
+bool make_directories(const char* path, char* failed, std::size_t failed_capacity) noexcept;
 
 }  // namespace cli
 }  // namespace tcpest

@@ -33,6 +33,92 @@ std::size_t format_candump_line(const can::Frame& frame, std::int64_t timestamp_
   return static_cast<std::size_t>(written);
 }
 
+namespace {
+
+int hex_digit(char c) noexcept {
+  if (c >= '0' && c <= '9') {
+    return c - '0';
+  }
+  if (c >= 'A' && c <= 'F') {
+    return c - 'A' + 10;
+  }
+  if (c >= 'a' && c <= 'f') {
+    return c - 'a' + 10;
+  }
+  return -1;
+}
+
+// Decimal digits at `p` (at most max_digits, at least one) into `value`.
+const char* read_decimal(const char* p, int max_digits, std::int64_t& value) noexcept {
+  value = 0;
+  int digits = 0;
+  while (digits < max_digits && *p >= '0' && *p <= '9') {
+    value = value * 10 + (*p - '0');
+    ++p;
+    ++digits;
+  }
+  return digits > 0 ? p : nullptr;
+}
+
+}  // namespace
+
+bool parse_candump_line(const char* line, can::Frame& frame, std::int64_t& timestamp_us) noexcept {
+  if (line == nullptr || line[0] != '(') {
+    return false;
+  }
+  std::int64_t seconds = 0;
+  std::int64_t micros = 0;
+  const char* p = read_decimal(line + 1, 12, seconds);
+  if (p == nullptr || *p != '.') {
+    return false;
+  }
+  const char* fraction = p + 1;
+  p = read_decimal(fraction, 6, micros);
+  if (p == nullptr || p - fraction != 6 || *p != ')' || p[1] != ' ') {
+    return false;
+  }
+  p += 2;
+  int name_length = 0;
+  while (*p != ' ' && *p != '\0' && name_length < 16) {
+    ++p;
+    ++name_length;
+  }
+  if (name_length == 0 || name_length >= 16 || *p != ' ') {
+    return false;
+  }
+  ++p;
+  std::uint32_t id = 0U;
+  for (int i = 0; i < 3; ++i) {
+    const int d = hex_digit(p[i]);
+    if (d < 0) {
+      return false;
+    }
+    id = (id << 4U) | static_cast<std::uint32_t>(d);
+  }
+  p += 3;
+  if (*p != '#' || id > can::kMaxStandardId) {
+    return false;
+  }
+  ++p;
+  can::Frame parsed;
+  parsed.id = id;
+  std::uint8_t length = 0U;
+  while (*p != '\0' && *p != '\n' && *p != '\r') {
+    const int high = hex_digit(p[0]);
+    const int low = high < 0 ? -1 : hex_digit(p[1]);
+    if (low < 0 || length >= can::kMaxDataLength) {
+      return false;
+    }
+    parsed.data[length] = static_cast<std::uint8_t>((high << 4) | low);
+    ++length;
+    p += 2;
+  }
+  parsed.length = length;
+  frame = parsed;
+  timestamp_us = seconds * 1000000 + micros;
+  return true;
+}
+
 CandumpLogWriter::~CandumpLogWriter() {
   static_cast<void>(close());  // a destructor cannot report; call close() to see the error
 }

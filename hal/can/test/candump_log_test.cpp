@@ -46,6 +46,35 @@ TEST(CandumpLine, RejectsInvalidInput) {
   EXPECT_EQ(format_candump_line(f, 0, "can0", line, 10), 0U);
 }
 
+// What the writer formats, the reader reads back; anything else is refused.
+// Verifies: REQ-HAL-005
+TEST(CandumpLine, ReadsBackWhatItWrites) {
+  can::Frame f;
+  f.id = 0x710;
+  f.length = 1;
+  f.data[0] = 0x7F;
+  char line[kCandumpMaxLine];
+  ASSERT_GT(format_candump_line(f, 1700000000123456, "vcan0", line, sizeof line), 0U);
+  can::Frame got;
+  std::int64_t t_us = 0;
+  ASSERT_TRUE(parse_candump_line(line, got, t_us));
+  EXPECT_EQ(got, f);
+  EXPECT_EQ(t_us, 1700000000123456);
+  ASSERT_TRUE(parse_candump_line("(0.000005) can0 080#", got, t_us));
+  EXPECT_EQ(got.length, 0U);
+  EXPECT_EQ(t_us, 5);
+  ASSERT_TRUE(parse_candump_line("(12.500000) sim0 190#cefa6d02d81117fa\r\n", got, t_us));
+  EXPECT_EQ(got.length, 8U);
+  EXPECT_EQ(got.data[7], 0xFAU);
+  for (const char* bad : {"", "190#00", "(1.5) vcan0 190#00", "(1.000000) vcan0 12345678#00",
+                          "(1.000000) vcan0 190#R", "(1.000000) vcan0 190##0011", "(1.000000) vcan0 190#001",
+                          "(1.000000) vcan0 190#000102030405060708", "(1.000000)  190#00",
+                          "(1.000000) vcan0 800#00"}) {
+    EXPECT_FALSE(parse_candump_line(bad, got, t_us)) << bad;
+  }
+  EXPECT_FALSE(parse_candump_line(nullptr, got, t_us));
+}
+
 // Verifies: REQ-HAL-005
 TEST(CandumpLogWriter, WritesManyLinesThroughItsBuffer) {
   char path[] = "/tmp/tcpest_candump_XXXXXX";

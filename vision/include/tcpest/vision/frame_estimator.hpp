@@ -113,6 +113,15 @@ struct FrameEstimate {
   bool solved() const noexcept { return estimate.quality != solver::EstimateQuality::None; }
 };
 
+// What QUALITY reports (docs/can-protocol.md): the corners of the kept
+// estimate measured in this frame's image (stage 4's or re-measured, not the
+// model's prediction), and of those the ones the final solve used (0 when
+// nothing was solved). Predicted corners help the solve but are no evidence
+// from the image, so neither count includes them.
+bool measured_in_image(CornerSource source) noexcept;
+int corners_measured(const FrameEstimate& estimate) noexcept;
+int measured_corners_used(const FrameEstimate& estimate) noexcept;
+
 class FrameEstimator {
  public:
   // Allocates every buffer for frames up to max_width x max_height (0: the

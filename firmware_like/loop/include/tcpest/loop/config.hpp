@@ -51,7 +51,9 @@ struct CanSettings {
   int heartbeat_ms = 100;
   int prior_timeout_ms = 100;        // an ENCODER_PRIOR older than this is not used
   int prior_max_counter_gap = 2;     // accepted alive-counter steps (1 = no message lost)
-  bool autostart = true;             // enter operational after boot-up without waiting for NMT start
+  // CiA 301 auto-start: operational after boot-up without an NMT start. Off:
+  // the node stays pre-operational (no PDOs) until the robot's NMT master starts it.
+  bool start_operational = false;
   int sync_timeout_ms = 500;         // kSync: no SYNC this long counts as a bus fault
 };
 

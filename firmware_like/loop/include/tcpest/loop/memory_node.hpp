@@ -17,7 +17,7 @@ class MemoryNode final : public NodePort {
  public:
   static constexpr std::size_t kRing = 64U;
 
-  MemoryNode(hal::Clock& clock, bool autostart, std::int64_t heartbeat_ns, std::int64_t prior_timeout_ns) noexcept;
+  MemoryNode(hal::Clock& clock, bool start_operational, std::int64_t heartbeat_ns, std::int64_t prior_timeout_ns) noexcept;
 
   Status<PortError> receive(std::int64_t now_ns) noexcept override;
   NodeMode mode() const noexcept override { return mode_; }
@@ -47,7 +47,7 @@ class MemoryNode final : public NodePort {
 
  private:
   hal::Clock& clock_;
-  bool autostart_;
+  bool start_operational_;
   std::int64_t heartbeat_ns_;
   std::int64_t prior_timeout_ns_;
   NodeMode mode_ = NodeMode::kBootUp;

@@ -25,6 +25,12 @@ constexpr std::size_t kCandumpMaxLine = 80U;
 std::size_t format_candump_line(const can::Frame& frame, std::int64_t timestamp_us, const char* interface_name,
                                 char* out, std::size_t capacity) noexcept;
 
+// Reads one line of that format back (a trailing '\n' is allowed):
+// "(SECONDS.MICROSECONDS) IFACE ID#DATA" with a 3-digit standard ID and 0..8
+// data bytes in hex. False for anything else (extended IDs, remote or CAN FD
+// frames, a damaged line); nothing is written then.
+bool parse_candump_line(const char* line, can::Frame& frame, std::int64_t& timestamp_us) noexcept;
+
 class CandumpLogWriter {
  public:
   CandumpLogWriter() noexcept = default;
