@@ -206,12 +206,13 @@ struct ShaftFitSummary {
 
 namespace detail {
 class BlurredEdgeScratch;  // src/blurred_edge.hpp
+struct FitScratch;         // src/fit_scratch.hpp
 }  // namespace detail
 
 class FeatureExtractor {
  public:
   FeatureExtractor() noexcept = default;
-  ~FeatureExtractor();  // out of line: the blurred edge's scratch is an incomplete type here
+  ~FeatureExtractor();  // out of line: the scratch types are incomplete here
   // Owned through create()'s pointer, never copied or moved (its buffers are sized at create()).
   FeatureExtractor(const FeatureExtractor&) = delete;
   FeatureExtractor& operator=(const FeatureExtractor&) = delete;
@@ -297,8 +298,8 @@ class FeatureExtractor {
                                                 solver::PoseVector& r) const noexcept;
   // A rough pose from stage 2 alone (ours): x_ch, y_ch, lambda, phi, theta
   // moved from `r` so that the model's marker middles project onto the
-  // labelled regions' centroids (damped Gauss-Newton, at most 15
-  // iterations); needs 3 labelled markers and an RMS under 12 px. For frames
+  // labelled regions' centroids (Levenberg-Marquardt, forward differences,
+  // at most 15 trial steps); needs 3 labelled markers and an RMS under 12 px. For frames
   // where stage 4's corners give the solver too little.
   Status<VisionError> pose_from_regions(const solver::CameraModel& camera, const solver::InstrumentModel& model,
                                         solver::PoseVector& r) const noexcept;
@@ -307,8 +308,8 @@ class FeatureExtractor {
   // region, a wrong labelling): r is moved so that points of every stripe's
   // visible face, projected, fall on pixels of the stripe's colour (chamfer
   // matching on the distance images of the blue and yellow classes;
-  // Levenberg-Marquardt, finite differences, a weak prior around `r`, at
-  // most kClassFitIterations). Updates `r` and returns the mean capped
+  // Levenberg-Marquardt, forward differences, a weak prior around `r`, at
+  // most kClassFitIterations + 4 trial steps per descent). Updates `r` and returns the mean capped
   // distance in pixels of the points to their colour (`cost_px`); fails
   // when too few points project into the image.
   static constexpr int kClassFitIterations = 12;
@@ -365,6 +366,8 @@ class FeatureExtractor {
   // The blurred edge's model's tables (refine_streak_edge_model), allocated
   // at create() and rebuilt by every reading that uses them.
   std::unique_ptr<detail::BlurredEdgeScratch> edge_scratch_;
+  // The model-guided fits' minimisers and rows, allocated at create().
+  std::unique_ptr<detail::FitScratch> fit_scratch_;
   bool class_distance_ready_ = false;
   std::array<int, 4> distance_box_{};  // x0, y0, x1, y1 (inclusive) where the distances were computed
   void compute_class_distances() noexcept;
