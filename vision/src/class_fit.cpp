@@ -52,10 +52,12 @@ constexpr int kRows = detail::kClassRows;
 using ClassResiduals = Eigen::Matrix<double, kRows, 1>;
 // Difference steps of about a pixel: the distance image is piecewise linear.
 constexpr std::array<double, kParams> kStepH = {0.05, 0.05, 0.002, 0.002, 0.05, 0.004, 0.004};
-// Each descent: at most kClassFitIterations + 4 trial steps (a rejected one
-// costs as much as an accepted one); it ends where a step lowers the cost
-// by less than 0.1 %.
-constexpr solver::SolverOptions kClassSolve{FeatureExtractor::kClassFitIterations + 4, 1e-10, 1e-10, 1e-3, 1e-2};
+// Each descent: Marquardt's damping schedule (the cost is piecewise linear:
+// the gain ratio says little about the next step), at most
+// 3 x kClassFitIterations trial steps (six rejected in a row end it); it
+// ends where a step lowers the cost by less than 0.1 %.
+constexpr solver::SolverOptions kClassSolve{3 * FeatureExtractor::kClassFitIterations, 1e-10, 1e-10, 1e-3, 1e-2,
+                                            solver::DampingSchedule::kMarquardt};
 
 // Coverage points: the class image's coloured pixels on a grid whose step
 // gives at most about kMaxCoverage of them (from the regions' total area).
@@ -139,14 +141,15 @@ bool coarse_grid_start(const Cost& residuals, const solver::PoseVector& r, solve
 
 // A descent of the residuals from x on the minimiser (forward differences).
 // A pose that shows fewer than kMinSamples facing samples is outside the
-// fit's domain: a trial there is a failed step. False when the descent
+// fit's domain: a trial there is a failed step (the residuals are defined
+// there, so a difference step may land there). False when the descent
 // could not start or broke down (non-finite values, a singular system).
 template <typename Cost>
 bool descend(const Cost& residuals, solver::LevenbergMarquardt<kParams, kRows>& lm, solver::PoseVector& x) noexcept {
   auto shows_enough = [&residuals](const solver::PoseVector& at, ClassResiduals& out) noexcept {
     double weight_sum = 0.0;
     residuals(at, out, weight_sum);
-    return weight_sum >= kMinSamples;
+    return weight_sum >= kMinSamples ? solver::Evaluation::kAcceptable : solver::Evaluation::kDefinedOnly;
   };
   auto problem = solver::make_forward_difference<kParams, kRows>(shows_enough, kStepH);
   switch (lm.minimise(problem, x, kClassSolve).status) {

@@ -536,12 +536,12 @@ Status<VisionError> FeatureExtractor::pose_from_regions(const solver::CameraMode
       const double s_mid = 0.5 * (g.boundaries_mm[m] + g.boundaries_mm[m + 1U]);
       solver::Vec2 p;
       if (!camera.project(model.centreline(f, s_mid).position, p)) {
-        return false;
+        return solver::Evaluation::kUndefined;
       }
       out[static_cast<Eigen::Index>(2U * m)] = p.x() - in.markers[m].region.centroid.x;
       out[static_cast<Eigen::Index>(2U * m + 1U)] = p.y() - in.markers[m].region.centroid.y;
     }
-    return true;
+    return solver::Evaluation::kAcceptable;
   };
   Moved x;
   for (int k = 0; k < kParams; ++k) {

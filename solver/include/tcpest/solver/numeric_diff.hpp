@@ -7,20 +7,31 @@
 //
 // The residual function:
 //
-//   bool f(const Params& x, Residuals& residuals) noexcept;
+//   Evaluation f(const Params& x, Residuals& residuals) noexcept;
 //
-// false when x is outside its domain. A shifted point outside the domain
-// makes the evaluation fail like x itself: the minimiser then treats the
-// trial as a failed step (more damping, same x). No allocation: the shifted
-// residuals are a member of the adapter.
+// says whether x is acceptable (kAcceptable), whether the residuals are
+// defined there although x may not be an answer (kDefinedOnly: a
+// constraint of the fit, e.g. too few samples in view), or whether they
+// are not defined (kUndefined: e.g. a point that does not project). A
+// point must be acceptable; its shifts need only be defined. Otherwise the
+// evaluation fails and the minimiser treats the trial as a failed step
+// (more damping, same x). No allocation: the shifted residuals are a
+// member of the adapter.
 #pragma once
 
 #include <Eigen/Core>
 #include <array>
 #include <cstddef>
+#include <cstdint>
 
 namespace tcpest {
 namespace solver {
+
+enum class Evaluation : std::uint8_t {
+  kAcceptable,   // residuals defined, and x may be an answer
+  kDefinedOnly,  // residuals defined, x outside the fit's domain (a trial there is refused)
+  kUndefined,    // residuals not defined at x
+};
 
 template <int kParams, int kResiduals, typename ResidualFunction>
 class ForwardDifferenceProblem {
@@ -35,7 +46,7 @@ class ForwardDifferenceProblem {
       : function_(function), steps_(steps) {}
 
   bool operator()(const Params& x, Residuals& residuals, Jacobian* jacobian) noexcept {
-    if (!function_(x, residuals)) {
+    if (function_(x, residuals) != Evaluation::kAcceptable) {
       return false;
     }
     if (jacobian == nullptr) {
@@ -45,7 +56,7 @@ class ForwardDifferenceProblem {
       const double h = steps_[static_cast<std::size_t>(k)];
       shifted_x_ = x;
       shifted_x_[k] += h;
-      if (!function_(shifted_x_, shifted_)) {
+      if (function_(shifted_x_, shifted_) == Evaluation::kUndefined) {
         return false;
       }
       jacobian->col(k) = (shifted_ - residuals) / h;
