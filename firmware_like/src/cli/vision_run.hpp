@@ -69,6 +69,11 @@ struct EstimateResult {
   solver::SolveSummary summary{};
   int corners_rejected = 0;  // dropped as disagreeing with the model at the estimate
   int guided_rounds = 0;     // model-guided rounds kept (0: stage 4's corners)
+  // The estimation policy's rows this frame ran, and the one whose result
+  // was kept (vision/estimation_policy.hpp); a check that demoted the
+  // estimate counts as producing it.
+  vision::StepSet rows_tried{};
+  vision::StepSet rows_produced{};
   bool encoder_disagrees = false;  // demoted one level: beyond the encoders' accuracy (solver::check_against_encoders)
   // Valid -> Degraded: the solve's TCP lay farther from fit_tcp than
   // vision::GuidedOptions::max_valid_tcp_disagreement_mm.
