@@ -36,7 +36,6 @@ const OptionSpec kSpecs[] = {
     {"colors", "MODEL.json", "colour model; default: the built-in model"},
     {"fixed-model", nullptr, "solve with the channel pose held at its nominal value"},
     kGuidedRoundsOption,
-    kFallbackSeedsOption,
     kDenseOption,
     {"no-prior", nullptr, "ignore the sidecars' encoder priors (generic / temporal priors only)"},
     {"true-prior", nullptr,
@@ -567,7 +566,7 @@ int cmd_evaluate(int argc, char** argv) {
   }
   if (args.help_requested() || args.positional_count() < 1U) {
     print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] "
-                "[--guided-rounds N] [--fallback-seeds N] [--dense] [--no-prior | --true-prior] "
+                "[--guided-rounds N] [--dense] [--no-prior | --true-prior] "
                 "[--max N] [--verbose] DATASET_DIR...",
                 "Runs extraction and the solver on every image of one or more datasets and scores them against the "
                 "sidecars; several datasets are pooled, with a frame-success line for each.",

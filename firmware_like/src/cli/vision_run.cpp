@@ -425,9 +425,7 @@ bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& 
     e.solve_mode = solver::SolveMode::FixedModel;
   }
   if (!apply_count(command, "guided-rounds", args.value("guided-rounds"), vision::kMaxGuidedRounds,
-                   e.guided.rounds) ||
-      !apply_count(command, "fallback-seeds", args.value("fallback-seeds"), vision::kMaxFallbackSeeds,
-                   e.guided.fallback_seeds)) {
+                   e.guided.rounds)) {
     return false;
   }
   exit_code = kExitConfig;

@@ -139,8 +139,8 @@ class Args;
 
 // The pipeline of `tcpest COMMAND` from its arguments: the model setup
 // (--calib, --config), the colour model (--colors), the solver mode
-// (--fixed-model) and the guided rounds (--guided-rounds,
-// --fallback-seeds). False after printing an error, with exit_code
+// (--fixed-model) and the guided rounds (--guided-rounds). False after
+// printing an error, with exit_code
 // kExitConfig for a file, kExitUsage for a value.
 bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& setup, EstimatePipeline& pipeline,
                              int& exit_code) noexcept;
