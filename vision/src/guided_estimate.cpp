@@ -101,15 +101,15 @@ struct StartShaft {
   solver::PoseVector shafted = solver::PoseVector::Zero();
 };
 
-// A seed moved onto the class image (class_fit): the channel's pose from
+// A seed moved onto the class image (fit_pose_to_classes): the channel's pose from
 // the shaft first when it is seen (`channel_known`), so that the class fit
 // need only find the joints. The seed's shaft may have lain outside the
 // image (a short insertion at the CAD pose projects it beside the frame):
 // from the class fit's pose it is looked for again, and the joints fitted
 // once more with the channel it gives.
 void move_onto_classes(FeatureExtractor& extractor, const solver::CameraModel& camera,
-                       const solver::InstrumentModel& model, const ImageView& image, const GuidedOptions& options,
-                       bool channel_known, solver::PoseVector& seed_r) noexcept {
+                       const solver::InstrumentModel& model, const ImageView& image, bool channel_known,
+                       solver::PoseVector& seed_r) noexcept {
   solver::PoseVector moved = seed_r;
   double class_cost_px = 0.0;  // not used to judge: the image fit's test decides
   if (!extractor.fit_pose_to_classes(camera, model, moved, class_cost_px, channel_known).ok()) {
@@ -118,25 +118,23 @@ void move_onto_classes(FeatureExtractor& extractor, const solver::CameraModel& c
   seed_r = moved;
   ShaftFitSummary shaft;
   solver::PoseVector shafted = seed_r;
-  if (options.shaft_fit && !channel_known && extractor.fit_channel_to_shaft(image, camera, model, shafted, shaft).ok() &&
+  if (!channel_known && extractor.fit_channel_to_shaft(image, camera, model, shafted, shaft).ok() &&
       extractor.fit_pose_to_classes(camera, model, shafted, class_cost_px, true).ok()) {
     seed_r = shafted;
   }
 }
 
-// A seed as the fallback seeds take it: the channel's pose from the shaft
-// (shaft_fit), then moved onto the class image (class_fit). `shafted`: the
-// seed after the shaft fit alone; true when that fit succeeded.
+// A seed as the start seed takes it: the channel's pose from the shaft
+// (fit_channel_to_shaft), then moved onto the class image
+// (fit_pose_to_classes, the channel held when the shaft fit succeeded).
+// `shafted`: the seed after the shaft fit alone; true when that fit
+// succeeded.
 bool prepare_seed(FeatureExtractor& extractor, const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                  const ImageView& image, const GuidedOptions& options, solver::PoseVector& seed_r,
-                  solver::PoseVector& shafted) noexcept {
+                  const ImageView& image, solver::PoseVector& seed_r, solver::PoseVector& shafted) noexcept {
   ShaftFitSummary shaft;
-  const bool channel_known =
-      options.shaft_fit && extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
+  const bool channel_known = extractor.fit_channel_to_shaft(image, camera, model, seed_r, shaft).ok();
   shafted = seed_r;
-  if (options.class_fit) {
-    move_onto_classes(extractor, camera, model, image, options, channel_known, seed_r);
-  }
+  move_onto_classes(extractor, camera, model, image, channel_known, seed_r);
   return channel_known;
 }
 
@@ -238,10 +236,8 @@ struct PolicyWalk {
     }
     solver::PoseVector seed_r = start;
     solver::PoseVector unmoved;  // the seed with its channel from the shaft, before the class fit
-    const bool channel_known = prepare_seed(extractor, camera, model, image, options, seed_r, unmoved);
-    if (options.shaft_fit) {
-      start_shaft = StartShaft{true, channel_known, unmoved};
-    }
+    const bool channel_known = prepare_seed(extractor, camera, model, image, seed_r, unmoved);
+    start_shaft = StartShaft{true, channel_known, unmoved};
     tried.add(StepKind::kStartSeed);
     if (try_seed(extractor, estimator, camera, model, image, mode, first, seed_r, options, out)) {
       kept_from(StepKind::kStartSeed);

@@ -52,7 +52,12 @@ struct GuidedOptions {
   // boundaries and silhouette points with a residual below
   // prefer_fit_rms_ratio times the current's); else valid over degraded; at
   // the same quality, a fit-confirmed one over stage 4's, then the lower fit
-  // residual (docs/vision.md). One seed per frame, about 1-3 ms at PAL.
+  // residual (docs/vision.md). Before the image fit, the seed's channel
+  // pose is fitted to the shaft's silhouette
+  // (FeatureExtractor::fit_channel_to_shaft), then the seed is moved onto
+  // the class image (FeatureExtractor::fit_pose_to_classes, the channel
+  // held when the shaft fit succeeded). One seed per frame, about 1-3 ms
+  // at PAL.
   bool prefer_fit_confirmed = true;   // the first of those rules (false: off)
   double prefer_fit_rms_ratio = 0.7;  // the second (0: off)
   // At the same quality, two fit-confirmed results whose fits read runs of
@@ -64,13 +69,6 @@ struct GuidedOptions {
   // stripes (docs/decisions/0028-longer-run.md). 0: off (the lower residual
   // alone).
   double longer_run_rms_ratio = 0.7;
-  // The start seed's channel pose is first fitted to the shaft's
-  // silhouette (`shaft_fit`: FeatureExtractor::fit_channel_to_shaft), then
-  // the seed is moved onto the class image (`class_fit`:
-  // FeatureExtractor::fit_pose_to_classes, the channel held when the shaft
-  // fit succeeded) before the image fit.
-  bool shaft_fit = true;
-  bool class_fit = true;
   // When no image fit was kept and the result is not valid (stage 4's
   // Degraded solve, or none; a valid one stays, as it stops the seeds): a
   // tube seen end-on behind the shaft, one stripe showing, gives the image
