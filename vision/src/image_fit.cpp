@@ -15,8 +15,6 @@
 #include "robust_step.hpp"
 #include "sampling.hpp"
 #include "tcpest/common/dmath.hpp"
-#include "tcpest/solver/levenberg_marquardt.hpp"
-#include "tcpest/solver/numeric_diff.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -131,11 +129,6 @@ struct FitReadings {
 constexpr double kFitPriorSd[solver::kNumParams] = {3.0, 3.0, 0.1, 0.1, 5.0, 0.5, 0.5};
 // The finite-difference steps of the fit's rows, in r's units.
 constexpr double kFitStepH[solver::kNumParams] = {1e-3, 1e-3, 1e-5, 1e-5, 1e-3, 1e-5, 1e-5};
-// The regions' rough pose (pose_from_regions): x_ch, y_ch (mm), lambda
-// (mm), phi, theta (rad) moved; difference steps of about 1e-3 px and the
-// minimiser's settings (at most 15 trial steps: a rough pose needs no more).
-constexpr std::array<double, 5> kRegionsDifferenceSteps = {1e-3, 1e-3, 1e-3, 1e-5, 1e-5};
-constexpr solver::SolverOptions kRegionsSolve{15, 1e-10, 1e-10, 1e-6, 1e-3};
 
 // The image point of the boundary circle cf (radius_mm) at angle_rad, and
 // its arc's image normal towards the tip (cf2: the circle kDsMm further).
@@ -503,66 +496,6 @@ bool fit_step(const FitReadings& fit, const solver::CameraModel& camera, const s
 }
 
 }  // namespace
-
-Status<VisionError> FeatureExtractor::pose_from_regions(const solver::CameraModel& camera,
-                                                        const solver::InstrumentModel& model,
-                                                        solver::PoseVector& r) const noexcept {
-  const Interpretation& in = result_.interpretation;
-  if (in.found_count < 3 || !r.allFinite()) {
-    return Status<VisionError>::failure(VisionError::NoInstrument);
-  }
-  constexpr int kParams = 5;
-  constexpr int kParamIndex[kParams] = {solver::kXch, solver::kYch, solver::kLambda, solver::kPhi, solver::kTheta};
-  constexpr int kRows = 2 * kNumMarkers;
-  using Moved = Eigen::Matrix<double, kParams, 1>;
-  using Residuals = Eigen::Matrix<double, kRows, 1>;
-  const auto& g = model.geometry();
-  const auto pose_at = [&](const Moved& moved) noexcept {
-    solver::PoseVector at = r;
-    for (int k = 0; k < kParams; ++k) {
-      at[kParamIndex[k]] = moved[k];
-    }
-    return at;
-  };
-  // Projected marker middle minus centroid, per labelled marker (zero rows
-  // otherwise); outside the domain where a middle does not project.
-  auto residuals = [&](const Moved& moved, Residuals& out) noexcept {
-    out.setZero();
-    const solver::PoseFrames f = model.frames(pose_at(moved));
-    for (std::size_t m = 0U; m < static_cast<std::size_t>(kNumMarkers); ++m) {
-      if (!in.markers[m].found) {
-        continue;
-      }
-      const double s_mid = 0.5 * (g.boundaries_mm[m] + g.boundaries_mm[m + 1U]);
-      solver::Vec2 p;
-      if (!camera.project(model.centreline(f, s_mid).position, p)) {
-        return solver::Evaluation::kUndefined;
-      }
-      out[static_cast<Eigen::Index>(2U * m)] = p.x() - in.markers[m].region.centroid.x;
-      out[static_cast<Eigen::Index>(2U * m + 1U)] = p.y() - in.markers[m].region.centroid.y;
-    }
-    return solver::Evaluation::kAcceptable;
-  };
-  Moved x;
-  for (int k = 0; k < kParams; ++k) {
-    x[k] = r[kParamIndex[k]];
-  }
-  auto problem = solver::make_forward_difference<kParams, kRows>(residuals, kRegionsDifferenceSteps);
-  solver::LevenbergMarquardt<kParams, kRows> lm;
-  const solver::LmOutcome outcome = lm.minimise(problem, x, kRegionsSolve);
-  if (outcome.status == solver::LmStatus::InvalidInput || outcome.status == solver::LmStatus::NonFiniteResidual) {
-    return Status<VisionError>::failure(VisionError::NoInstrument);
-  }
-  const double cost = 2.0 * outcome.final_cost;
-  // The visible faces' centroids lie a few pixels off the centreline's
-  // projection; much more is a wrong pose.
-  const double rms = std::sqrt(cost / (2.0 * in.found_count));
-  if (!(rms < 12.0) || !x.allFinite()) {
-    return Status<VisionError>::failure(VisionError::NoInstrument);
-  }
-  r = pose_at(x);
-  return ok_status<VisionError>();
-}
 
 Status<VisionError> FeatureExtractor::fit_insertion_to_base_rim(const ImageView& image,
                                                                 const solver::CameraModel& camera,

@@ -41,8 +41,7 @@ TEST(LoopConfig, DefaultsWithoutSections) {
 const char* const kEverySection =
     "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
     "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
-    "  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n  shaft_recheck: true\n  alias_check: true\n  base_rim_seed: false\n"
-    "  valid_start_check: true\n  max_valid_tcp_disagreement_mm: 3.5\n"
+    "  outlier_rounds: 0\n  guided_rounds: 0\n  base_rim_seed: false\n  max_valid_tcp_disagreement_mm: 3.5\n"
     "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
     "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  autostart: false\n"
     "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n"
@@ -65,10 +64,6 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_DOUBLE_EQ(config.loop.estimator.solve.max_rms_valid_px, 1.5);
   EXPECT_EQ(config.loop.estimator.solve.outlier_rounds, 0);
   EXPECT_EQ(config.loop.estimator.guided.rounds, 0);
-  EXPECT_EQ(config.loop.estimator.guided.fallback_seeds, 2);
-  EXPECT_TRUE(config.loop.estimator.guided.shaft_recheck);
-  EXPECT_TRUE(config.loop.estimator.guided.alias_check);
-  EXPECT_TRUE(config.loop.estimator.guided.valid_start_check);
   EXPECT_FALSE(config.loop.estimator.guided.base_rim_seed);
   EXPECT_DOUBLE_EQ(config.loop.estimator.guided.max_valid_tcp_disagreement_mm, 3.5);
   EXPECT_DOUBLE_EQ(config.loop.estimator.encoder_check.lambda_tolerance_mm, 4.5);
@@ -101,7 +96,7 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
     const char* field;
   } bad[] = {
       {"loop:\n  classify_step: 3\n", "loop.classify_step"},
-      {"loop:\n  fallback_seeds: 10\n", "loop.fallback_seeds"},
+      {"loop:\n  guided_rounds: 5\n", "loop.guided_rounds"},
       {"loop:\n  encoder_check_bend_rad: -0.1\n", "loop.encoder_check_bend_rad"},
       {"loop:\n  encoder_check_lambda_mm: nan\n", "loop.encoder_check_lambda_mm"},
       {"loop:\n  max_valid_tcp_disagreement_mm: -1\n", "loop.max_valid_tcp_disagreement_mm"},
@@ -115,6 +110,20 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
   }
   ASSERT_TRUE(parse("loop:\n  classify_step: auto\n", config).ok());
   EXPECT_EQ(config.loop.estimator.classify_step, 0);
+}
+
+// The keys of estimation steps that were removed (docs/decisions/0053) are
+// unknown keys now: a file that still names one is refused, naming it.
+TEST(LoopConfig, TheRemovedEstimationStepsKeysAreUnknownKeys) {
+  LoopConfig config;
+  const char* const removed[] = {"fallback_seeds", "shaft_recheck", "alias_check", "valid_start_check"};
+  for (const char* key : removed) {
+    const std::string text = std::string("loop:\n  ") + key + ": 1\n";
+    const auto s = parse(text.c_str(), config);
+    ASSERT_FALSE(s.ok()) << key;
+    EXPECT_EQ(std::string(s.error().field), std::string("loop.") + key);
+    EXPECT_NE(std::strstr(s.error().message, "unknown key"), nullptr) << key;
+  }
 }
 
 }  // namespace

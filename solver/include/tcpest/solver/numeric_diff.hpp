@@ -2,7 +2,7 @@
 // residual function that has no derivatives of its own: the Jacobian by
 // forward differences, one step per parameter (like Ceres'
 // NumericDiffCostFunction with FORWARD). The fits whose residuals are read
-// off the image (the regions' pose, the class image's chamfer fit) use it,
+// off the image (the class image's chamfer fit) use it,
 // so that every fit runs on the one minimiser.
 //
 // The residual function:

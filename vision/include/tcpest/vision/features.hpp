@@ -252,7 +252,7 @@ class FeatureExtractor {
   // boundary onto its colour change and the model's silhouette onto the
   // colour-gradient maxima, by robust Gauss-Newton from `r` (a first pose),
   // re-measuring at every iteration. `r` is updated only on success.
-  // `coarse_start`: r is rough (pose_from_regions): three iterations with
+  // `coarse_start`: r is rough (a fallback seed's): three iterations with
   // wider windows come first (fewer boundaries accepted there).
   Status<VisionError> fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
                                         const solver::InstrumentModel& model, solver::PoseVector& r,
@@ -296,13 +296,6 @@ class FeatureExtractor {
   Status<VisionError> fit_insertion_to_base_rim(const ImageView& image, const solver::CameraModel& camera,
                                                 const solver::InstrumentModel& model,
                                                 solver::PoseVector& r) const noexcept;
-  // A rough pose from stage 2 alone (ours): x_ch, y_ch, lambda, phi, theta
-  // moved from `r` so that the model's marker middles project onto the
-  // labelled regions' centroids (Levenberg-Marquardt, forward differences,
-  // at most 15 trial steps); needs 3 labelled markers and an RMS under 12 px. For frames
-  // where stage 4's corners give the solver too little.
-  Status<VisionError> pose_from_regions(const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                                        solver::PoseVector& r) const noexcept;
   // A coarse pose from the class image alone (ours, for frames the borders
   // and corners cannot serve: a tube seen end-on, markers merged into one
   // region, a wrong labelling): r is moved so that points of every stripe's
