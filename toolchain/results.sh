@@ -9,7 +9,7 @@
 #   toolchain/results.sh --docs      (regenerates docs/results.md)
 #   toolchain/results.sh [OUT]
 #   CONFIG=candidate.yaml toolchain/results.sh OUT   (a candidate configuration: its loop: section, for both commands)
-#   TCPEST=path/to/tcpest EVALUATE_ARGS="--fallback-seeds 1" toolchain/results.sh OUT   (another build or setting)
+#   TCPEST=path/to/tcpest EVALUATE_ARGS="--guided-rounds 0" toolchain/results.sh OUT   (another build or setting)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 docs=0

@@ -96,8 +96,9 @@ TEST(VisionCommands, UsageErrorsAndHelp) {
   EXPECT_EQ(run({"evaluate", "/nonexistent-dir"}), kExitConfig);
   EXPECT_EQ(run({"train-colors"}), kExitUsage);
   EXPECT_EQ(run({"estimate", "--guided-rounds", "5", "x.jpg"}), kExitUsage);
-  EXPECT_EQ(run({"estimate", "--fallback-seeds", "10", "x.jpg"}), kExitUsage);
-  EXPECT_EQ(run({"evaluate", "--fallback-seeds", "-1", "/tmp"}), kExitUsage);
+  // The option of the fallback seeds that were removed (docs/decisions/0053) is unknown.
+  EXPECT_EQ(run({"estimate", "--fallback-seeds", "1", "x.jpg"}), kExitUsage);
+  EXPECT_EQ(run({"evaluate", "--fallback-seeds", "1", "/tmp"}), kExitUsage);
   // A bad value is a usage error whatever the directory holds (before, an
   // empty or missing one answered first, with the configuration's code).
   EXPECT_EQ(run({"evaluate", "--guided-rounds", "9", "/nonexistent-dir"}), kExitUsage);
@@ -131,12 +132,22 @@ TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
   // ... and on the same frames the TCP of the pose the corners were read at.
   EXPECT_NE(summary.find("the image fit's pose instead ("), std::string::npos) << summary;
   EXPECT_EQ(summary.find("the image fit's pose instead (0 of the valid"), std::string::npos) << summary;
+  // One line per row of the estimation policy, in the table's order: the
+  // frames it ran on, and those whose estimate it gave.
+  std::size_t at = 0U;
+  for (const vision::PolicyStep& row : vision::kEstimationPolicy) {
+    const std::string line = std::string("policy row ") + row.name + ": ran on ";
+    const std::size_t found = summary.find(line, at);
+    ASSERT_NE(found, std::string::npos) << line << summary;
+    at = found;
+  }
+  EXPECT_NE(summary.find("policy row stage4-solve: ran on 2 frames"), std::string::npos) << summary;
   EXPECT_EQ(run({"evaluate", "--no-prior", "--max", "1", dir}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--true-prior", "--max", "1", dir}), kExitOk);
   EXPECT_EQ(run({"evaluate", "--true-prior", "--no-prior", dir}), kExitUsage);
   // Without a model-guided round there is no image fit's pose to compare.
   testing::internal::CaptureStdout();
-  EXPECT_EQ(run({"evaluate", "--fallback-seeds", "0", "--guided-rounds", "0", dir}), kExitOk);
+  EXPECT_EQ(run({"evaluate", "--guided-rounds", "0", dir}), kExitOk);
   const std::string unguided = testing::internal::GetCapturedStdout();
   EXPECT_NE(unguided.find("the image fit's pose instead (0 of the valid, 0 of the degraded"), std::string::npos)
       << unguided;
@@ -272,9 +283,7 @@ TEST(VisionCommands, EvaluateCountsTheFramesThatDoNotSucceedByStatus) {
   const std::string csv = lab + "/failing.csv";
   for (const bool guided : {true, false}) {
     testing::internal::CaptureStdout();
-    EXPECT_EQ(run({"evaluate", "--corners-csv", csv, "--guided-rounds", guided ? "1" : "0", "--fallback-seeds",
-                   guided ? "9" : "0", lab, hard}),
-              kExitOk);
+    EXPECT_EQ(run({"evaluate", "--corners-csv", csv, "--guided-rounds", guided ? "1" : "0", lab, hard}), kExitOk);
     const std::string summary = testing::internal::GetCapturedStdout();
     const std::string expected = failing_line_from_rows(csv);
     EXPECT_NE(summary.find(expected), std::string::npos) << expected << summary;
@@ -759,7 +768,6 @@ TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
   // Stage 4's corners alone on hard frames: most are not valid there.
   loop::LoopConfig stage4_only;
   stage4_only.loop.estimator.guided.rounds = 0;
-  stage4_only.loop.estimator.guided.fallback_seeds = 0;
   for (EstimatePipeline* p : {plain.get(), dense.get()}) {
     ASSERT_TRUE(p->init("test", setup, vision::default_color_model(), stage4_only));
   }
@@ -801,7 +809,7 @@ TEST_F(DensePipelines, RunsOnFramesNotValidOrBlurredAndLeavesTheOthers) {
 
   const std::string hard = make_dataset("vision_cli_dense", render::kHardOccluder | render::kHardHaze);
   testing::internal::CaptureStdout();
-  EXPECT_EQ(run({"evaluate", "--dense", "--guided-rounds", "0", "--fallback-seeds", "0", "--max", "1", hard}),
+  EXPECT_EQ(run({"evaluate", "--dense", "--guided-rounds", "0", "--max", "1", hard}),
             kExitOk);
   const std::string summary = testing::internal::GetCapturedStdout();
   const bool reported = summary.find("dense stage: ran on ") != std::string::npos;

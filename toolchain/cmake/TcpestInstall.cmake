@@ -36,9 +36,14 @@ install(TARGETS tcpest RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 # Public headers: include/tcpest/<unit>/ of each exported library. The
 # loop's folder also holds the simulation's headers (tcpest_loop_sim), which
 # need the renderer: left out.
-foreach(dir common solver vision can_iface hal/camera hal/can hal/clock)
+# vision's folder also holds the offline dense fit's (tcpest_vision_dense,
+# a research tool outside the flight libraries): left out.
+foreach(dir common solver can_iface hal/camera hal/can hal/clock)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 endforeach()
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/vision/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+        PATTERN dense_fit.hpp EXCLUDE
+        PATTERN dense_estimate.hpp EXCLUDE)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/firmware_like/loop/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
         PATTERN memory_node.hpp EXCLUDE
         PATTERN motion.hpp EXCLUDE

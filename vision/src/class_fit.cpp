@@ -9,7 +9,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "fit_scratch.hpp"
 #include "tcpest/common/dmath.hpp"
+#include "tcpest/solver/numeric_diff.hpp"
 #include "tcpest/vision/features.hpp"
 
 namespace tcpest {
@@ -20,9 +22,9 @@ namespace {
 // "No pixel of the class near": larger than any capped distance (x3), and
 // small enough that adding a step cannot overflow.
 constexpr std::uint16_t kFar = 4000U;
-constexpr int kStepsAlong = 3;      // samples along each stripe (at 0.2, 0.5, 0.8 of its length)
-constexpr int kStepsAround = 12;    // samples around the tube
-constexpr int kMaxSamples = kNumMarkers * kStepsAlong * kStepsAround;
+constexpr int kStepsAlong = detail::kClassStepsAlong;
+constexpr int kStepsAround = detail::kClassStepsAround;
+constexpr int kMaxSamples = detail::kClassMaxSamples;
 constexpr double kMinSamples = 20.0;  // facing samples in the image (summed weights), at least
 constexpr double kFacingMin = 0.0;   // -n . view: a sample's weight rises from 0 here ...
 constexpr double kFacingRamp = 0.25; // ... to 1 this much higher (facing the camera)
@@ -37,7 +39,7 @@ constexpr double kGridAngleRad = 0.15;
 // the instrument away (smaller in the image, inside its regions) would cost
 // nothing. Capped, so that colour far from the model (tissue, a decoy) has
 // no pull.
-constexpr int kMaxCoverage = 64;
+constexpr int kMaxCoverage = detail::kClassMaxCoverage;
 constexpr double kCoverageCapPx = 15.0;
 // The channel's pose known from the shaft: its prior's standard deviations.
 constexpr double kKnownChannelSdMm = 0.5;
@@ -45,11 +47,17 @@ constexpr double kKnownChannelSdRad = 0.03;
 
 int colour_index(PixelClass c) noexcept { return c == PixelClass::Yellow ? 1 : 0; }
 
-constexpr int kParams = solver::kNumParams;
-constexpr int kRows = kMaxSamples + kMaxCoverage + kParams;  // samples, coverage points, prior
+constexpr int kParams = detail::kClassParams;
+constexpr int kRows = detail::kClassRows;
 using ClassResiduals = Eigen::Matrix<double, kRows, 1>;
-// Steps of about a pixel: the distance image is piecewise linear.
-constexpr double kStepH[kParams] = {0.05, 0.05, 0.002, 0.002, 0.05, 0.004, 0.004};
+// Difference steps of about a pixel: the distance image is piecewise linear.
+constexpr std::array<double, kParams> kStepH = {0.05, 0.05, 0.002, 0.002, 0.05, 0.004, 0.004};
+// Each descent: Marquardt's damping schedule (the cost is piecewise linear:
+// the gain ratio says little about the next step), at most
+// 3 x kClassFitIterations trial steps (six rejected in a row end it); it
+// ends where a step lowers the cost by less than 0.1 %.
+constexpr solver::SolverOptions kClassSolve{3 * FeatureExtractor::kClassFitIterations, 1e-10, 1e-10, 1e-3, 1e-2,
+                                            solver::DampingSchedule::kMarquardt};
 
 // Coverage points: the class image's coloured pixels on a grid whose step
 // gives at most about kMaxCoverage of them (from the regions' total area).
@@ -131,59 +139,32 @@ bool coarse_grid_start(const Cost& residuals, const solver::PoseVector& r, solve
   return have_start;
 }
 
-// A damped Gauss-Newton descent of the residuals from x (forward
-// differences, at most kClassFitIterations steps, each with up to 6
-// dampings); it ends where no step lowers the cost, or hardly. False on a
-// non-finite step.
+// A descent of the residuals from x on the minimiser (forward differences).
+// A pose that shows fewer than kMinSamples facing samples is outside the
+// fit's domain: a trial there is a failed step (the residuals are defined
+// there, so a difference step may land there). False when the descent
+// could not start or broke down (non-finite values, a singular system).
 template <typename Cost>
-bool descend(const Cost& residuals, solver::PoseVector& x) noexcept {
-  ClassResiduals e;
-  double weight_sum = 0.0;
-  residuals(x, e, weight_sum);
-  double cost = e.squaredNorm();
-  double damping = 1e-2;
-  for (int it = 0; it < FeatureExtractor::kClassFitIterations; ++it) {
-    Eigen::Matrix<double, kRows, kParams> jac;
-    for (int k = 0; k < kParams; ++k) {
-      solver::PoseVector xk = x;
-      xk[k] += kStepH[k];
-      ClassResiduals ek;
-      double wk = 0.0;
-      residuals(xk, ek, wk);
-      jac.col(k) = (ek - e) / kStepH[k];
-    }
-    const Eigen::Matrix<double, kParams, kParams> jtj = jac.transpose() * jac;
-    const Eigen::Matrix<double, kParams, 1> grad = jac.transpose() * e;
-    bool improved = false;
-    bool converged = false;
-    for (int attempt = 0; attempt < 6 && !improved; ++attempt) {
-      Eigen::Matrix<double, kParams, kParams> normal = jtj;
-      normal.diagonal() *= 1.0 + damping;
-      const Eigen::Matrix<double, kParams, 1> delta = normal.ldlt().solve(-grad);
-      if (!delta.allFinite()) {
-        return false;
-      }
-      const solver::PoseVector trial = x + delta;
-      ClassResiduals et;
-      double wt = 0.0;
-      residuals(trial, et, wt);
-      const double trial_cost = et.squaredNorm();
-      if (trial_cost < cost && wt >= kMinSamples) {
-        converged = cost - trial_cost < 1e-3 * cost;
-        x = trial;
-        e = et;
-        cost = trial_cost;
-        damping = std::max(damping * 0.3, 1e-4);
-        improved = true;
-      } else {
-        damping *= 10.0;
-      }
-    }
-    if (!improved || converged) {
-      break;  // no step lowers the cost (a minimum at this damping), or hardly
-    }
+bool descend(const Cost& residuals, solver::LevenbergMarquardt<kParams, kRows>& lm, solver::PoseVector& x) noexcept {
+  auto shows_enough = [&residuals](const solver::PoseVector& at, ClassResiduals& out) noexcept {
+    double weight_sum = 0.0;
+    residuals(at, out, weight_sum);
+    return weight_sum >= kMinSamples ? solver::Evaluation::kAcceptable : solver::Evaluation::kDefinedOnly;
+  };
+  auto problem = solver::make_forward_difference<kParams, kRows>(shows_enough, kStepH);
+  switch (lm.minimise(problem, x, kClassSolve).status) {
+    case solver::LmStatus::ConvergedGradient:
+    case solver::LmStatus::ConvergedStep:
+    case solver::LmStatus::ConvergedCostChange:
+    case solver::LmStatus::MaxIterations:
+      return true;
+    case solver::LmStatus::NonFiniteResidual:
+    case solver::LmStatus::NonFiniteJacobian:
+    case solver::LmStatus::SingularSystem:
+    case solver::LmStatus::InvalidInput:
+      return false;
   }
-  return true;
+  return false;
 }
 
 }  // namespace
@@ -363,7 +344,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_classes(const solver::CameraMo
   // the wrong ones (docs/vision.md, "Fallback seeds").
   for (int phase = 0; phase < 2; ++phase) {
     cap_px = phase == 0 ? kCapPx : kFineCapPx;
-    if (!descend(residuals, x)) {
+    if (!descend(residuals, fit_scratch_->class_fit, x)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
   }

@@ -5,6 +5,7 @@
 #include <new>
 
 #include "blurred_edge.hpp"
+#include "fit_scratch.hpp"
 
 namespace tcpest {
 namespace vision {
@@ -64,7 +65,9 @@ Result<std::unique_ptr<FeatureExtractor>, VisionError> FeatureExtractor::create(
     d.reset(new (std::nothrow) std::uint16_t[pixels]);
   }
   e->edge_scratch_.reset(new (std::nothrow) detail::BlurredEdgeScratch());
-  if (e->class_distance_[0] == nullptr || e->class_distance_[1] == nullptr || e->edge_scratch_ == nullptr) {
+  e->fit_scratch_.reset(new (std::nothrow) detail::FitScratch());
+  if (e->class_distance_[0] == nullptr || e->class_distance_[1] == nullptr || e->edge_scratch_ == nullptr ||
+      e->fit_scratch_ == nullptr) {
     return R::failure(VisionError::OutOfMemory);
   }
   return R::success(std::move(e));

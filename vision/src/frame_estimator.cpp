@@ -21,7 +21,6 @@ bool config_valid(const EstimatorConfig& config) noexcept {
   const GuidedOptions& g = config.guided;
   return config.classify_step >= 0 && config.classify_step <= 2 && solver::options_valid(config.solve) &&
          solver::encoder_check_valid(config.encoder_check) && g.rounds >= 0 && g.rounds <= kMaxGuidedRounds &&
-         g.fallback_seeds >= 0 && g.fallback_seeds <= kMaxFallbackSeeds &&
          g.max_valid_tcp_disagreement_mm >= 0.0 && g.max_valid_tcp_disagreement_mm < 1e3;
 }
 

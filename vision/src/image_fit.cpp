@@ -11,6 +11,7 @@
 
 #include "motion_streak.hpp"
 #include "refiner.hpp"
+#include "fit_scratch.hpp"
 #include "robust_step.hpp"
 #include "sampling.hpp"
 #include "tcpest/common/dmath.hpp"
@@ -22,7 +23,6 @@ namespace {
 
 using detail::Rgb;
 using detail::sample;
-using detail::RobustNormalEquations;
 using detail::tukey_cut_px;
 using detail::Refiner;
 using detail::BoundaryColours;
@@ -64,22 +64,21 @@ struct Reading {
   double offset_px = 0.0;
 };
 
-constexpr int kFitArcSamples = 12;        // per boundary
-constexpr int kFitSilhouetteSamples = 10; // per side
+using detail::kFitArcSamples;
+using detail::kFitSilhouetteSamples;
 // The shaft's silhouette just before the base (1 to 8.5 mm): it fixes the
 // channel axis in the image, which the base boundary's corners (never read
 // directly: docs/vision.md) depend on.
-constexpr int kFitShaftSamples = 6;
+using detail::kFitShaftSamples;
 constexpr double kFitShaftFirstMm = 1.0;
 constexpr double kFitShaftStepMm = 1.5;
 // The grasper's silhouette 2 to 9.5 mm past the tip: it holds the tip's
 // direction where an occluder or a smear hides the stripes. Not nearer:
 // within 1-2 mm of the tip the wider tube's end beside it is read instead.
-constexpr int kFitGrasperSamples = 6;
+using detail::kFitGrasperSamples;
 constexpr double kFitGrasperFirstMm = 2.0;
 constexpr double kFitGrasperStepMm = 1.5;
-constexpr int kMaxReadings = kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples + 2 * kFitShaftSamples +
-                             2 * kFitGrasperSamples;
+constexpr int kMaxReadings = detail::kMaxFitReadings;
 constexpr int kMaxSmearedReadings = kNumBoundaries * kFitArcSamples;
 constexpr int kMaxFitIterations = 20;
 constexpr int kCoarseIterations = 3;  // wide-window iterations from a coarse start
@@ -432,18 +431,19 @@ SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorCon
 
 // One robust step of the pose fit from its readings at x: Tukey weights at
 // the readings' robust scale (MAD), finite-difference rows, the weak prior
-// around `start`. False when the normal equations do not solve. rms_px: the
+// around `start`. False when the round's problem does not solve. rms_px: the
 // weighted residual; largest_move_px: the largest move of a read model point
 // along its reading direction under the step (the convergence test).
 bool fit_step(const FitReadings& fit, const solver::CameraModel& camera, const solver::InstrumentModel& model,
               const solver::PoseVector& x, const solver::PoseVector& start,
+              detail::RobustRows<solver::kNumParams, kMaxReadings>& equations,
               Eigen::Matrix<double, solver::kNumParams, 1>& delta, double& rms_px, double& largest_move_px) noexcept {
   const int n = fit.count;
   std::array<double, kMaxReadings> work{};
   for (int i = 0; i < n; ++i) {
     work[static_cast<std::size_t>(i)] = std::fabs(fit.readings[static_cast<std::size_t>(i)].offset_px);
   }
-  RobustNormalEquations<solver::kNumParams> equations(tukey_cut_px(work.data(), n, 0.3));
+  equations.start(tukey_cut_px(work.data(), n, 0.3));
   const auto& g = model.geometry();
   std::array<solver::PoseFrames, solver::kNumParams> shifted{};
   std::array<std::array<solver::CentrelineFrame, kNumBoundaries>, solver::kNumParams> shifted_boundaries{};
@@ -480,7 +480,9 @@ bool fit_step(const FitReadings& fit, const solver::CameraModel& camera, const s
     // The grasper's readings steer the fit but stay out of its residual,
     // which the acceptance and the comparisons of fits were set on
     // (docs/vision.md "The grasper").
-    equations.add(row, v, w, rd.part != Part::kGrasper);
+    if (!equations.add(row, v, w, rd.part != Part::kGrasper)) {
+      return false;  // cannot happen: at most kMaxReadings readings, the rows' capacity
+    }
   }
   rms_px = equations.rms_px();
   if (!equations.solve(kFitPriorSd, x - start, delta)) {
@@ -494,93 +496,6 @@ bool fit_step(const FitReadings& fit, const solver::CameraModel& camera, const s
 }
 
 }  // namespace
-
-Status<VisionError> FeatureExtractor::pose_from_regions(const solver::CameraModel& camera,
-                                                        const solver::InstrumentModel& model,
-                                                        solver::PoseVector& r) const noexcept {
-  const Interpretation& in = result_.interpretation;
-  if (in.found_count < 3 || !r.allFinite()) {
-    return Status<VisionError>::failure(VisionError::NoInstrument);
-  }
-  constexpr int kParams = 5;
-  constexpr int kParamIndex[kParams] = {solver::kXch, solver::kYch, solver::kLambda, solver::kPhi, solver::kTheta};
-  constexpr double kStep[kParams] = {1e-3, 1e-3, 1e-3, 1e-5, 1e-5};
-  constexpr int kRows = 2 * kNumMarkers;
-  using Residuals = Eigen::Matrix<double, kRows, 1>;
-  const auto& g = model.geometry();
-  // Centroid minus the projected marker middle, per labelled marker (zero rows otherwise).
-  const auto residuals = [&](const solver::PoseVector& at, Residuals& out) noexcept {
-    out.setZero();
-    const solver::PoseFrames f = model.frames(at);
-    for (std::size_t m = 0U; m < static_cast<std::size_t>(kNumMarkers); ++m) {
-      if (!in.markers[m].found) {
-        continue;
-      }
-      const double s_mid = 0.5 * (g.boundaries_mm[m] + g.boundaries_mm[m + 1U]);
-      solver::Vec2 p;
-      if (!camera.project(model.centreline(f, s_mid).position, p)) {
-        return false;
-      }
-      out[static_cast<Eigen::Index>(2U * m)] = in.markers[m].region.centroid.x - p.x();
-      out[static_cast<Eigen::Index>(2U * m + 1U)] = in.markers[m].region.centroid.y - p.y();
-    }
-    return true;
-  };
-  solver::PoseVector x = r;
-  Residuals e;
-  if (!residuals(x, e)) {
-    return Status<VisionError>::failure(VisionError::NoInstrument);
-  }
-  double cost = e.squaredNorm();
-  double damping = 1e-3;
-  for (int it = 0; it < 15; ++it) {
-    Eigen::Matrix<double, kRows, kParams> jac;
-    for (int k = 0; k < kParams; ++k) {
-      solver::PoseVector xk = x;
-      xk[kParamIndex[k]] += kStep[k];
-      Residuals ek;
-      if (!residuals(xk, ek)) {
-        return Status<VisionError>::failure(VisionError::NoInstrument);
-      }
-      jac.col(k) = -(ek - e) / kStep[k];  // d(projection)/d(parameter)
-    }
-    Eigen::Matrix<double, kParams, kParams> normal = jac.transpose() * jac;
-    normal.diagonal() *= 1.0 + damping;
-    const Eigen::Matrix<double, kParams, 1> delta = normal.ldlt().solve(jac.transpose() * e);
-    if (!delta.allFinite()) {
-      return Status<VisionError>::failure(VisionError::NoInstrument);
-    }
-    solver::PoseVector trial = x;
-    for (int k = 0; k < kParams; ++k) {
-      trial[kParamIndex[k]] += delta[k];
-    }
-    Residuals et;
-    const double trial_cost = residuals(trial, et) ? et.squaredNorm() : 1e300;
-    if (trial_cost < cost) {
-      const bool small = cost - trial_cost < 1e-6 * cost;
-      x = trial;
-      e = et;
-      cost = trial_cost;
-      damping = std::max(damping * 0.3, 1e-6);
-      if (small) {
-        break;
-      }
-    } else {
-      damping *= 10.0;
-      if (damping > 1e6) {
-        break;
-      }
-    }
-  }
-  // The visible faces' centroids lie a few pixels off the centreline's
-  // projection; much more is a wrong pose.
-  const double rms = std::sqrt(cost / (2.0 * in.found_count));
-  if (!(rms < 12.0) || !x.allFinite()) {
-    return Status<VisionError>::failure(VisionError::NoInstrument);
-  }
-  r = x;
-  return ok_status<VisionError>();
-}
 
 Status<VisionError> FeatureExtractor::fit_insertion_to_base_rim(const ImageView& image,
                                                                 const solver::CameraModel& camera,
@@ -704,7 +619,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     }
     Eigen::Matrix<double, solver::kNumParams, 1> delta;
     double largest_move_px = 0.0;
-    if (!fit_step(fit, camera, model, x, start, delta, rms, largest_move_px)) {
+    if (!fit_step(fit, camera, model, x, start, fit_scratch_->image_fit, delta, rms, largest_move_px)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     x += delta;

@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 
+#include "fit_scratch.hpp"
 #include "refiner.hpp"
 #include "robust_step.hpp"
 #include "sampling.hpp"
@@ -20,13 +21,12 @@ using detail::Rgb;
 using detail::sample;
 using detail::to_byte;
 using detail::median_of;
-using detail::RobustNormalEquations;
 using detail::tukey_cut_px;
 using detail::Refiner;
 using detail::ceil_within;
 using detail::shaft_silhouette_at;
 
-constexpr int kShaftSamples = 8;          // per side
+using detail::kShaftSamples;
 constexpr int kShaftIterations = 8;
 // The search beyond the model's cross-section at the first iterations (the
 // last repeated): the channel's play of 1.5 mm / 3 deg (1 sd) moves the
@@ -46,7 +46,7 @@ constexpr int kTissueGridY = 12;
 constexpr std::size_t kTissueGridSamples = static_cast<std::size_t>(kTissueGridX) * static_cast<std::size_t>(kTissueGridY);
 constexpr double kShaftMaxRmsPx = 1.5;
 constexpr int kShaftMinPerSide = 2;
-constexpr int kMaxShaftReadings = 2 * kShaftSamples;
+using detail::kMaxShaftReadings;
 
 double chroma_at(const ImageView& image, const solver::Vec2& p, bool& ok) noexcept {
   Rgb c;
@@ -155,7 +155,7 @@ bool shaft_cross_section(const ImageView& image, const solver::Vec2& a, const so
 }
 
 // The shaft fit's parameters: the channel's pose x_ch, y_ch, psi, mu.
-constexpr int kShaftParams = 4;
+using detail::kShaftParams;
 constexpr double kShaftPriorSd[kShaftParams] = {3.0, 3.0, 0.1, 0.1};  // mm, mm, rad, rad
 constexpr double kShaftStepH[kShaftParams] = {1e-3, 1e-3, 1e-5, 1e-5};
 
@@ -221,17 +221,18 @@ void read_shaft(const ImageView& image, const Refiner& refiner, const solver::Ca
 
 // One robust step of the shaft fit from its readings at x (Tukey weights at
 // the readings' MAD scale, finite-difference rows, the weak prior around
-// `start`): the channel's pose change. False when the normal equations do
+// `start`): the channel's pose change. False when the round's problem does
 // not solve; rms_px: the weighted residual.
 bool shaft_step(const ShaftReadings& readings, const solver::CameraModel& camera,
                 const solver::InstrumentModel& model, const solver::PoseVector& x, const solver::PoseVector& start,
+                detail::RobustRows<kShaftParams, kMaxShaftReadings>& equations,
                 Eigen::Matrix<double, kShaftParams, 1>& delta, double& rms_px) noexcept {
   const int n = readings.count;
   std::array<double, kMaxShaftReadings> work{};
   for (int i = 0; i < n; ++i) {
     work[static_cast<std::size_t>(i)] = std::fabs(readings.offsets[static_cast<std::size_t>(i)]);
   }
-  RobustNormalEquations<kShaftParams> equations(tukey_cut_px(work.data(), n, 1.0));
+  equations.start(tukey_cut_px(work.data(), n, 1.0));
   std::array<solver::PoseFrames, kShaftParams> shifted{};
   for (int k = 0; k < kShaftParams; ++k) {
     solver::PoseVector xk = x;
@@ -255,7 +256,9 @@ bool shaft_step(const ShaftReadings& readings, const solver::CameraModel& camera
     if (!ok || !row.allFinite()) {
       continue;
     }
-    equations.add(row, readings.offsets[q], w);
+    if (!equations.add(row, readings.offsets[q], w)) {
+      return false;  // cannot happen: at most kMaxShaftReadings readings, the rows' capacity
+    }
   }
   rms_px = equations.rms_px();
   return equations.solve(kShaftPriorSd, (x - start).head<kShaftParams>(), delta);
@@ -287,7 +290,7 @@ Status<VisionError> FeatureExtractor::fit_channel_to_shaft(const ImageView& imag
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     Eigen::Matrix<double, kShaftParams, 1> delta;
-    if (!shaft_step(readings, camera, model, x, start, delta, rms)) {
+    if (!shaft_step(readings, camera, model, x, start, fit_scratch_->shaft_fit, delta, rms)) {
       return Status<VisionError>::failure(VisionError::NoInstrument);
     }
     x.head<kShaftParams>() += delta;

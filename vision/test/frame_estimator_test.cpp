@@ -45,7 +45,7 @@ TEST(EstimatorConfig, TheDefaultsAreValidAndOutOfRangeFieldsAreRefused) {
   c.encoder_check.bend_tolerance_rad = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(config_valid(c));
   c = EstimatorConfig{};
-  c.guided.fallback_seeds = kMaxFallbackSeeds + 1;
+  c.guided.rounds = kMaxGuidedRounds + 1;
   EXPECT_FALSE(config_valid(c));
   c = EstimatorConfig{};
   c.guided.rounds = -1;

@@ -179,10 +179,6 @@ Status<Diagnostic> read_loop_config(const yaml::Document& doc, LoopConfig& out) 
   TCPEST_TRY(read_int_as(doc, "loop.outlier_rounds", 0, solver::kMaxOutlierRounds, e.solve.outlier_rounds));
   vision::GuidedOptions& g = e.guided;
   TCPEST_TRY(read_int_as(doc, "loop.guided_rounds", 0, vision::kMaxGuidedRounds, g.rounds));
-  TCPEST_TRY(read_int_as(doc, "loop.fallback_seeds", 0, vision::kMaxFallbackSeeds, g.fallback_seeds));
-  TCPEST_TRY(read_bool(doc, "loop.shaft_recheck", g.shaft_recheck));
-  TCPEST_TRY(read_bool(doc, "loop.alias_check", g.alias_check));
-  TCPEST_TRY(read_bool(doc, "loop.valid_start_check", g.valid_start_check));
   TCPEST_TRY(read_bool(doc, "loop.base_rim_seed", g.base_rim_seed));
   TCPEST_TRY(read_double(doc, "loop.max_valid_tcp_disagreement_mm", 0.0, 100.0, g.max_valid_tcp_disagreement_mm));
   TCPEST_TRY(read_int_as(doc, "loop.camera_timeout_ms", 1, 60000, l.camera_timeout_ms));

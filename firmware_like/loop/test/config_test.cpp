@@ -42,8 +42,7 @@ TEST(LoopConfig, DefaultsWithoutSections) {
 const char* const kEverySection =
     "loop:\n  trigger: period\n  period_us: 20000\n  pacing: false\n  frames: 100\n  source: /dev/video0\n"
     "  solve_mode: fixed\n  classify_step: 1\n  track_drop_after: 3\n  min_corners_valid: 8\n  max_rms_valid_px: 1.5\n"
-    "  outlier_rounds: 0\n  guided_rounds: 0\n  fallback_seeds: 2\n  shaft_recheck: true\n  alias_check: true\n  base_rim_seed: false\n"
-    "  valid_start_check: true\n  max_valid_tcp_disagreement_mm: 3.5\n"
+    "  outlier_rounds: 0\n  guided_rounds: 0\n  base_rim_seed: false\n  max_valid_tcp_disagreement_mm: 3.5\n"
     "  encoder_check_lambda_mm: 4.5\n  encoder_check_bend_rad: 0\n"
     "can:\n  bus: vcan0\n  node_id: 33\n  heartbeat_ms: 50\n  start_operational: true\n"
     "rt:\n  lock_memory: true\n  fifo_priority: 80\n  cpu: 1\n  prefault_stack_kb: 512\n"
@@ -67,10 +66,6 @@ TEST(LoopConfig, ReadsEverySection) {
   EXPECT_DOUBLE_EQ(config.loop.estimator.solve.max_rms_valid_px, 1.5);
   EXPECT_EQ(config.loop.estimator.solve.outlier_rounds, 0);
   EXPECT_EQ(config.loop.estimator.guided.rounds, 0);
-  EXPECT_EQ(config.loop.estimator.guided.fallback_seeds, 2);
-  EXPECT_TRUE(config.loop.estimator.guided.shaft_recheck);
-  EXPECT_TRUE(config.loop.estimator.guided.alias_check);
-  EXPECT_TRUE(config.loop.estimator.guided.valid_start_check);
   EXPECT_FALSE(config.loop.estimator.guided.base_rim_seed);
   EXPECT_DOUBLE_EQ(config.loop.estimator.guided.max_valid_tcp_disagreement_mm, 3.5);
   EXPECT_DOUBLE_EQ(config.loop.estimator.encoder_check.lambda_tolerance_mm, 4.5);
@@ -104,7 +99,7 @@ TEST(LoopConfig, UnknownKeysAndBadValuesNameTheLine) {
     const char* field;
   } bad[] = {
       {"loop:\n  classify_step: 3\n", "loop.classify_step"},
-      {"loop:\n  fallback_seeds: 10\n", "loop.fallback_seeds"},
+      {"loop:\n  guided_rounds: 5\n", "loop.guided_rounds"},
       {"loop:\n  encoder_check_bend_rad: -0.1\n", "loop.encoder_check_bend_rad"},
       {"loop:\n  encoder_check_lambda_mm: nan\n", "loop.encoder_check_lambda_mm"},
       {"loop:\n  max_valid_tcp_disagreement_mm: -1\n", "loop.max_valid_tcp_disagreement_mm"},
@@ -133,8 +128,7 @@ TEST(LoopConfig, DeploymentExampleLoadsWithTheDefaultsItClaims) {
       "loop.trigger", "loop.period_us", "loop.pacing", "loop.frames", "loop.source", "loop.replay_loop",
       "loop.v4l2_format", "loop.solve_mode", "loop.classify_step", "loop.track_drop_after",
       "loop.min_corners_valid", "loop.max_rms_valid_px", "loop.encoder_check_lambda_mm",
-      "loop.encoder_check_bend_rad", "loop.outlier_rounds", "loop.guided_rounds", "loop.fallback_seeds",
-      "loop.shaft_recheck", "loop.alias_check", "loop.valid_start_check", "loop.base_rim_seed",
+      "loop.encoder_check_bend_rad", "loop.outlier_rounds", "loop.guided_rounds", "loop.base_rim_seed",
       "loop.max_valid_tcp_disagreement_mm", "loop.camera_timeout_ms", "loop.camera_lost_after", "loop.retry_ms",
       "loop.status_period_ms", "can.bus", "can.node_id", "can.heartbeat_ms", "can.prior_timeout_ms",
       "can.prior_max_counter_gap", "can.start_operational", "can.sync_timeout_ms", "rt.lock_memory", "rt.fifo_priority",
@@ -173,10 +167,6 @@ TEST(LoopConfig, DeploymentExampleLoadsWithTheDefaultsItClaims) {
   EXPECT_EQ(e.encoder_check.lambda_tolerance_mm, de.encoder_check.lambda_tolerance_mm);
   EXPECT_EQ(e.encoder_check.bend_tolerance_rad, de.encoder_check.bend_tolerance_rad);
   EXPECT_EQ(e.guided.rounds, de.guided.rounds);
-  EXPECT_EQ(e.guided.fallback_seeds, de.guided.fallback_seeds);
-  EXPECT_EQ(e.guided.shaft_recheck, de.guided.shaft_recheck);
-  EXPECT_EQ(e.guided.alias_check, de.guided.alias_check);
-  EXPECT_EQ(e.guided.valid_start_check, de.guided.valid_start_check);
   EXPECT_EQ(e.guided.base_rim_seed, de.guided.base_rim_seed);
   EXPECT_EQ(e.guided.max_valid_tcp_disagreement_mm, de.guided.max_valid_tcp_disagreement_mm);
   const CanSettings& c = config.can;
@@ -187,6 +177,20 @@ TEST(LoopConfig, DeploymentExampleLoadsWithTheDefaultsItClaims) {
   EXPECT_EQ(c.start_operational, d.can.start_operational);
   EXPECT_EQ(c.sync_timeout_ms, d.can.sync_timeout_ms);
   EXPECT_EQ(config.rt.prefault_stack_kb, d.rt.prefault_stack_kb);
+}
+
+// The keys of estimation steps that were removed (docs/decisions/0053) are
+// unknown keys now: a file that still names one is refused, naming it.
+TEST(LoopConfig, TheRemovedEstimationStepsKeysAreUnknownKeys) {
+  LoopConfig config;
+  const char* const removed[] = {"fallback_seeds", "shaft_recheck", "alias_check", "valid_start_check"};
+  for (const char* key : removed) {
+    const std::string text = std::string("loop:\n  ") + key + ": 1\n";
+    const auto s = parse(text.c_str(), config);
+    ASSERT_FALSE(s.ok()) << key;
+    EXPECT_EQ(std::string(s.error().field), std::string("loop.") + key);
+    EXPECT_NE(std::strstr(s.error().message, "unknown key"), nullptr) << key;
+  }
 }
 
 }  // namespace

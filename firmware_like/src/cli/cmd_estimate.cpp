@@ -25,7 +25,6 @@ const OptionSpec kSpecs[] = {
     {"prior", "LAMBDA,PHI,THETA", "encoder joints (mm, rad, rad) for every image: stage-2 priors and solver start"},
     {"fixed-model", nullptr, "estimate lambda, phi, theta only (channel pose held at its nominal value)"},
     kGuidedRoundsOption,
-    kFallbackSeedsOption,
     kDenseOption,
     {"overlay", "DIR", "write DIR/<image name>.overlay.jpg: borders, corners, model at the estimate, TCP"},
     {"json", nullptr, "one JSON object per image and line"},
@@ -187,7 +186,7 @@ int cmd_estimate(int argc, char** argv) {
   }
   if (args.help_requested()) {
     print_usage("tcpest estimate --calib CAM.yaml [--config CFG] [--colors MODEL] [--prior LAMBDA,PHI,THETA] "
-                "[--fixed-model] [--guided-rounds N] [--fallback-seeds N] [--dense] [--overlay DIR] [--json] "
+                "[--fixed-model] [--guided-rounds N] [--dense] [--overlay DIR] [--json] "
                 "[--can-log FILE] IMAGE...",
                 "Extracts the labelled apparent corners of each image (JPEG or PPM) and solves the pose.",
                 kSpecs, kSpecCount);

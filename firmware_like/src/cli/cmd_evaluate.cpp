@@ -10,6 +10,7 @@
 #include <dirent.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -35,7 +36,6 @@ const OptionSpec kSpecs[] = {
     {"colors", "MODEL.json", "colour model; default: the built-in model"},
     {"fixed-model", nullptr, "solve with the channel pose held at its nominal value"},
     kGuidedRoundsOption,
-    kFallbackSeedsOption,
     kDenseOption,
     {"no-prior", nullptr, "ignore the sidecars' encoder priors (generic / temporal priors only)"},
     {"true-prior", nullptr,
@@ -300,11 +300,20 @@ struct EvaluateTotals {
   int dense_kept = 0;
   int dense_kept_success = 0;
   std::vector<double> dense_solve_us;
+  // Per policy row (vision::kEstimationPolicy): the frames it ran on, and
+  // those whose estimate it produced (a check: demoted).
+  std::array<long, vision::kNumStepKinds> row_tried{};
+  std::array<long, vision::kNumStepKinds> row_produced{};
 
   // Adds one frame; returns its TCP error (mm; -1 without a pose or a true TCP).
   double add(const render::Sidecar& truth, const EstimateResult& result, const CornerScore& score,
              DatasetTally& dataset) {
     ++frames;
+    for (std::size_t i = 0U; i < row_tried.size(); ++i) {
+      const auto kind = static_cast<vision::StepKind>(i);
+      row_tried[i] += result.rows_tried.has(kind) ? 1 : 0;
+      row_produced[i] += result.rows_produced.has(kind) ? 1 : 0;
+    }
     found_total += score.found;
     wrong += score.wrong;
     mislabelled += score.mislabelled;
@@ -432,6 +441,11 @@ struct EvaluateTotals {
                 "us, solver %.0f us\n",
                 median_of(stage_us[0]), median_of(stage_us[1]), median_of(stage_us[2]), median_of(stage_us[3]),
                 median_of(stages_total_us), median_of(solve_us));
+    for (const vision::PolicyStep& row : vision::kEstimationPolicy) {
+      const auto i = static_cast<std::size_t>(row.kind);
+      std::printf("policy row %s: ran on %ld frames, produced (or demoted) the estimate of %ld\n", row.name,
+                  row_tried[i], row_produced[i]);
+    }
   }
 };
 
@@ -552,7 +566,7 @@ int cmd_evaluate(int argc, char** argv) {
   }
   if (args.help_requested() || args.positional_count() < 1U) {
     print_usage("tcpest evaluate [--calib CAM.yaml] [--config CFG] [--colors MODEL] [--fixed-model] "
-                "[--guided-rounds N] [--fallback-seeds N] [--dense] [--no-prior | --true-prior] "
+                "[--guided-rounds N] [--dense] [--no-prior | --true-prior] "
                 "[--max N] [--verbose] DATASET_DIR...",
                 "Runs extraction and the solver on every image of one or more datasets and scores them against the "
                 "sidecars; several datasets are pooled, with a frame-success line for each.",

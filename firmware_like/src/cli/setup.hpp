@@ -24,11 +24,6 @@ constexpr OptionSpec kGuidedRoundsOption{"guided-rounds", "N",
                                          "model-guided corner rounds after the first solve, 0..4 (default: the "
                                          "configuration's loop.guided_rounds, 1; 0: stage 4's corners, the paper's "
                                          "pipeline)"};
-constexpr OptionSpec kFallbackSeedsOption{"fallback-seeds", "N",
-                                          "image fits from other seeds (the prior's pose, the same without its class fit, "
-                                          "the regions' pose, the prior's pose moved +/- 2 mm along the insertion, then "
-                                          "with its theta and phi moved +/- 0.2 rad) on a frame not yet valid, 0..9 "
-                                          "(default: the configuration's loop.fallback_seeds, 1)"};
 constexpr OptionSpec kDenseOption{"dense", nullptr,
                                   "the dense fit (every pixel around the instrument against a rendering of the "
                                   "model) on each frame not yet valid, on each valid one where at most 7 corners "

@@ -357,6 +357,18 @@ EstimateResult EstimatePipeline::process(const ImageView& image, const double* p
   out.status = estimate.quality;
   out.corners_rejected = estimate.corners_rejected;
   out.guided_rounds = frame.guided.rounds_kept;
+  out.rows_tried = frame.guided.tried;
+  out.rows_tried.add(vision::StepKind::kStage4Solve);
+  out.rows_produced.add(frame.guided.produced_by);
+  if (frame.guided.disagreement_demoted) {
+    out.rows_produced.add(vision::StepKind::kFitAgreementCheck);
+  }
+  if (prior.source == vision::PriorSource::kEncoder) {
+    out.rows_tried.add(vision::StepKind::kEncoderCheck);
+    if (frame.encoder_disagrees) {
+      out.rows_produced.add(vision::StepKind::kEncoderCheck);
+    }
+  }
   out.fit_disagrees = frame.guided.disagreement_demoted;
   if (estimate.quality != solver::EstimateQuality::None) {
     out.r = estimate.r;
@@ -413,9 +425,7 @@ bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& 
     e.solve_mode = solver::SolveMode::FixedModel;
   }
   if (!apply_count(command, "guided-rounds", args.value("guided-rounds"), vision::kMaxGuidedRounds,
-                   e.guided.rounds) ||
-      !apply_count(command, "fallback-seeds", args.value("fallback-seeds"), vision::kMaxFallbackSeeds,
-                   e.guided.fallback_seeds)) {
+                   e.guided.rounds)) {
     return false;
   }
   exit_code = kExitConfig;

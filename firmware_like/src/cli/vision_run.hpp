@@ -69,6 +69,11 @@ struct EstimateResult {
   solver::SolveSummary summary{};
   int corners_rejected = 0;  // dropped as disagreeing with the model at the estimate
   int guided_rounds = 0;     // model-guided rounds kept (0: stage 4's corners)
+  // The estimation policy's rows this frame ran, and the one whose result
+  // was kept (vision/estimation_policy.hpp); a check that demoted the
+  // estimate counts as producing it.
+  vision::StepSet rows_tried{};
+  vision::StepSet rows_produced{};
   bool encoder_disagrees = false;  // demoted one level: beyond the encoders' accuracy (solver::check_against_encoders)
   // Valid -> Degraded: the solve's TCP lay farther from fit_tcp than
   // vision::GuidedOptions::max_valid_tcp_disagreement_mm.
@@ -134,8 +139,8 @@ class Args;
 
 // The pipeline of `tcpest COMMAND` from its arguments: the model setup
 // (--calib, --config), the colour model (--colors), the solver mode
-// (--fixed-model) and the guided rounds (--guided-rounds,
-// --fallback-seeds). False after printing an error, with exit_code
+// (--fixed-model) and the guided rounds (--guided-rounds). False after
+// printing an error, with exit_code
 // kExitConfig for a file, kExitUsage for a value.
 bool init_pipeline_from_args(const char* command, const Args& args, ModelSetup& setup, EstimatePipeline& pipeline,
                              int& exit_code) noexcept;

@@ -42,12 +42,28 @@ enum class LmStatus : std::uint8_t {
 // bounded by it whatever the caller asks.
 constexpr int kMaxIterationsCap = 500;
 
+// How the damping follows the trial steps.
+enum class DampingSchedule : std::uint8_t {
+  // Nielsen's (tiny_solver's): an accepted step scales mu by
+  // max(1/3, 1 - (2 rho - 1)^3), a rejected one by nu (2, 4, 8, ...). For
+  // smooth costs whose quadratic model is good (the pose solve).
+  kNielsen,
+  // Marquardt's: an accepted step scales mu by 0.3, never below
+  // initial_damping / 100; a rejected one by 10, and six rejections in a row
+  // end the minimisation (MaxIterations: no step lowers the cost at any
+  // reasonable damping); a step is tried even where the quadratic model
+  // promises little. For piecewise linear costs (chamfer distances), whose
+  // quadratic model says little about the next step.
+  kMarquardt,
+};
+
 struct SolverOptions {
   int max_iterations = 100;              // trial steps (accepted or rejected), 1..kMaxIterationsCap
   double gradient_tolerance = 1e-8;      // on max |J^T r| (cost units per parameter unit)
   double step_tolerance = 1e-9;          // relative step size
   double cost_change_tolerance = 1e-6;  // relative cost decrease of an accepted step
   double initial_damping = 1e-4;         // mu0, relative to diag(J^T J) (tiny_solver: 1 / 1e4)
+  DampingSchedule schedule = DampingSchedule::kNielsen;
 };
 
 // True when every field is in range (finite, positive where it must be).
@@ -94,6 +110,7 @@ class LevenbergMarquardt {
     }
     double damping = options.initial_damping;
     double damping_growth = 2.0;
+    int rejections_in_a_row = 0;
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
       out.iterations = iteration;
       if (gradient_.template lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) {
@@ -124,19 +141,28 @@ class LevenbergMarquardt {
       // Decrease the quadratic model promises for this step. When even that
       // is below the cost-change tolerance, the step is not worth an
       // evaluation: converged by cost change at the current x.
+      // Under Marquardt's schedule the quadratic model is not trusted for
+      // this: the step is tried.
       const double predicted = -(step_.dot(gradient_) + 0.5 * step_.dot(normal_ * step_));
-      if (predicted <= options.cost_change_tolerance * cost) {
+      if (options.schedule == DampingSchedule::kNielsen && predicted <= options.cost_change_tolerance * cost) {
         out.status = LmStatus::ConvergedCostChange;
         return out;
       }
       out.iterations = iteration + 1;
       trial_x_ = x + step_;
-      const bool in_domain = f(trial_x_, trial_residuals_, &trial_jacobian_);
+      // The residuals alone first, the Jacobian only where the step is
+      // taken (tiny_solver's order): a rejected trial costs one evaluation
+      // of the residuals, which matters where the Jacobian is numeric.
+      bool in_domain = f(trial_x_, trial_residuals_, nullptr);
       const double trial_cost = 0.5 * trial_residuals_.squaredNorm();
       // A trial outside the domain or with a non-finite value is a failed
       // step like any other: more damping, shorter step, same x.
-      const bool usable = in_domain && std::isfinite(trial_cost) && trial_residuals_.allFinite() &&
-                          trial_jacobian_.allFinite();
+      bool usable = in_domain && std::isfinite(trial_cost) && trial_residuals_.allFinite();
+      if (usable && trial_cost < cost) {
+        in_domain = f(trial_x_, trial_residuals_, &trial_jacobian_);
+        usable = in_domain && trial_residuals_.allFinite() && trial_jacobian_.allFinite() &&
+                 0.5 * trial_residuals_.squaredNorm() == trial_cost;
+      }
       if (usable && trial_cost < cost) {
         const double actual = cost - trial_cost;
         const double previous_cost = cost;
@@ -154,11 +180,22 @@ class LevenbergMarquardt {
           out.status = LmStatus::ConvergedCostChange;
           return out;
         }
-        const double ratio = (predicted > 0.0) ? actual / predicted : 0.0;
-        const double shape = 2.0 * ratio - 1.0;
-        damping *= std::max(1.0 / 3.0, 1.0 - shape * shape * shape);
-        damping = std::max(damping, kMinDamping);
-        damping_growth = 2.0;
+        rejections_in_a_row = 0;
+        if (options.schedule == DampingSchedule::kMarquardt) {
+          damping = std::max(damping * kMarquardtShrink, options.initial_damping * kMarquardtFloorShare);
+        } else {
+          const double ratio = (predicted > 0.0) ? actual / predicted : 0.0;
+          const double shape = 2.0 * ratio - 1.0;
+          damping *= std::max(1.0 / 3.0, 1.0 - shape * shape * shape);
+          damping = std::max(damping, kMinDamping);
+          damping_growth = 2.0;
+        }
+      } else if (options.schedule == DampingSchedule::kMarquardt) {
+        damping = std::min(damping * kMarquardtGrowth, kMaxDamping);
+        if (++rejections_in_a_row >= kMarquardtMaxRejections) {
+          out.status = LmStatus::MaxIterations;
+          return out;
+        }
       } else {
         damping = std::min(damping * damping_growth, kMaxDamping);
         damping_growth = std::min(damping_growth * 2.0, kMaxDampingGrowth);
@@ -179,6 +216,10 @@ class LevenbergMarquardt {
   static constexpr double kMinDamping = 1e-16;
   static constexpr double kMaxDamping = 1e32;
   static constexpr double kMaxDampingGrowth = 1073741824.0;  // 2^30
+  static constexpr double kMarquardtShrink = 0.3;
+  static constexpr double kMarquardtGrowth = 10.0;
+  static constexpr double kMarquardtFloorShare = 0.01;
+  static constexpr int kMarquardtMaxRejections = 6;
 
   template <typename Function>
   bool update_normal_equations(Function& f, const Params& x) noexcept {

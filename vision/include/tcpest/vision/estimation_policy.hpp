@@ -5,9 +5,11 @@
 // docs/estimation.md. guided_rounds() walks the rows from kGuidedRounds to
 // kFitAgreementCheck; FrameEstimator runs the first and the last row.
 //
-// Which rows run at all is the configuration's (EstimatorConfig /
-// GuidedOptions: rounds, fallback_seeds, the checks' switches); the table
-// fixes their order, their conditions and their acceptance.
+// The table holds only steps the shipped configuration runs
+// (docs/decisions/0053-only-the-rows-that-run.md); the configuration
+// (EstimatorConfig / GuidedOptions) sets their parameters (`rounds` 0
+// leaves stage 4's solve alone: the paper's pipeline); the table fixes
+// their order, their conditions and their acceptance.
 #pragma once
 
 #include <array>
@@ -20,30 +22,18 @@ namespace vision {
 enum class StepKind : std::uint8_t {
   kStage4Solve = 0,     // the paper's pipeline: stages 1-4, then eq. 8 from their corners
   kGuidedRounds,        // model-guided rounds from stage 4's solve: image fit, corners re-measured, solved again
-  kShaftRecheck,        // a valid result: the rounds again from the shaft's channel pose
-  kStartCheck,          // a valid result: the rounds from the start seed
   kStartSeed,           // fallback: the start (encoders' or track's), its channel from the shaft, moved onto the classes
-  kStartUnmovedSeed,    // fallback: the same start without the class fit
-  kRegionsSeed,         // fallback: the labelled regions' rough pose
-  kInsertionForthSeed,  // fallback: the start moved along the insertion, forth
-  kInsertionBackSeed,   // ... and back
-  kThetaUpSeed,         // fallback: the start's bend moved, theta +
-  kThetaDownSeed,       // ... theta -
-  kPhiUpSeed,           // ... phi +
-  kPhiDownSeed,         // ... phi -
-  kAliasCheck,          // an insertion beyond the encoders' accuracy: the rounds two stripes back
   kBaseRimSeed,         // no fit kept: channel from the shaft, insertion from the base's rim
   kFitAgreementCheck,   // a valid solve whose TCP lies far from its image fit's: degraded
   kEncoderCheck,        // an estimate beyond the encoders' accuracy: one level lower
 };
-constexpr int kNumStepKinds = 17;
+constexpr int kNumStepKinds = 6;
 
 // When a row runs (besides being enabled by the configuration).
 enum class RunWhen : std::uint8_t {
   kAlways,             // every frame
   kSolved,             // the current result has a pose
-  kValid,              // the current result is valid
-  kNotValid,           // the current result is not valid (a fallback seed; at most fallback_seeds per frame)
+  kNotValid,           // the current result is not valid (the fallback seed)
   kFitKept,            // a round was kept
   kNoFitKeptNotValid,  // no round kept and the result not valid
   kEncoderPrior,       // the frame's prior is the encoders'
@@ -51,13 +41,10 @@ enum class RunWhen : std::uint8_t {
 
 // What a row's result must meet to replace the current one.
 enum class Acceptance : std::uint8_t {
-  kStarts,                 // the first result of the frame
-  kBetter,                 // better by the comparison rule (guided_estimate.cpp, better())
-  kBetterNoFewerBoundaries,  // ... and its fit read no fewer boundaries
-  kBetterNearerStart,      // ... and, against a fit-confirmed result, its insertion nearer the start's
-  kClearlyBetter,          // ... and, against a fit-confirmed result, the image's clear word (fit_clearly_better)
-  kSolvedDegraded,         // kept when solved, at most degraded (the tube beyond the base is unseen)
-  kDemotes,                // keeps the pose, may lower the quality
+  kStarts,          // the first result of the frame
+  kBetter,          // better by the comparison rule (guided_estimate.cpp, better())
+  kSolvedDegraded,  // kept when solved, at most degraded (the tube beyond the base is unseen)
+  kDemotes,         // keeps the pose, may lower the quality
 };
 
 struct PolicyStep {
@@ -75,19 +62,7 @@ struct PolicyStep {
 constexpr std::array<PolicyStep, kNumStepKinds> kEstimationPolicy = {{
     {StepKind::kStage4Solve, "stage4-solve", RunWhen::kAlways, Acceptance::kStarts, 300},
     {StepKind::kGuidedRounds, "guided-rounds", RunWhen::kSolved, Acceptance::kStarts, 1000},
-    {StepKind::kShaftRecheck, "shaft-recheck", RunWhen::kValid, Acceptance::kBetter, 1500},
-    {StepKind::kStartCheck, "start-check", RunWhen::kValid, Acceptance::kBetter, 3100},
     {StepKind::kStartSeed, "start-seed", RunWhen::kNotValid, Acceptance::kBetter, 3100},
-    {StepKind::kStartUnmovedSeed, "start-unmoved-seed", RunWhen::kNotValid, Acceptance::kBetterNoFewerBoundaries,
-     1500},
-    {StepKind::kRegionsSeed, "regions-seed", RunWhen::kNotValid, Acceptance::kBetter, 3100},
-    {StepKind::kInsertionForthSeed, "insertion-forth-seed", RunWhen::kNotValid, Acceptance::kBetterNearerStart, 3100},
-    {StepKind::kInsertionBackSeed, "insertion-back-seed", RunWhen::kNotValid, Acceptance::kBetterNearerStart, 3100},
-    {StepKind::kThetaUpSeed, "theta-up-seed", RunWhen::kNotValid, Acceptance::kClearlyBetter, 3100},
-    {StepKind::kThetaDownSeed, "theta-down-seed", RunWhen::kNotValid, Acceptance::kClearlyBetter, 3100},
-    {StepKind::kPhiUpSeed, "phi-up-seed", RunWhen::kNotValid, Acceptance::kClearlyBetter, 3100},
-    {StepKind::kPhiDownSeed, "phi-down-seed", RunWhen::kNotValid, Acceptance::kClearlyBetter, 3100},
-    {StepKind::kAliasCheck, "alias-check", RunWhen::kFitKept, Acceptance::kBetterNearerStart, 2000},
     {StepKind::kBaseRimSeed, "base-rim-seed", RunWhen::kNoFitKeptNotValid, Acceptance::kSolvedDegraded, 1500},
     {StepKind::kFitAgreementCheck, "fit-agreement-check", RunWhen::kFitKept, Acceptance::kDemotes, 10},
     {StepKind::kEncoderCheck, "encoder-check", RunWhen::kEncoderPrior, Acceptance::kDemotes, 10},
@@ -95,9 +70,6 @@ constexpr std::array<PolicyStep, kNumStepKinds> kEstimationPolicy = {{
 
 constexpr const PolicyStep& policy_step(StepKind kind) noexcept {
   return kEstimationPolicy[static_cast<std::size_t>(kind)];
-}
-constexpr bool is_fallback_seed(StepKind kind) noexcept {
-  return policy_step(kind).when == RunWhen::kNotValid;
 }
 // The rows are in StepKind order (a kind's row is its index): checked at compile time.
 constexpr bool policy_in_order() noexcept {

@@ -206,12 +206,13 @@ struct ShaftFitSummary {
 
 namespace detail {
 class BlurredEdgeScratch;  // src/blurred_edge.hpp
+struct FitScratch;         // src/fit_scratch.hpp
 }  // namespace detail
 
 class FeatureExtractor {
  public:
   FeatureExtractor() noexcept = default;
-  ~FeatureExtractor();  // out of line: the blurred edge's scratch is an incomplete type here
+  ~FeatureExtractor();  // out of line: the scratch types are incomplete here
   // Owned through create()'s pointer, never copied or moved (its buffers are sized at create()).
   FeatureExtractor(const FeatureExtractor&) = delete;
   FeatureExtractor& operator=(const FeatureExtractor&) = delete;
@@ -251,7 +252,7 @@ class FeatureExtractor {
   // boundary onto its colour change and the model's silhouette onto the
   // colour-gradient maxima, by robust Gauss-Newton from `r` (a first pose),
   // re-measuring at every iteration. `r` is updated only on success.
-  // `coarse_start`: r is rough (pose_from_regions): three iterations with
+  // `coarse_start`: r is rough (a fallback seed's): three iterations with
   // wider windows come first (fewer boundaries accepted there).
   Status<VisionError> fit_pose_to_image(const ImageView& image, const solver::CameraModel& camera,
                                         const solver::InstrumentModel& model, solver::PoseVector& r,
@@ -295,20 +296,13 @@ class FeatureExtractor {
   Status<VisionError> fit_insertion_to_base_rim(const ImageView& image, const solver::CameraModel& camera,
                                                 const solver::InstrumentModel& model,
                                                 solver::PoseVector& r) const noexcept;
-  // A rough pose from stage 2 alone (ours): x_ch, y_ch, lambda, phi, theta
-  // moved from `r` so that the model's marker middles project onto the
-  // labelled regions' centroids (damped Gauss-Newton, at most 15
-  // iterations); needs 3 labelled markers and an RMS under 12 px. For frames
-  // where stage 4's corners give the solver too little.
-  Status<VisionError> pose_from_regions(const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                                        solver::PoseVector& r) const noexcept;
   // A coarse pose from the class image alone (ours, for frames the borders
   // and corners cannot serve: a tube seen end-on, markers merged into one
   // region, a wrong labelling): r is moved so that points of every stripe's
   // visible face, projected, fall on pixels of the stripe's colour (chamfer
   // matching on the distance images of the blue and yellow classes;
-  // Levenberg-Marquardt, finite differences, a weak prior around `r`, at
-  // most kClassFitIterations). Updates `r` and returns the mean capped
+  // Levenberg-Marquardt with Marquardt's damping schedule, forward
+  // differences, a weak prior around `r`, at most kClassFitIterations steps). Updates `r` and returns the mean capped
   // distance in pixels of the points to their colour (`cost_px`); fails
   // when too few points project into the image.
   static constexpr int kClassFitIterations = 12;
@@ -365,6 +359,8 @@ class FeatureExtractor {
   // The blurred edge's model's tables (refine_streak_edge_model), allocated
   // at create() and rebuilt by every reading that uses them.
   std::unique_ptr<detail::BlurredEdgeScratch> edge_scratch_;
+  // The model-guided fits' minimisers and rows, allocated at create().
+  std::unique_ptr<detail::FitScratch> fit_scratch_;
   bool class_distance_ready_ = false;
   std::array<int, 4> distance_box_{};  // x0, y0, x1, y1 (inclusive) where the distances were computed
   void compute_class_distances() noexcept;

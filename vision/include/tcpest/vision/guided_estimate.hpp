@@ -41,21 +41,23 @@ struct GuidedOptions {
   // but do not make it valid: under a streak they are not where the edge
   // is (docs/decisions/0012-consecutive-boundary-run.md).
   int min_valid_fit_silhouette_readings = 12;
-  // Fallback seeds, when the result is not valid yet (no pose, or a degraded
-  // one): the image fit is tried again from the start pose (`start_seed`:
-  // the encoders' or the track's) and then from the rough pose of the
-  // labelled regions (`from_regions`: pose_from_regions), each from a coarse
-  // start; a result is kept only if its fit passes the test above and the
-  // re-solve gives a pose, and replaces the current one when better: first
-  // when the image speaks for it clearly, whatever the qualities (the
-  // current one not confirmed by a fit, the candidate's fit with the
-  // support of a valid one; or its fit read at least as many boundaries and
-  // silhouette points with a residual below prefer_fit_rms_ratio times the
-  // current's); else valid over degraded; at the same quality, a
-  // fit-confirmed one over stage 4's, then the lower fit residual
-  // (docs/vision.md). Bounded: at most `fallback_seeds` (0..9)
-  // seeds per frame, only on frames not yet valid (each about 1-3 ms at PAL,
-  // docs/vision.md).
+  // The fallback seed, when the result is not valid yet (no pose, or a
+  // degraded one) and stage 2 labelled at least two markers: the image fit
+  // is tried again from the start pose (the encoders' or the track's), from
+  // a coarse start; its result is kept only if its fit passes the test
+  // above and the re-solve gives a pose, and replaces the current one when
+  // better: first when the image speaks for it clearly, whatever the
+  // qualities (the current one not confirmed by a fit, the candidate's fit
+  // with the support of a valid one; or its fit read at least as many
+  // boundaries and silhouette points with a residual below
+  // prefer_fit_rms_ratio times the current's); else valid over degraded; at
+  // the same quality, a fit-confirmed one over stage 4's, then the lower fit
+  // residual (docs/vision.md). Before the image fit, the seed's channel
+  // pose is fitted to the shaft's silhouette
+  // (FeatureExtractor::fit_channel_to_shaft), then the seed is moved onto
+  // the class image (FeatureExtractor::fit_pose_to_classes, the channel
+  // held when the shaft fit succeeded). One seed per frame, about 1-3 ms
+  // at PAL.
   bool prefer_fit_confirmed = true;   // the first of those rules (false: off)
   double prefer_fit_rms_ratio = 0.7;  // the second (0: off)
   // At the same quality, two fit-confirmed results whose fits read runs of
@@ -67,88 +69,6 @@ struct GuidedOptions {
   // stripes (docs/decisions/0028-longer-run.md). 0: off (the lower residual
   // alone).
   double longer_run_rms_ratio = 0.7;
-  bool start_seed = true;
-  bool from_regions = true;
-  int fallback_seeds = 1;
-  // Each fallback seed's channel pose is first fitted to the shaft's
-  // silhouette (`shaft_fit`: FeatureExtractor::fit_channel_to_shaft), then
-  // the seed is moved onto the class image (`class_fit`:
-  // FeatureExtractor::fit_pose_to_classes, the channel held when the shaft
-  // fit succeeded) before the image fit.
-  bool shaft_fit = true;
-  bool class_fit = true;
-  // The class fit can also move a good start away: the samples of stripes
-  // an occluder hides, far from every pixel of their colour, pull the
-  // visible ones along the tube. So when the start seed's result is not
-  // valid, the start (its channel from the shaft) is also tried as it is,
-  // without the class fit (`start_unmoved`). It counts as one of the
-  // `fallback_seeds`, tried second (the loop's 1 leaves it out; with 2
-  // the regions' seed is not tried), and its result is kept only if
-  // better (the rule above) and its fit read no fewer boundaries than the
-  // current result's: the class fit's seed may have read a smeared tube
-  // more fully (docs/vision.md, "Occluders").
-  bool start_unmoved = true;
-  // The encoders' insertion is known to +/- 3 mm (model.md), most of a
-  // stripe (3.7 mm): from a start that far along, the coarse fit can settle
-  // with every boundary one stripe from its own. So after the seeds above,
-  // when still not valid, the start is tried moved by
-  // +insertion_seed_step_mm and then -insertion_seed_step_mm along the
-  // insertion (shaft fit and class fit as for the start), each counted as
-  // one of the `fallback_seeds` (the 4th and 5th; a seed not available, such
-  // as the regions' pose, leaves its count to the next); their result is
-  // kept only if better (the rule above) and, against a fit-confirmed
-  // result, its insertion nearer to the start's, so that a seed cannot
-  // carry the fit two stripes along (0: off, and off with start_seed;
-  // docs/vision.md, "Insertion seeds").
-  double insertion_seed_step_mm = 2.0;
-  // The encoders' bend is known to +/- 0.2 rad (model.md's coarse prior),
-  // and from a start that far off the coarse fit can hold the tip's stripes
-  // on the wrong side of the bend. So after the insertion seeds, when still
-  // not valid, the start is tried with theta moved by +bend_seed_step_rad
-  // and -bend_seed_step_rad, then phi likewise (shaft fit and class fit as
-  // for the start), each counted as one of the `fallback_seeds` (the 6th to
-  // the 9th). Their result is kept only if better (the rule above) and,
-  // against a fit-confirmed result, clearly so: its fit read no fewer
-  // boundaries and silhouette points with a residual below
-  // prefer_fit_rms_ratio times the current's, whatever the qualities.
-  // Four more seeds are four more chances for a lower residual at a wrong
-  // pose, so the plain rule and a better quality alone are not enough (0:
-  // off, and off with start_seed; docs/decisions/0026-bend-seeds.md).
-  double bend_seed_step_rad = 0.2;
-  // A valid result is checked against the shaft: when the shaft's fit moves
-  // the channel's exit by more than `shaft_recheck_min_mm`, the rounds are
-  // tried again from that channel pose (coarse start) and the better result
-  // kept (the rule above). One shaft fit per valid frame, and at most one
-  // more set of rounds.
-  bool shaft_recheck = false;
-  double shaft_recheck_min_mm = 0.3;
-  // A valid result is also checked against the start: the rounds are tried
-  // from the start seed (the channel from the shaft, then moved onto the
-  // class image, as the first fallback seed) and that result kept when
-  // better (the rule above). The rounds from stage 4's solve can settle
-  // valid beside the image, the base's or the tip's corners 3-13 px off,
-  // which no fallback seed would question (docs/vision.md, "A valid result
-  // checked against the start"). Only when the result's image fit left a robust
-  // RMS above valid_start_check_min_rms_px, or no fit confirmed it: a fit
-  // that close to the image is rarely beside the tube, and checking every
-  // valid frame costs a set of rounds on every frame
-  // (docs/decisions/0031-valid-start-check.md). One shaft fit, one class
-  // fit and one more set of rounds per frame checked.
-  bool valid_start_check = false;
-  double valid_start_check_min_rms_px = 0.2;
-  // Two stripes along the tube the colours repeat: a fit-confirmed result
-  // whose insertion lies more than `alias_lambda_tolerance_mm` from the
-  // start's (the encoders' accuracy is +/- 3 mm, model.md) is tried again
-  // from the pose two stripes (7.4 mm) back towards the start, and that
-  // result kept when better (the rule above) and nearer to the start. At
-  // most two more sets of rounds per frame (docs/vision.md).
-  bool alias_check = false;
-  double alias_lambda_tolerance_mm = 3.0;
-  // The alias seed keeps the result's shape, so it is tried first from a
-  // fine start, whose narrow windows hold the stripes where the period
-  // put them, and from a coarse start only when that was not kept (false:
-  // the coarse start alone).
-  bool alias_fine_start = true;
   // When no image fit was kept and the result is not valid (stage 4's
   // Degraded solve, or none; a valid one stays, as it stops the seeds): a
   // tube seen end-on behind the shaft, one stripe showing, gives the image
@@ -164,7 +84,7 @@ struct GuidedOptions {
   // 2 * kMaxRimScanSteps + 1 rim reads, one refinement and one solve
   // (docs/vision.md, "The tube seen end-on").
   bool base_rim_seed = true;
-  // After every seed, a valid result is checked against its own image fit:
+  // After the seeds, a valid result is checked against its own image fit:
   // when the TCP of the solve of eq. 8 lies more than
   // max_valid_tcp_disagreement_mm from the TCP of the pose the corners were
   // read at (GuidedResult::fitted_r), the estimate is Degraded. The solve's
@@ -179,7 +99,6 @@ struct GuidedOptions {
   double max_valid_tcp_disagreement_mm = 2.0;
 };
 constexpr int kMaxGuidedRounds = 4;
-constexpr int kMaxFallbackSeeds = 9;
 
 struct GuidedResult {
   solver::Estimate estimate{};
@@ -202,16 +121,22 @@ struct GuidedResult {
 };
 
 // Everything after the first solve (the loop times it as its own step):
-// the rounds from `first` when it has a pose, then, while the result is not
-// valid, the fallback seeds (the regions' rough pose, `start`), then the
-// alias check against `start`'s insertion, then, with no fit kept and the
-// result not valid, the base-rim seed. `first` may have no pose. On return
-// the extractor's corners are those of the kept estimate (stage 4's if no
-// round was kept).
+// the rounds from `first` when it has a pose, then, when the result is not
+// valid, the start seed (`start`), then, with no fit kept and the result
+// not valid, the base-rim seed (neither without a finite `start`). `first`
+// may have no pose. On return the extractor's corners are those of the
+// kept estimate (stage 4's if no round was kept).
 GuidedResult guided_rounds(FeatureExtractor& extractor, solver::PoseEstimator& estimator,
                            const solver::CameraModel& camera, const solver::InstrumentModel& model,
                            const ImageView& image, solver::SolveMode mode, const solver::Estimate& first,
                            const solver::PoseVector& start, const GuidedOptions& options) noexcept;
+
+// Whether a seed's result `candidate` replaces `current` (the comparison
+// rule of GuidedOptions: prefer_fit_confirmed, prefer_fit_rms_ratio, the
+// qualities, longer_run_rms_ratio, then the lower fit residual). Never
+// without a round kept in `candidate`.
+bool replaces_result(const GuidedResult& candidate, const GuidedResult& current,
+                     const GuidedOptions& options) noexcept;
 
 // The first solve and the rounds. `extraction_ok`: stages 1-4 succeeded
 // (else no corners are used and the estimate is None).

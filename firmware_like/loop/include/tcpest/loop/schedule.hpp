@@ -37,12 +37,9 @@ struct StepSpec {
 };
 
 // The refine step's budget, from the estimation policy's table
-// (vision/estimation_policy.hpp): the guided rounds, then at most the
-// shipped number of fallback seeds, each budgeted as the start seed.
-constexpr std::int64_t kRefineBudgetUs =
-    vision::policy_step(vision::StepKind::kGuidedRounds).budget_us +
-    static_cast<std::int64_t>(vision::GuidedOptions{}.fallback_seeds) *
-        vision::policy_step(vision::StepKind::kStartSeed).budget_us;
+// (vision/estimation_policy.hpp): the guided rounds, then the start seed.
+constexpr std::int64_t kRefineBudgetUs = vision::policy_step(vision::StepKind::kGuidedRounds).budget_us +
+                                         vision::policy_step(vision::StepKind::kStartSeed).budget_us;
 
 // THE schedule.
 constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
@@ -54,8 +51,8 @@ constexpr std::array<StepSpec, kNumSteps> kSchedule = {{
     {Step::kBorders, "borders", 500},
     {Step::kCorners, "corners", 700},
     {Step::kSolve, "solve", vision::policy_step(vision::StepKind::kStage4Solve).budget_us},
-    // The guided rounds and the fallback seeds the shipped configuration
-    // tries on a frame not yet valid, as the estimation policy budgets them.
+    // The guided rounds and the start seed tried on a frame not yet valid,
+    // as the estimation policy budgets them.
     {Step::kRefine, "refine", kRefineBudgetUs},
     {Step::kPublish, "publish", 100},
     {Step::kHousekeeping, "housekeeping", 100},
