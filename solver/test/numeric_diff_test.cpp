@@ -38,6 +38,8 @@ TEST(ForwardDifference, TheJacobianIsTheDerivativeToTheStepsOrder) {
   EXPECT_EQ(f.calls, 3);  // the point and one shift per parameter
   ASSERT_TRUE(problem(x, r, nullptr));
   EXPECT_EQ(f.calls, 4);  // residuals alone: no shift
+  ASSERT_TRUE(problem(x, r, &j));
+  EXPECT_EQ(f.calls, 6);  // the Jacobian where the residuals were just computed: only the shifts
 }
 
 TEST(ForwardDifference, TheMinimiserFindsTheZeroWithoutDerivatives) {

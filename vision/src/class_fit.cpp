@@ -53,11 +53,13 @@ using ClassResiduals = Eigen::Matrix<double, kRows, 1>;
 // Difference steps of about a pixel: the distance image is piecewise linear.
 constexpr std::array<double, kParams> kStepH = {0.05, 0.05, 0.002, 0.002, 0.05, 0.004, 0.004};
 // Each descent: Marquardt's damping schedule (the cost is piecewise linear:
-// the gain ratio says little about the next step), at most
-// 3 x kClassFitIterations trial steps (six rejected in a row end it); it
+// the gain ratio says little about the next step), the numeric Jacobian
+// only at the trials taken, at most
+// kClassFitIterations + 4 trial steps (six rejected in a row end it); it
 // ends where a step lowers the cost by less than 0.1 %.
-constexpr solver::SolverOptions kClassSolve{3 * FeatureExtractor::kClassFitIterations, 1e-10, 1e-10, 1e-3, 1e-2,
-                                            solver::DampingSchedule::kMarquardt};
+constexpr solver::SolverOptions kClassSolve{FeatureExtractor::kClassFitIterations + 4, 1e-10, 1e-10, 1e-3, 1e-2,
+                                            solver::DampingSchedule::kMarquardt,
+                                            solver::JacobianEvaluation::kWhenTaken};
 
 // Coverage points: the class image's coloured pixels on a grid whose step
 // gives at most about kMaxCoverage of them (from the regions' total area).

@@ -57,6 +57,13 @@ enum class DampingSchedule : std::uint8_t {
   kMarquardt,
 };
 
+// When the Jacobian is evaluated.
+enum class JacobianEvaluation : std::uint8_t {
+  kWithEveryTrial,  // with each trial's residuals: an analytic Jacobian costs little beside them (the pose solve)
+  kWhenTaken,       // only at a trial that is taken (tiny_solver's order): a numeric one costs a residual
+                    // evaluation per parameter, which a rejected trial then does not pay
+};
+
 struct SolverOptions {
   int max_iterations = 100;              // trial steps (accepted or rejected), 1..kMaxIterationsCap
   double gradient_tolerance = 1e-8;      // on max |J^T r| (cost units per parameter unit)
@@ -64,6 +71,7 @@ struct SolverOptions {
   double cost_change_tolerance = 1e-6;  // relative cost decrease of an accepted step
   double initial_damping = 1e-4;         // mu0, relative to diag(J^T J) (tiny_solver: 1 / 1e4)
   DampingSchedule schedule = DampingSchedule::kNielsen;
+  JacobianEvaluation jacobian = JacobianEvaluation::kWithEveryTrial;
 };
 
 // True when every field is in range (finite, positive where it must be).
@@ -108,29 +116,14 @@ class LevenbergMarquardt {
       out.status = LmStatus::NonFiniteJacobian;
       return out;
     }
-    double damping = options.initial_damping;
-    double damping_growth = 2.0;
-    int rejections_in_a_row = 0;
+    Damping damping{options.initial_damping};
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
       out.iterations = iteration;
       if (gradient_.template lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) {
         out.status = LmStatus::ConvergedGradient;
         return out;
       }
-      // Marquardt's scaling, clamped as tiny_solver does so that a parameter
-      // the residuals do not see (e.g. phi of a straight tube) still gets a
-      // finite, damped step.
-      damped_ = normal_;
-      for (int i = 0; i < kParams; ++i) {
-        damped_(i, i) += damping * std::min(std::max(normal_(i, i), kMinDiagonal), kMaxDiagonal);
-      }
-      llt_.compute(damped_);
-      if (llt_.info() != Eigen::Success) {
-        out.status = LmStatus::SingularSystem;
-        return out;
-      }
-      step_ = llt_.solve(-gradient_);
-      if (!step_.allFinite()) {
+      if (!solve_damped_step(damping.mu)) {
         out.status = LmStatus::SingularSystem;
         return out;
       }
@@ -150,22 +143,17 @@ class LevenbergMarquardt {
       }
       out.iterations = iteration + 1;
       trial_x_ = x + step_;
-      // The residuals alone first, the Jacobian only where the step is
-      // taken (tiny_solver's order): a rejected trial costs one evaluation
-      // of the residuals, which matters where the Jacobian is numeric.
-      bool in_domain = f(trial_x_, trial_residuals_, nullptr);
-      const double trial_cost = 0.5 * trial_residuals_.squaredNorm();
-      // A trial outside the domain or with a non-finite value is a failed
-      // step like any other: more damping, shorter step, same x.
-      bool usable = in_domain && std::isfinite(trial_cost) && trial_residuals_.allFinite();
-      if (usable && trial_cost < cost) {
-        in_domain = f(trial_x_, trial_residuals_, &trial_jacobian_);
-        usable = in_domain && trial_residuals_.allFinite() && trial_jacobian_.allFinite() &&
-                 0.5 * trial_residuals_.squaredNorm() == trial_cost;
+      double trial_cost = cost;
+      const Trial trial = evaluate_trial(f, options, cost, trial_cost);
+      if (trial == Trial::kLast) {
+        x = trial_x_;  // taken, and the last: no Jacobian is needed after it
+        residuals_ = trial_residuals_;
+        out.final_cost = trial_cost;
+        out.status = LmStatus::ConvergedCostChange;
+        return out;
       }
-      if (usable && trial_cost < cost) {
+      if (trial == Trial::kTaken) {
         const double actual = cost - trial_cost;
-        const double previous_cost = cost;
         x = trial_x_;
         residuals_ = trial_residuals_;
         jacobian_ = trial_jacobian_;
@@ -176,29 +164,10 @@ class LevenbergMarquardt {
           out.status = LmStatus::NonFiniteJacobian;
           return out;
         }
-        if (actual <= options.cost_change_tolerance * previous_cost) {
-          out.status = LmStatus::ConvergedCostChange;
-          return out;
-        }
-        rejections_in_a_row = 0;
-        if (options.schedule == DampingSchedule::kMarquardt) {
-          damping = std::max(damping * kMarquardtShrink, options.initial_damping * kMarquardtFloorShare);
-        } else {
-          const double ratio = (predicted > 0.0) ? actual / predicted : 0.0;
-          const double shape = 2.0 * ratio - 1.0;
-          damping *= std::max(1.0 / 3.0, 1.0 - shape * shape * shape);
-          damping = std::max(damping, kMinDamping);
-          damping_growth = 2.0;
-        }
-      } else if (options.schedule == DampingSchedule::kMarquardt) {
-        damping = std::min(damping * kMarquardtGrowth, kMaxDamping);
-        if (++rejections_in_a_row >= kMarquardtMaxRejections) {
-          out.status = LmStatus::MaxIterations;
-          return out;
-        }
-      } else {
-        damping = std::min(damping * damping_growth, kMaxDamping);
-        damping_growth = std::min(damping_growth * 2.0, kMaxDampingGrowth);
+        damping.taken(options, actual, predicted);
+      } else if (!damping.refused(options)) {
+        out.status = LmStatus::MaxIterations;  // Marquardt's: six refusals in a row
+        return out;
       }
     }
     out.iterations = options.max_iterations;
@@ -206,9 +175,8 @@ class LevenbergMarquardt {
     return out;
   }
 
-  // The last evaluated residuals and Jacobian at the returned x.
+  // The residuals at the returned x.
   const Residuals& residuals() const noexcept { return residuals_; }
-  const Jacobian& jacobian() const noexcept { return jacobian_; }
 
  private:
   static constexpr double kMinDiagonal = 1e-6;
@@ -220,6 +188,80 @@ class LevenbergMarquardt {
   static constexpr double kMarquardtGrowth = 10.0;
   static constexpr double kMarquardtFloorShare = 0.01;
   static constexpr int kMarquardtMaxRejections = 6;
+
+  // The damping mu and its schedule's state.
+  struct Damping {
+    double mu = 0.0;
+    double growth = 2.0;  // Nielsen's nu
+    int refusals_in_a_row = 0;
+
+    void taken(const SolverOptions& options, double actual, double predicted) noexcept {
+      refusals_in_a_row = 0;
+      if (options.schedule == DampingSchedule::kMarquardt) {
+        mu = std::max(mu * kMarquardtShrink, options.initial_damping * kMarquardtFloorShare);
+        return;
+      }
+      const double ratio = (predicted > 0.0) ? actual / predicted : 0.0;
+      const double shape = 2.0 * ratio - 1.0;
+      mu = std::max(mu * std::max(1.0 / 3.0, 1.0 - shape * shape * shape), kMinDamping);
+      growth = 2.0;
+    }
+    // False when the minimisation should end (Marquardt's: six in a row).
+    bool refused(const SolverOptions& options) noexcept {
+      if (options.schedule == DampingSchedule::kMarquardt) {
+        mu = std::min(mu * kMarquardtGrowth, kMaxDamping);
+        return ++refusals_in_a_row < kMarquardtMaxRejections;
+      }
+      mu = std::min(mu * growth, kMaxDamping);
+      growth = std::min(growth * 2.0, kMaxDampingGrowth);
+      return true;
+    }
+  };
+
+  // Marquardt's scaling, clamped as tiny_solver does so that a parameter
+  // the residuals do not see (e.g. phi of a straight tube) still gets a
+  // finite, damped step. False when the damped system does not solve.
+  bool solve_damped_step(double mu) noexcept {
+    damped_ = normal_;
+    for (int i = 0; i < kParams; ++i) {
+      damped_(i, i) += mu * std::min(std::max(normal_(i, i), kMinDiagonal), kMaxDiagonal);
+    }
+    llt_.compute(damped_);
+    if (llt_.info() != Eigen::Success) {
+      return false;
+    }
+    step_ = llt_.solve(-gradient_);
+    return step_.allFinite();
+  }
+
+  enum class Trial : std::uint8_t { kRefused, kTaken, kLast };
+
+  // The trial at trial_x_: refused (outside the domain, a non-finite value
+  // or no lower cost: a failed step like any other, more damping, same x),
+  // taken (trial_residuals_ and trial_jacobian_ set), or taken as the last
+  // (lower by at most the cost-change tolerance: its Jacobian not needed).
+  template <typename Function>
+  Trial evaluate_trial(Function& f, const SolverOptions& options, double cost, double& trial_cost) noexcept {
+    const bool jacobian_with_trial = options.jacobian == JacobianEvaluation::kWithEveryTrial;
+    bool usable = f(trial_x_, trial_residuals_, jacobian_with_trial ? &trial_jacobian_ : nullptr);
+    trial_cost = 0.5 * trial_residuals_.squaredNorm();
+    usable = usable && std::isfinite(trial_cost) && trial_residuals_.allFinite() &&
+             (!jacobian_with_trial || trial_jacobian_.allFinite());
+    if (!usable || !(trial_cost < cost)) {
+      return Trial::kRefused;
+    }
+    if (cost - trial_cost <= options.cost_change_tolerance * cost) {
+      return Trial::kLast;
+    }
+    if (!jacobian_with_trial) {
+      const bool in_domain = f(trial_x_, trial_residuals_, &trial_jacobian_);
+      if (!in_domain || !trial_residuals_.allFinite() || !trial_jacobian_.allFinite() ||
+          !(0.5 * trial_residuals_.squaredNorm() == trial_cost)) {
+        return Trial::kRefused;
+      }
+    }
+    return Trial::kTaken;
+  }
 
   template <typename Function>
   bool update_normal_equations(Function& f, const Params& x) noexcept {

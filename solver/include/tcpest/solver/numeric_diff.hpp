@@ -16,7 +16,9 @@
 // point must be acceptable; its shifts need only be defined. Otherwise the
 // evaluation fails and the minimiser treats the trial as a failed step
 // (more damping, same x). No allocation: the shifted residuals are a
-// member of the adapter.
+// member of the adapter. The residual function must be deterministic: the
+// residuals of the last acceptable point are reused when the Jacobian is
+// asked there next.
 #pragma once
 
 #include <Eigen/Core>
@@ -46,9 +48,17 @@ class ForwardDifferenceProblem {
       : function_(function), steps_(steps) {}
 
   bool operator()(const Params& x, Residuals& residuals, Jacobian* jacobian) noexcept {
-    if (function_(x, residuals) != Evaluation::kAcceptable) {
+    // The minimiser asks for the Jacobian at a trial it has just evaluated
+    // and accepted: the residuals there are not computed again.
+    if (jacobian != nullptr && have_last_ && x == last_x_) {
+      residuals = last_residuals_;
+    } else if (function_(x, residuals) != Evaluation::kAcceptable) {
+      have_last_ = false;
       return false;
     }
+    last_x_ = x;
+    last_residuals_ = residuals;
+    have_last_ = true;
     if (jacobian == nullptr) {
       return true;
     }
@@ -72,6 +82,10 @@ class ForwardDifferenceProblem {
   std::array<double, static_cast<std::size_t>(kParams)> steps_;
   Params shifted_x_ = Params::Zero();
   Residuals shifted_ = Residuals::Zero();
+  // The last acceptable point evaluated and its residuals.
+  bool have_last_ = false;
+  Params last_x_ = Params::Zero();
+  Residuals last_residuals_ = Residuals::Zero();
 };
 
 // Deduces the residual function's type: make_forward_difference<kParams, kResiduals>(f, steps).

@@ -302,7 +302,8 @@ class FeatureExtractor {
   // visible face, projected, fall on pixels of the stripe's colour (chamfer
   // matching on the distance images of the blue and yellow classes;
   // Levenberg-Marquardt with Marquardt's damping schedule, forward
-  // differences, a weak prior around `r`, at most kClassFitIterations steps). Updates `r` and returns the mean capped
+  // differences, a weak prior around `r`, at most kClassFitIterations + 4 trial
+  // steps). Updates `r` and returns the mean capped
   // distance in pixels of the points to their colour (`cost_px`); fails
   // when too few points project into the image.
   static constexpr int kClassFitIterations = 12;
