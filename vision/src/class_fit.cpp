@@ -154,19 +154,7 @@ bool descend(const Cost& residuals, solver::LevenbergMarquardt<kParams, kRows>& 
     return weight_sum >= kMinSamples ? solver::Evaluation::kAcceptable : solver::Evaluation::kDefinedOnly;
   };
   auto problem = solver::make_forward_difference<kParams, kRows>(shows_enough, kStepH);
-  switch (lm.minimise(problem, x, kClassSolve).status) {
-    case solver::LmStatus::ConvergedGradient:
-    case solver::LmStatus::ConvergedStep:
-    case solver::LmStatus::ConvergedCostChange:
-    case solver::LmStatus::MaxIterations:
-      return true;
-    case solver::LmStatus::NonFiniteResidual:
-    case solver::LmStatus::NonFiniteJacobian:
-    case solver::LmStatus::SingularSystem:
-    case solver::LmStatus::InvalidInput:
-      return false;
-  }
-  return false;
+  return solver::ended_at_a_point(lm.minimise(problem, x, kClassSolve).status);
 }
 
 }  // namespace

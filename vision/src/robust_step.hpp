@@ -93,19 +93,7 @@ class RobustRows {
     }
     delta.setZero();
     Problem problem{rows_, targets_};
-    switch (lm_.minimise(problem, delta, kRoundSolve).status) {
-      case solver::LmStatus::ConvergedGradient:
-      case solver::LmStatus::ConvergedStep:
-      case solver::LmStatus::ConvergedCostChange:
-      case solver::LmStatus::MaxIterations:
-        return delta.allFinite();
-      case solver::LmStatus::NonFiniteResidual:
-      case solver::LmStatus::NonFiniteJacobian:
-      case solver::LmStatus::SingularSystem:
-      case solver::LmStatus::InvalidInput:
-        return false;
-    }
-    return false;
+    return solver::ended_at_a_point(lm_.minimise(problem, delta, kRoundSolve).status) && delta.allFinite();
   }
 
  private:

@@ -1,10 +1,10 @@
 #include "cli/cycles_csv.hpp"
 
 #include <cmath>
-#include <cstdarg>
 #include <cstddef>
 
 #include "cli/loop_rig.hpp"
+#include "tcpest/common/text_buffer.hpp"
 
 namespace tcpest {
 namespace cli {
@@ -14,45 +14,14 @@ namespace {
 // 0/1 for the CSV's flags.
 int flag(bool b) noexcept { return b ? 1 : 0; }
 
-// Appends to a fixed buffer; remembers when it did not fit.
-class LineBuffer {
- public:
-  LineBuffer(char* out, std::size_t capacity) noexcept : out_(out), capacity_(capacity) {
-    if (capacity_ > 0U) {
-      out_[0] = '\0';
-    }
+// A number with three decimals, or nothing (an empty CSV field).
+void number_or_empty(TextBuffer& line, bool present, double value) noexcept {
+  if (present) {
+    line.add(",%.3f", value);
+  } else {
+    line.add(",");
   }
-  // NOLINTNEXTLINE(cert-dcl50-cpp): printf-style formatting into a fixed buffer, checked by the compiler's format attribute
-  __attribute__((format(printf, 2, 3))) void add(const char* format, ...) noexcept {
-    if (!ok_) {
-      return;
-    }
-    va_list args;
-    va_start(args, format);
-    const int n = std::vsnprintf(out_ + used_, capacity_ - used_, format, args);
-    va_end(args);
-    if (n < 0 || static_cast<std::size_t>(n) >= capacity_ - used_) {
-      ok_ = false;
-      return;
-    }
-    used_ += static_cast<std::size_t>(n);
-  }
-  // A number with three decimals, or nothing.
-  void number_or_empty(bool present, double value) noexcept {
-    if (present) {
-      add(",%.3f", value);
-    } else {
-      add(",");
-    }
-  }
-  std::size_t length() const noexcept { return ok_ ? used_ : 0U; }
-
- private:
-  char* out_;
-  std::size_t capacity_;
-  std::size_t used_ = 0U;
-  bool ok_ = true;
-};
+}
 
 bool write_all(std::FILE* out, const char* text, std::size_t length) noexcept {
   return length > 0U && std::fwrite(text, 1U, length, out) == length;
@@ -64,7 +33,7 @@ std::size_t format_cycles_csv_header(bool with_truth, char* out, std::size_t cap
   if (capacity == 0U) {
     return 0U;
   }
-  LineBuffer line(out, capacity);
+  TextBuffer line(out, capacity);
   line.add("cycle,frame,t_ms,status,prior,failed_stage,solve_status,corners_detected,corners_used,rms_px,"
            "latency_ms,send_offset_ms,total_ms");
   for (int i = 0; i < loop::kNumSteps; ++i) {
@@ -89,22 +58,22 @@ std::size_t format_cycles_csv_row(const loop::CycleRecord& r, const hal::FrameTr
   const loop::Publication& p = r.publication;
   // Held repeats the last estimate; invalid carries none.
   const bool estimate = p.status != loop::EstimateStatus::kInvalid;
-  LineBuffer line(out, capacity);
+  TextBuffer line(out, capacity);
   line.add("%llu,%u,%.3f,%s,%s,%s,%s,%u,%u", static_cast<unsigned long long>(r.cycle), r.frame_sequence,
            ms(r.trigger_ns - t0_ns), can::to_string(p.status), vision::to_string(r.prior),
            r.failed_stage >= 0 ? loop::kSchedule[static_cast<std::size_t>(r.failed_stage)].name : "",
            r.failed_stage < 0 && r.have_frame ? solver::to_string(r.solve_status) : "",
            static_cast<unsigned>(p.corners_detected), static_cast<unsigned>(p.corners_used));
-  line.number_or_empty(estimate, p.rms_px);
-  line.number_or_empty(r.latency_ns >= 0, ms(r.latency_ns));
-  line.number_or_empty(r.send_offset_ns >= 0, ms(r.send_offset_ns));
+  number_or_empty(line, estimate, p.rms_px);
+  number_or_empty(line, r.latency_ns >= 0, ms(r.latency_ns));
+  number_or_empty(line, r.send_offset_ns >= 0, ms(r.send_offset_ns));
   line.add(",%.3f", ms(r.total_ns));
   for (int i = 0; i < loop::kNumSteps; ++i) {
     line.add(",%.3f", ms(r.step_ns[static_cast<std::size_t>(i)]));
   }
   line.add(",%d,%u", flag(r.overrun), r.slipped);
   for (std::size_t i = 0; i < 3U; ++i) {
-    line.number_or_empty(estimate, p.tcp_mm[i]);
+    number_or_empty(line, estimate, p.tcp_mm[i]);
   }
   if (with_truth) {
     const bool known = truth != nullptr && truth->valid;
@@ -112,10 +81,10 @@ std::size_t format_cycles_csv_row(const loop::CycleRecord& r, const hal::FrameTr
     for (std::size_t i = 0; i < 3U; ++i) {
       const double d = known ? p.tcp_mm[i] - truth->tcp_mm[i] : 0.0;
       error_mm += d * d;
-      line.number_or_empty(known, known ? truth->tcp_mm[i] : 0.0);
+      number_or_empty(line, known, known ? truth->tcp_mm[i] : 0.0);
     }
     // The error of this frame's own estimate (valid or degraded), against this frame's truth.
-    line.number_or_empty(known && p.status <= loop::EstimateStatus::kDegraded, std::sqrt(error_mm));
+    number_or_empty(line, known && p.status <= loop::EstimateStatus::kDegraded, std::sqrt(error_mm));
   }
   line.add(",%d,%d,%d,%d\n", flag(r.refined), r.corners_rejected, flag(r.encoder_disagrees), flag(r.fit_disagrees));
   return line.length();

@@ -1,11 +1,11 @@
 #include "tcpest/render/sidecar.hpp"
 
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <cstring>
 
 #include "tcpest/common/json.hpp"
+#include "tcpest/common/text_buffer.hpp"
 
 namespace tcpest {
 namespace render {
@@ -14,37 +14,7 @@ namespace {
 
 using solver::kNumCorners;
 
-// Appends formatted text to a fixed buffer; remembers overflow.
-class Writer {
- public:
-  Writer(char* out, std::size_t capacity) noexcept : out_(out), capacity_(capacity) {
-    if (capacity_ > 0U) {
-      out_[0] = '\0';
-    }
-  }
-  // NOLINTNEXTLINE(cert-dcl50-cpp): printf-style formatting into a fixed buffer is the project's allocation-free formatter; the format attribute lets the compiler check every call
-  void add(const char* format, ...) noexcept __attribute__((format(printf, 2, 3))) {
-    if (overflow_) {
-      return;
-    }
-    va_list args;
-    va_start(args, format);
-    const int n = std::vsnprintf(out_ + used_, capacity_ - used_, format, args);
-    va_end(args);
-    if (n < 0 || static_cast<std::size_t>(n) >= capacity_ - used_) {
-      overflow_ = true;
-      return;
-    }
-    used_ += static_cast<std::size_t>(n);
-  }
-  std::size_t length() const noexcept { return overflow_ ? 0U : used_; }
-
- private:
-  char* out_;
-  std::size_t capacity_;
-  std::size_t used_ = 0U;
-  bool overflow_ = false;
-};
+using Writer = TextBuffer;
 
 void add_numbers(Writer& w, const double* values, int count) noexcept {
   w.add("[");

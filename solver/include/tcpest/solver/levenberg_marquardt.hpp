@@ -38,6 +38,13 @@ enum class LmStatus : std::uint8_t {
   InvalidInput,         // bad options, a non-finite start, or a start outside the function's domain
 };
 
+// Whether x on return is the minimisation's answer: converged, or the
+// best point within the iteration budget (not a refusal or a breakdown).
+constexpr bool ended_at_a_point(LmStatus status) noexcept {
+  return status == LmStatus::ConvergedGradient || status == LmStatus::ConvergedStep ||
+         status == LmStatus::ConvergedCostChange || status == LmStatus::MaxIterations;
+}
+
 // A hard cap on any options.max_iterations: the worst case of a solve is
 // bounded by it whatever the caller asks.
 constexpr int kMaxIterationsCap = 500;
