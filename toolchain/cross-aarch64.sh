@@ -22,32 +22,37 @@ if ! dpkg --print-foreign-architectures | grep -qx arm64; then
 fi
 source toolchain/deps.sh
 tcpest_install_deps g++-aarch64-linux-gnu libjpeg62-turbo-dev:arm64 libturbojpeg0-dev:arm64
-cmake --preset aarch64 >/dev/null
-cmake --build build/aarch64 -j"$(nproc)" --target tcpest
-file build/aarch64/firmware_like/tcpest 2>/dev/null || ls -l build/aarch64/firmware_like/tcpest
-
-[ "${1:-}" = "--test" ] || exit 0
+if [ "${1:-}" != "--test" ]; then
+  cmake --preset aarch64 >/dev/null
+  cmake --build build/aarch64 -j"$(nproc)" --target tcpest
+  file build/aarch64/firmware_like/tcpest 2>/dev/null || ls -l build/aarch64/firmware_like/tcpest
+  exit 0
+fi
 if [ "$(uname -m)" != "x86_64" ]; then
   echo "cross-aarch64.sh --test: an x86-64 host is needed to compare the two builds; skipped"
   exit 0
 fi
 tcpest_install_deps qemu-user libgtest-dev:arm64
+# One build (preset aarch64-test: the libraries once, tcpest and the tests).
+build=build/aarch64-test
 host_tcpest=build/default/firmware_like/tcpest
-arm_tcpest=(qemu-aarch64 -L /usr/aarch64-linux-gnu build/aarch64/firmware_like/tcpest)
+arm_tcpest=(qemu-aarch64 -L /usr/aarch64-linux-gnu "$build/firmware_like/tcpest")
 cmake --preset aarch64-test >/dev/null
 # Left out under emulation: the death test re-executes its ARM64 binary
-# (that needs binfmt_misc, which a container may not have), and the V4L2
-# tests need ioctls that qemu-user does not translate.
-skip='V4l2Source|NoMallocDeathTest'
+# (that needs binfmt_misc, which a container may not have); the V4L2 tests
+# need ioctls that qemu-user does not translate; Debian 12's qemu-user (7.2)
+# never returns from creating a second thread, so the tests that start one
+# run natively only. A test that still hangs fails after 10 minutes.
+skip='V4l2Source|NoMallocDeathTest|SpscQueue.OneProducerAndOneConsumer'
 if [ "${2:-}" = "all" ]; then
-  cmake --build build/aarch64-test -j"$(nproc)"
-  ctest --test-dir build/aarch64-test -LE vcan -E "$skip" -j"$(nproc)" --timeout 3000 --output-on-failure
+  cmake --build "$build" -j"$(nproc)"
+  ctest --test-dir "$build" -LE vcan -E "$skip" -j"$(nproc)" --timeout 3000 --output-on-failure
   exit 0
 fi
 units=(common_test solver_model_test solver_pose_test solver_no_malloc_test can_iface_test hal_can_test
        hal_clock_test hal_camera_test)
-cmake --build build/aarch64-test -j"$(nproc)" --target "${units[@]}"
-ctest --test-dir build/aarch64-test -LE vcan -E "$skip|_NOT_BUILT" -j"$(nproc)" --output-on-failure
+cmake --build "$build" -j"$(nproc)" --target tcpest "${units[@]}"
+ctest --test-dir "$build" -LE vcan -E "$skip|_NOT_BUILT" -j"$(nproc)" --timeout 600 --output-on-failure
 
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Every test and check of tcpest, as CI runs it: installs what is missing,
-# builds (release, sanitizers, clang, aarch64 cross), runs the unit and
-# integration tests, the static analysers, the requirements trace, a short
-# fuzzing run (fuzz/), and the vcan tests (on the host or in a guest:
-# tests/vcan/README.md). `--quick`
-# runs only the release build and its tests.
+# builds (release with gcc; ASan + UBSan with clang, which also holds the
+# fuzz targets; aarch64 cross), runs the unit and integration tests, the
+# static analysers, the requirements trace, a short fuzzing run (fuzz/), and
+# the vcan tests (on the host or in a guest: tests/vcan/README.md). Each
+# step prints its duration. `--quick` runs only the release build and its
+# tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source toolchain/deps.sh
@@ -13,7 +14,19 @@ jobs="$(nproc)"
 quick=0
 [ "${1:-}" = "--quick" ] && quick=1
 
-step() { printf '\n=== %s ===\n' "$*"; }
+start_s="$(date +%s)"
+step_s="$start_s"
+step_name=""
+step_done() {
+  local now
+  now="$(date +%s)"
+  if [ -n "$step_name" ]; then
+    printf '=== %s: %d s (total %d min) ===\n' "$step_name" "$((now - step_s))" "$(((now - start_s) / 60))"
+  fi
+  step_s="$now"
+}
+step() { step_done; step_name="$*"; printf '\n=== %s ===\n' "$*"; }
+trap 'step_done' EXIT
 
 step "release build (gcc)"
 cmake --preset default >/dev/null
@@ -30,17 +43,16 @@ if [ "$quick" -eq 0 ]; then
   step "requirements trace (docs/requirements.md, the tests' Verifies markers, docs/trace.md)"
   python3 toolchain/trace.py --check-matrix docs/trace.md
 
-  step "sanitizer build (ASan + UBSan) and its tests"
+  # One clang build for three checks: clang's warnings (-Werror), the tests
+  # under ASan + UBSan, and the fuzz targets, whose libraries need the same
+  # instrumentation.
+  step "sanitizer build (clang, ASan + UBSan) and its tests"
   cmake --preset asan >/dev/null
   cmake --build build/asan -j"$jobs"
   ctest --preset asan -j"$jobs"
 
-  step "clang build"
-  cmake --preset clang >/dev/null
-  cmake --build build/clang -j"$jobs"
-
-  step "fuzz targets (libFuzzer, ASan + UBSan), 30 s each over their seed corpora"
-  toolchain/fuzz.sh 30
+  step "fuzz targets (libFuzzer, the sanitizer build), 30 s each over their seed corpora"
+  toolchain/fuzz.sh 30 asan
 
   step "aarch64 cross build, its tests under qemu-user, the same bits as the host's"
   toolchain/cross-aarch64.sh --test
