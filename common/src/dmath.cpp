@@ -5,6 +5,8 @@
 #include "tcpest/common/dmath.hpp"
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 
 namespace tcpest::dmath {
@@ -36,13 +38,31 @@ struct Reduced {
   int quadrant;
 };
 
+// std::ilogb of a nonzero finite x, read from its bits: the same value,
+// without a library call on the sin/cos path. Subnormals take the call.
+int binary_exponent(double x) noexcept {
+  std::uint64_t bits = 0U;
+  std::memcpy(&bits, &x, sizeof bits);
+  const int biased = static_cast<int>((bits >> 52U) & 0x7ffU);
+  return biased == 0 ? std::ilogb(x) : biased - 1023;
+}
+
 // How many binary orders of magnitude y lies below x (both nonzero finite);
 // a zero y counts as a total cancellation.
 int exponent_drop(double x, double y) noexcept {
   if (y == 0.0) {
     return 1000;
   }
-  return std::ilogb(x) - std::ilogb(y);
+  return binary_exponent(x) - binary_exponent(y);
+}
+
+// std::nearbyint(v) for |v| < 2^51 in the default rounding mode (to
+// nearest, ties to even), with two exact additions instead of a library
+// call: adding 1.5 * 2^52 leaves no fraction bits. A zero may lose its sign,
+// which no use below sees.
+double round_to_nearest(double v) noexcept {
+  constexpr double kShift = 0x1.8p52;
+  return (v + kShift) - kShift;
 }
 
 Reduced reduce_pio2(double x) noexcept {
@@ -51,7 +71,7 @@ Reduced reduce_pio2(double x) noexcept {
     // nearest 2 pi. No angle in this program comes near.
     x = std::fmod(x, kTwoPi);
   }
-  const double n = std::nearbyint(x * kInvPio2);
+  const double n = round_to_nearest(x * kInvPio2);  // |x| <= 1e6: |n| < 2^20
   double r = x - n * kPio2Part1;  // exact
   double w = n * kPio2Part1Tail;
   double y0 = r - w;
@@ -321,7 +341,7 @@ double atan2(double y, double x) noexcept {
   if (std::isinf(y)) {
     return y_negative ? -kPio2 : kPio2;
   }
-  const int k = std::ilogb(y) - std::ilogb(x);
+  const int k = binary_exponent(y) - binary_exponent(x);
   double z = 0.0;
   if (k > 60) {
     z = kPio2 + 0.5 * kPiLo;  // |y/x| > 2^60
