@@ -21,17 +21,6 @@ Status<CanError> validate(const NodeConfig& config) noexcept {
   return validate(config.prior_e2e);
 }
 
-EstimateStatus classify_estimate(std::uint8_t corners_used, double rms_px,
-                                 const DegradedThresholds& thresholds) noexcept {
-  if (!std::isfinite(rms_px)) {
-    return EstimateStatus::kInvalid;
-  }
-  if (corners_used < thresholds.min_corners_used || rms_px > thresholds.max_rms_px) {
-    return EstimateStatus::kDegraded;
-  }
-  return EstimateStatus::kValid;
-}
-
 Node::Node() noexcept { reset_application(); }
 
 Status<CanError> Node::configure(const NodeConfig& config) noexcept {

@@ -480,15 +480,6 @@ TEST_F(NodeTest, CyclicPathDoesNotAllocate) {
   EXPECT_EQ(scope.count(), 0U);
 }
 
-// Verifies: REQ-SOLVER-008
-TEST(ClassifyEstimate, DegradedThresholds) {
-  const DegradedThresholds t{8, 2.0};
-  EXPECT_EQ(classify_estimate(12, 0.5, t), EstimateStatus::kValid);
-  EXPECT_EQ(classify_estimate(7, 0.5, t), EstimateStatus::kDegraded);
-  EXPECT_EQ(classify_estimate(12, 2.5, t), EstimateStatus::kDegraded);
-  EXPECT_EQ(classify_estimate(12, std::nan(""), t), EstimateStatus::kInvalid);
-}
-
 }  // namespace
 }  // namespace can
 }  // namespace tcpest

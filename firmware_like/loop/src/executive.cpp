@@ -126,6 +126,13 @@ void Executive::start() noexcept {
     timer_.start(now);
   }
   next_retry_ns_ = now;
+  last_frame_ns_ = now;
+}
+
+std::uint32_t Executive::ms_without_frame(std::int64_t now_ns) const noexcept {
+  const std::int64_t ms = (now_ns - last_frame_ns_) / hal::kNsPerMs;
+  constexpr std::int64_t kMax = 0xFFFFFFFFLL;
+  return static_cast<std::uint32_t>(ms < 0 ? 0 : (ms > kMax ? kMax : ms));
 }
 
 CycleOutcome Executive::wait_trigger() noexcept {
@@ -328,7 +335,7 @@ bool Executive::step_acquire() noexcept {
     have_pending_ = false;
     // A reset node forgot its faults: say again those that still hold.
     if (camera_lost_) {
-      node.set_fault(Fault::kCameraTimeout, true, 0U);
+      node.set_fault(Fault::kCameraTimeout, true, ms_without_frame(clock.now_ns()));
     }
     if (bus_lost_) {
       node.set_fault(Fault::kCanTxDropped, true, 0U);
@@ -345,6 +352,7 @@ bool Executive::step_acquire() noexcept {
     not_ready_run_ = 0;
     dropped_run_ = 0;
     ++stats_->frames;
+    last_frame_ns_ = clock.now_ns();
     record_.have_frame = true;
     record_.frame_sequence = info_.sequence;
     // Replay frames "arrive" at the trigger; a live camera's own time stamp travels with its frame.
@@ -377,13 +385,13 @@ bool Executive::step_acquire() noexcept {
       on_track_dropped();
     }
     if (!frame_error_reported_) {
-      node.set_fault(Fault::kImageCorrupt, true, static_cast<std::uint32_t>(e));
+      node.set_fault(Fault::kImageCorrupt, true, frame_counter_);  // the counter this cycle's QUALITY carries
       frame_error_reported_ = true;
     }
   }
   if (camera_lost_) {
     ++stats_->camera_lost_events;
-    node.set_fault(Fault::kCameraTimeout, true, static_cast<std::uint32_t>(e));
+    node.set_fault(Fault::kCameraTimeout, true, ms_without_frame(clock.now_ns()));
     next_retry_ns_ = clock.now_ns() + ms_to_ns(config_.loop.retry_ms);
   }
   return false;

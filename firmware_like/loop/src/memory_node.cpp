@@ -85,13 +85,20 @@ Status<PortError> MemoryNode::housekeeping(std::int64_t now_ns) noexcept {
 }
 
 void MemoryNode::set_fault(Fault fault, bool active, std::uint32_t detail) noexcept {
-  static_cast<void>(detail);
-  const std::uint32_t bit = 1U << static_cast<unsigned>(fault);
+  const auto id = static_cast<unsigned>(fault);
+  const std::uint32_t bit = 1U << id;
   const bool was = (faults_ & bit) != 0U;
   if (was != active) {
     ++emcy_;
     faults_ = active ? (faults_ | bit) : (faults_ & ~bit);
+    if (active) {
+      fault_details_[id] = detail;
+    }
   }
+}
+
+std::uint32_t MemoryNode::fault_detail(Fault fault) const noexcept {
+  return fault_details_[static_cast<unsigned>(fault)];
 }
 
 bool MemoryNode::fault_active(Fault fault) const noexcept {

@@ -277,6 +277,10 @@ TEST(Executive, AnUnreadableFrameIsDroppedCountedAndTheLoopGoesOn) {
     EXPECT_EQ(rig.loop->last().have_frame, !dropped) << "cycle " << i;
     // Raised by the first frame of a run of errors, cleared by the next good one.
     EXPECT_EQ(rig.node.fault_active(Fault::kImageCorrupt), dropped) << "cycle " << i;
+    if (i == 5 || i == 12 || i == 15) {
+      // The EMCY's detail: the frame counter this cycle's QUALITY carries.
+      EXPECT_EQ(rig.node.fault_detail(Fault::kImageCorrupt), rig.node.publication(0).frame_counter) << "cycle " << i;
+    }
     const bool changed = i == 5 || i == 7 || i == 12 || i == 13 || i == 15 || i == 16;
     EXPECT_EQ(rig.node.emcy_count() - emcy, changed ? 1U : 0U) << "cycle " << i;
     emcy = rig.node.emcy_count();
@@ -305,11 +309,20 @@ TEST(Executive, ConsecutiveDroppedFramesAreALostCamera) {
   GlitchyReplay glitchy(*rig.source, bad);
   rig.build(&glitchy);
   const int lost_after = rig.config.loop.camera_lost_after;
-  ASSERT_TRUE(run_cycles(*rig.loop, 10 + lost_after - 1));
+  ASSERT_TRUE(run_cycles(*rig.loop, 10));
+  constexpr std::int64_t kPeriodMs = 40;
+  for (int i = 0; i < lost_after - 1; ++i) {
+    rig.clock.advance_ns(kPeriodMs * hal::kNsPerMs);
+    ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
+  }
   EXPECT_FALSE(rig.loop->last().camera_lost);
+  rig.clock.advance_ns(kPeriodMs * hal::kNsPerMs);
   ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
   EXPECT_TRUE(rig.loop->last().camera_lost);
   EXPECT_TRUE(rig.node.fault_active(Fault::kCameraTimeout));
+  // The EMCY's detail: milliseconds since the last frame acquired.
+  EXPECT_GE(rig.node.fault_detail(Fault::kCameraTimeout), static_cast<std::uint32_t>(lost_after * kPeriodMs));
+  EXPECT_LT(rig.node.fault_detail(Fault::kCameraTimeout), static_cast<std::uint32_t>((lost_after + 1) * kPeriodMs));
   EXPECT_EQ(rig.loop->stats().camera_lost_events, 1U);
   EXPECT_EQ(rig.loop->stats().frame_errors, static_cast<std::uint64_t>(lost_after) + 1U);
   EXPECT_EQ(rig.loop->run_cycle(), CycleOutcome::kFinished);

@@ -61,15 +61,6 @@ struct Estimate {
   std::uint16_t frame_counter = 0U;
 };
 
-// The protocol's rule for the status of a fresh estimate: degraded when too
-// few corners were used or the residual is large (thresholds: configuration).
-struct DegradedThresholds {
-  std::uint8_t min_corners_used = 8U;
-  double max_rms_px = 2.0;
-};
-EstimateStatus classify_estimate(std::uint8_t corners_used, double rms_px,
-                                 const DegradedThresholds& thresholds) noexcept;
-
 struct EncoderPrior {
   double lambda_mm = 0.0;
   double phi_rad = 0.0;

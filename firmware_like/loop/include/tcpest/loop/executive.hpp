@@ -165,6 +165,8 @@ class Executive {
   void choose_prior(std::int64_t now_ns) noexcept;
   void make_publication() noexcept;
   void on_track_dropped() noexcept;
+  // Milliseconds since the last frame acquired, saturated (camera-timeout EMCY detail).
+  std::uint32_t ms_without_frame(std::int64_t now_ns) const noexcept;
   bool camera_cycle() const noexcept;
 
   LoopConfig config_;
@@ -197,6 +199,7 @@ class Executive {
   int dropped_run_ = 0;  // consecutive dropped (corrupt, truncated, wrongly sized) frames
   bool bus_lost_ = false;
   std::int64_t next_retry_ns_ = 0;
+  std::int64_t last_frame_ns_ = 0;  // clock time of the last frame acquired (or of start()): camera-timeout EMCY detail
   bool overrun_reported_ = false;
   bool frame_error_reported_ = false;
   bool tracking_lost_reported_ = false;

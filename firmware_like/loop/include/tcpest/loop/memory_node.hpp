@@ -44,6 +44,7 @@ class MemoryNode final : public NodePort {
   std::uint64_t heartbeats() const noexcept { return heartbeats_; }
   std::uint64_t emcy_count() const noexcept { return emcy_; }
   bool fault_active(Fault fault) const noexcept;
+  std::uint32_t fault_detail(Fault fault) const noexcept;  // the detail of its last raise (0 before)
 
  private:
   hal::Clock& clock_;
@@ -63,6 +64,7 @@ class MemoryNode final : public NodePort {
   std::uint64_t heartbeats_ = 0U;
   std::uint64_t emcy_ = 0U;
   std::uint32_t faults_ = 0U;  // bit per can::Fault (ids below 32)
+  std::array<std::uint32_t, 32> fault_details_{};
 };
 
 }  // namespace loop
