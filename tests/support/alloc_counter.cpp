@@ -32,11 +32,13 @@ inline bool note_allocation() noexcept {
   return false;
 }
 
+#if TCPEST_COUNT_MALLOC
 inline void note_free(const void* p) noexcept {
   if (t_scopes > 0 && p != nullptr) {
     ++t_frees;
   }
 }
+#endif
 }  // namespace
 
 namespace tcpest {
