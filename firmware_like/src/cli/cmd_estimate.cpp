@@ -9,7 +9,7 @@
 #include "cli/commands.hpp"
 #include "cli/setup.hpp"
 #include "cli/vision_run.hpp"
-#include "tcpest/can_iface/messages.hpp"
+#include "tcpest/can_iface/node.hpp"
 #include "tcpest/common/json_escape.hpp"
 #include "tcpest/hal/can/candump_log.hpp"
 #include "tcpest/render/image_io.hpp"
@@ -29,8 +29,8 @@ const OptionSpec kSpecs[] = {
     {"overlay", "DIR", "write DIR/<image name>.overlay.jpg: borders, corners, model at the estimate, TCP"},
     {"json", nullptr, "one JSON object per image and line"},
     {"can-log", "FILE",
-     "write the TCP and JOINTS frames the loop would send for each image (candump log; alive counter = image "
-     "index mod 15; an image without an estimate: status invalid)"},
+     "write the TCP and JOINTS frames the loop's CAN node sends for each image (candump log, 40 ms apart; "
+     "an image without an estimate: status invalid)"},
 };
 constexpr std::size_t kSpecCount = sizeof kSpecs / sizeof kSpecs[0];
 
@@ -82,39 +82,38 @@ struct EstimateRun {
   const double* prior;  // the encoders' joints for every image (nullptr: none)
   bool json;
   hal::CandumpLogWriter* can_log;  // nullptr: no --can-log
+  can::Node* node;                 // the node behind --can-log (operational, no heartbeat)
   std::uint32_t index;             // of the image in the sequence
   int can_log_errors;
 };
 
-// The estimate's TCP and JOINTS frames as the loop's CAN node encodes them:
-// what `tcpest run` sends for the same frame with the same prior.
+// The estimate's TCP and JOINTS frames from the CAN node the loop runs
+// (encoding, status and alive counter its own): what `tcpest run` sends for
+// the same frame with the same prior.
 void log_can_frames(EstimateRun& run, const EstimateResult& result) {
-  const std::uint8_t node_id = run.pipeline.config().can.node_id;
-  const auto counter = static_cast<std::uint8_t>(run.index % (can::kMaxAliveCounter + 1U));
-  can::EstimateStatus status = can::EstimateStatus::kInvalid;
-  if (result.status == solver::EstimateQuality::Valid) {
-    status = can::EstimateStatus::kValid;
-  } else if (result.status == solver::EstimateQuality::Degraded) {
-    status = can::EstimateStatus::kDegraded;
+  can::Estimate estimate;
+  if (result.status == solver::EstimateQuality::Valid || result.status == solver::EstimateQuality::Degraded) {
+    estimate.status = result.status == solver::EstimateQuality::Valid ? can::EstimateStatus::kValid
+                                                                      : can::EstimateStatus::kDegraded;
+    estimate.tcp_x_mm = result.tcp.x();
+    estimate.tcp_y_mm = result.tcp.y();
+    estimate.tcp_z_mm = result.tcp.z();
+    estimate.lambda_mm = result.r[solver::kLambda];
+    estimate.phi_rad = result.r[solver::kPhi];
+    estimate.theta_rad = result.r[solver::kTheta];
   }
-  const bool solved = status != can::EstimateStatus::kInvalid;
-  can::TcpMessage tcp;
-  tcp.x_mm = solved ? result.tcp.x() : 0.0;
-  tcp.y_mm = solved ? result.tcp.y() : 0.0;
-  tcp.z_mm = solved ? result.tcp.z() : 0.0;
-  tcp.status = status;
-  tcp.counter = counter;
-  can::JointsMessage joints;
-  joints.lambda_mm = solved ? result.r[solver::kLambda] : 0.0;
-  joints.phi_rad = solved ? result.r[solver::kPhi] : 0.0;
-  joints.theta_rad = solved ? result.r[solver::kTheta] : 0.0;
-  joints.status = status;
-  joints.counter = counter;
-  can::Frame frames[2];
   const std::int64_t t_us = static_cast<std::int64_t>(run.index) * 40000;  // 25 Hz
-  const bool encoded = can::encode_tcp(node_id, tcp, frames[0]).ok() && can::encode_joints(node_id, joints, frames[1]).ok();
-  if (!encoded || !run.can_log->write(frames[0], t_us).ok() || !run.can_log->write(frames[1], t_us).ok()) {
+  can::TxBatch batch;
+  if (!run.node->publish(estimate).ok() || !run.node->collect(t_us, batch).ok()) {
     ++run.can_log_errors;
+    return;
+  }
+  const std::uint8_t node_id = run.node->config().node_id;
+  for (const can::Frame& frame : batch) {
+    const bool pdo = frame.id == can::tcp_id(node_id) || frame.id == can::joints_id(node_id);
+    if (pdo && !run.can_log->write(frame, t_us).ok()) {
+      ++run.can_log_errors;
+    }
   }
 }
 
@@ -220,8 +219,18 @@ int cmd_estimate(int argc, char** argv) {
     return kExitFailure;
   }
   static hal::CandumpLogWriter can_log;  // large buffer: static storage
+  can::Node node;
   const char* can_log_path = args.value("can-log");
   if (can_log_path != nullptr) {
+    can::NodeConfig node_config;
+    node_config.node_id = pipeline.config().can.node_id;
+    node_config.heartbeat_period_us = 0;
+    node_config.start_operational = true;
+    can::TxBatch boot;
+    if (!node.configure(node_config).ok() || !node.collect(0, boot).ok()) {  // the boot-up is not logged
+      std::fprintf(stderr, "tcpest estimate: --can-log: can.node_id %u refused\n", node_config.node_id);
+      return kExitConfig;
+    }
     const auto opened = can_log.open(can_log_path, "est");
     if (!opened.ok()) {
       std::fprintf(stderr, "tcpest estimate: --can-log %s: %s\n", can_log_path, hal::to_string(opened.error()));
@@ -230,7 +239,7 @@ int cmd_estimate(int argc, char** argv) {
   }
   std::vector<std::uint8_t> pixels;
   EstimateRun run{setup, pipeline, reader, pixels, encoder.get(), overlay_dir, has_prior ? prior : nullptr,
-                  args.flag("json"), can_log_path != nullptr ? &can_log : nullptr, 0U, 0};
+                  args.flag("json"), can_log_path != nullptr ? &can_log : nullptr, &node, 0U, 0};
   int failures = 0;
   for (std::size_t i = 0U; i < args.positional_count(); ++i) {
     run.index = static_cast<std::uint32_t>(i);
