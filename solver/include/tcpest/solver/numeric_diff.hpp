@@ -26,6 +26,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "tcpest/solver/levenberg_marquardt.hpp"
+
 namespace tcpest {
 namespace solver {
 
@@ -38,10 +40,12 @@ enum class Evaluation : std::uint8_t {
 template <int kParams, int kResiduals, typename ResidualFunction>
 class ForwardDifferenceProblem {
  public:
-  using Params = Eigen::Matrix<double, kParams, 1>;
-  using Residuals = Eigen::Matrix<double, kResiduals, 1>;
-  using Jacobian = Eigen::Matrix<double, kResiduals, kParams>;
-  using Normal = Eigen::Matrix<double, kParams, kParams>;
+  // The minimiser's types: the adapter is a problem of LevenbergMarquardt<kParams, kResiduals>.
+  using Solver = LevenbergMarquardt<kParams, kResiduals>;
+  using Params = typename Solver::Params;
+  using Residuals = typename Solver::Residuals;
+  using Jacobian = typename Solver::Jacobian;
+  using Normal = typename Solver::Normal;
 
   // `steps`: the difference step of each parameter, in its unit (> 0).
   ForwardDifferenceProblem(ResidualFunction& function, const std::array<double, static_cast<std::size_t>(kParams)>& steps) noexcept
