@@ -109,6 +109,7 @@ TEST(Executive, TracksTheSimulatedMotionAndPublishesEveryFrame) {
 // A new sequence (the soak's next pass over its dataset) starts from the
 // generic prior with the pipeline's temporal priors forgotten, as the first
 // frame did; it is not a lost track: nothing counted, no EMCY.
+// Verifies: REQ-LOOP-018
 TEST(Executive, ANewSequenceStartsFromTheGenericPriorWithoutDroppingTheTrack) {
   Rig rig(50U);
   ASSERT_TRUE(run_cycles(*rig.loop, 10));
