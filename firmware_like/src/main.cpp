@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "cli/commands.hpp"
+#include "cli/heap_probe.hpp"
 
 namespace {
 
@@ -24,6 +25,7 @@ void print_help() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  tcpest::cli::set_heap_probe(tcpest::cli::executable_heap_counter());  // tcpest bench --soak
   if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0 ||
       std::strcmp(argv[1], "help") == 0) {
     print_help();

@@ -7,15 +7,19 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "cli/commands.hpp"
+#include "cli/heap_probe.hpp"
 #include "command_test_support.hpp"
 #include "tcpest/can_iface/receiver.hpp"
 #include "tcpest/hal/can/candump_log.hpp"
+#include "tcpest/test/alloc_counter.hpp"
 
 namespace tcpest {
 namespace cli {
@@ -235,6 +239,58 @@ TEST(BenchCommand, PrintsTheStepsPercentilesAndTheJitterComparison) {
   EXPECT_NE(printed.find("bare clock_nanosleep wake-up"), std::string::npos) << printed;
   EXPECT_NE(printed.find("tcpest loop CAN send (TCP frame)"), std::string::npos) << printed;
   EXPECT_NE(printed.find("ratio p99.9 loop / bare: "), std::string::npos) << printed;
+}
+
+// The soak's allocation probe in a test program: the tests' counter (the
+// tcpest executable's own replaces the same functions and is not linked here).
+std::optional<test::AllocationScope>& soak_scope() {
+  static std::optional<test::AllocationScope> scope;
+  return scope;
+}
+void arm_soak_scope() noexcept { soak_scope().emplace(); }
+std::uint64_t disarm_soak_scope() noexcept {
+  const std::uint64_t count = soak_scope()->count();
+  soak_scope().reset();
+  return count;
+}
+
+// A short soak: a warm-up pass over 4 frames, then 300 cycles (75 passes);
+// the four checks pass and say so, one line each.
+// Verifies: REQ-LOOP-018, REQ-LOOP-006
+TEST(BenchCommand, AShortSoakPassesItsFourChecks) {
+  const HeapProbe probe{test::malloc_hook_active() ? "operator new and malloc" : "operator new only", arm_soak_scope,
+                        disarm_soak_scope};
+  set_heap_probe(&probe);
+  testing::internal::CaptureStdout();
+  const int code = run(cmd_bench, {"bench", "--soak", "300", "--dataset", "4"});
+  const std::string printed = testing::internal::GetCapturedStdout();
+  set_heap_probe(nullptr);
+  ASSERT_EQ(code, kExitOk) << printed;
+  EXPECT_NE(printed.find("== soak, 720x576: a warm-up pass over the 4 frames, then 300 cycles"), std::string::npos)
+      << printed;
+  EXPECT_NE(printed.find("\nheap allocations after start-up: 0 in 300 cycles ("), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\nheap in use: "), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\ncycle time drift, first vs last tenth (30 cycles each): p50 "), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\npayload determinism: passes 3..76 (74) equal to pass 2 frame by frame"), std::string::npos)
+      << printed;
+  EXPECT_EQ(count_of(printed, " ok\n"), 4U) << printed;  // every check's verdict
+  EXPECT_EQ(count_of(printed, "FAIL"), 0U) << printed;
+  EXPECT_NE(printed.find("\nsoak: passed\n"), std::string::npos) << printed;
+}
+
+// Verifies: REQ-LOOP-018, REQ-ERR-004
+TEST(BenchCommand, BadSoakValuesAreRefusedWithAUsageError) {
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "0"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "1000000001"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "-5"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "abc"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "18446744073709551616"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "10", "--dataset", "0"}), kExitUsage);
+  // The options of the throughput and jitter parts do not apply to the soak: refused, not ignored.
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "10", "--frames", "5"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "10", "--hd"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "10", "--jitter-seconds", "0"}), kExitUsage);
+  EXPECT_EQ(run(cmd_bench, {"bench", "--soak", "10", "--period-us", "20000"}), kExitUsage);
 }
 
 // Verifies: REQ-ERR-004

@@ -465,6 +465,11 @@ bool Executive::camera_cycle() const noexcept {
          (record_.frame_error != hal::CameraError::kNone && record_.frame_error != hal::CameraError::kEndOfStream);
 }
 
+void Executive::reset_sequence() noexcept {
+  track_.reset();
+  parts_.pipeline->drop_track();
+}
+
 void Executive::on_track_dropped() noexcept {
   ++stats_->track_drops;
   if (!tracking_lost_reported_) {

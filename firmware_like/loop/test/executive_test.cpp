@@ -106,6 +106,24 @@ TEST(Executive, TracksTheSimulatedMotionAndPublishesEveryFrame) {
   EXPECT_GT(rig.node.heartbeats(), 0U);
 }
 
+// A new sequence (the soak's next pass over its dataset) starts from the
+// generic prior with the pipeline's temporal priors forgotten, as the first
+// frame did; it is not a lost track: nothing counted, no EMCY.
+// Verifies: REQ-LOOP-018
+TEST(Executive, ANewSequenceStartsFromTheGenericPriorWithoutDroppingTheTrack) {
+  Rig rig(50U);
+  ASSERT_TRUE(run_cycles(*rig.loop, 10));
+  rig.loop->reset_sequence();
+  EXPECT_EQ(rig.pipeline.drops(), 1);
+  ASSERT_TRUE(run_cycles(*rig.loop, 10));
+  const LoopStats& s = rig.loop->stats();
+  EXPECT_EQ(s.prior[static_cast<std::size_t>(PriorSource::kGeneric)], 2U);
+  EXPECT_EQ(s.prior[static_cast<std::size_t>(PriorSource::kTemporal)], 18U);
+  EXPECT_EQ(s.track_drops, 0U);
+  EXPECT_EQ(s.status[static_cast<std::size_t>(EstimateStatus::kValid)], 20U);
+  EXPECT_FALSE(rig.node.fault_active(Fault::kTrackingLost));
+}
+
 // Verifies: REQ-LOOP-006
 TEST(Executive, NoHeapAllocationPerCycleWithTheSimulatedCamera) {
   Rig rig(3000U);

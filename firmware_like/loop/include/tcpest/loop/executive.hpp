@@ -141,6 +141,12 @@ class Executive {
   // Cycles until finished or *stop becomes true (checked every cycle and
   // after every interrupted wait). Returns kFinished or kInterrupted.
   CycleOutcome run(const std::atomic<bool>* stop) noexcept;
+  // The source starts a new sequence (the next pass over a replayed dataset):
+  // the next frame starts from the generic prior, as the first one did. The
+  // track and the temporal priors are forgotten, as the offline commands'
+  // EstimatePipeline::reset_sequence() does; not a lost track (nothing
+  // counted, no EMCY). Between cycles; allocates nothing.
+  void reset_sequence() noexcept;
 
   const LoopStats& stats() const noexcept { return *stats_; }
   const CycleRecord& last() const noexcept { return record_; }
