@@ -1,7 +1,6 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets of fuzz/ (preset PRESET, default `fuzz`:
-# clang, ASan + UBSan, the targets only; CI uses `asan`, whose build holds
-# the tests too) and runs each for SECONDS (default 60) over a copy of its
+# clang, ASan + UBSan, the targets only) and runs each for SECONDS (default 60) over a copy of its
 # seed corpus, so that the checked-in corpus never grows. Fails when a target
 # reports a crash, a leak, a timeout or running out of memory; the input that
 # did it is kept in build/PRESET/findings/. Prints the executions of each
