@@ -24,7 +24,10 @@ log="$(mktemp)"
 trap 'rm -f "$log"' EXIT
 tidy_status=0
 # xargs exits non-zero when any clang-tidy run reported a finding.
+# -Wcomma (clang-diagnostic-comma in .clang-tidy): no comma operator
+# (docs/coding-rules.md, MISRA C:2012 rule 12.3).
 printf '%s\n' "${sources[@]}" | xargs -P "$(nproc)" -n 4 clang-tidy -p "$build" --quiet --warnings-as-errors='*' \
+  --extra-arg=-Wcomma \
   >"$log" 2>&1 || tidy_status=1
 grep -v -E '^[0-9]+ warnings? generated|^Suppressed [0-9]+ warnings|^Use -header-filter' "$log" || true
 if [ "$tidy_status" -ne 0 ]; then

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Every test and check of tcpest, as CI runs it: installs what is missing,
 # builds (release with gcc; ASan + UBSan with clang; the fuzz targets;
-# aarch64 cross), runs the unit and integration tests, the
-# static analysers, the requirements trace, a short fuzzing run (fuzz/), and
-# the vcan tests (on the host or in a guest: tests/vcan/README.md), and a
-# short soak of the loop. Each step prints its duration. `--quick` runs only
-# the release build, its soak and its tests.
+# aarch64 cross), runs the unit and integration tests, the static
+# analysers, the MISRA check (docs/coding-rules.md), the requirements trace,
+# a short fuzzing run (fuzz/), and the vcan tests (on the host or in a
+# guest: tests/vcan/README.md), and a short soak of the loop. Each step
+# prints its duration. `--quick` runs only the release build, its soak and
+# its tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source toolchain/deps.sh
@@ -46,6 +47,9 @@ if [ "$quick" -eq 0 ]; then
 
   step "static analysis"
   toolchain/lint.sh build/default
+
+  step "MISRA C:2012 addon (cppcheck), counts against toolchain/misra-baseline.txt"
+  toolchain/misra.sh
 
   step "requirements trace (docs/requirements.md, the tests' Verifies markers, docs/trace.md)"
   python3 toolchain/trace.py --check-matrix docs/trace.md

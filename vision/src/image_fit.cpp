@@ -36,8 +36,6 @@ using detail::grasper_silhouette_at;
 using detail::shaft_silhouette_at;
 using detail::behind_tube_end;
 using detail::base_face_visible;
-using detail::read_streak;
-using detail::streak_for_arc_retry;
 
 // refine_streak_arc_retry widens an arc's reading where the smear along its
 // normal is this long or longer (shorter: the sharp reading's reach holds).
@@ -64,7 +62,6 @@ struct Reading {
   double offset_px = 0.0;
 };
 
-using detail::kFitArcSamples;
 using detail::kFitSilhouetteSamples;
 // The shaft's silhouette just before the base (1 to 8.5 mm): it fixes the
 // channel axis in the image, which the base boundary's corners (never read
@@ -79,7 +76,7 @@ using detail::kFitGrasperSamples;
 constexpr double kFitGrasperFirstMm = 2.0;
 constexpr double kFitGrasperStepMm = 1.5;
 constexpr int kMaxReadings = detail::kMaxFitReadings;
-constexpr int kMaxSmearedReadings = kNumBoundaries * kFitArcSamples;
+constexpr int kMaxSmearedReadings = kNumBoundaries * detail::kFitArcSamples;
 constexpr int kMaxFitIterations = 20;
 constexpr int kCoarseIterations = 3;  // wide-window iterations from a coarse start
 
@@ -196,8 +193,8 @@ ArcReadout read_fit_arcs(const Refiner& refiner, const ExtractorConfig& config, 
     }
     const double half = solver::kPi - limb_half;
     int on_this = 0;
-    for (int i = 0; i < kFitArcSamples; ++i) {
-      const double u = -config.refiner.refine_arc_span + 2.0 * config.refiner.refine_arc_span * i / (kFitArcSamples - 1.0);
+    for (int i = 0; i < detail::kFitArcSamples; ++i) {
+      const double u = -config.refiner.refine_arc_span + 2.0 * config.refiner.refine_arc_span * i / (detail::kFitArcSamples - 1.0);
       const double a = base + solver::kPi + u * half;
       solver::Vec2 p;
       solver::Vec2 normal;
@@ -584,7 +581,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     if ((summary.smeared || unsmeared_read) && config_.refiner.refine_streak && !streak_tried) {
       streak_tried = true;
       const double min_px = summary.smeared ? config_.refiner.refine_streak_min_px : config_.refiner.refine_streak_unsmeared_min_px;
-      if (!read_streak(image, config_, camera, model, f, streak_px) || !(streak_px.norm() >= min_px)) {
+      if (!detail::read_streak(image, config_, camera, model, f, streak_px) || !(streak_px.norm() >= min_px)) {
         streak_px = solver::Vec2::Zero();
       }
     }
@@ -608,7 +605,7 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     const bool arcs_hold = boundaries >= 2 ||
                            (boundaries == 1 && silhouette.plain >= config_.refiner.refine_one_boundary_min_silhouette);
     if (!coarse_it && !arcs_hold && !widen_arcs &&
-        streak_for_arc_retry(image, config_, camera, model, f, streak_px)) {
+        detail::streak_for_arc_retry(image, config_, camera, model, f, streak_px)) {
       streak_tried = true;
       widen_arcs = true;
       ++iterations;  // the same pose read again, once per fit: at most kMaxFitIterations + 1

@@ -20,7 +20,6 @@ namespace {
 using detail::Rgb;
 using detail::sample;
 using detail::to_byte;
-using detail::median_of;
 using detail::tukey_cut_px;
 using detail::Refiner;
 using detail::ceil_within;
@@ -80,7 +79,7 @@ double shaft_neutral_chroma(const ImageView& image) noexcept {
   if (n == 0) {
     return kShaftNeutralChroma;
   }
-  return std::min(kShaftNeutralChroma, std::max(kShaftNeutralFloor, kShaftNeutralShare * median_of(chroma.data(), n)));
+  return std::min(kShaftNeutralChroma, std::max(kShaftNeutralFloor, kShaftNeutralShare * detail::median_of(chroma.data(), n)));
 }
 
 // The shaft's cross-section along the line from its model limb point a
