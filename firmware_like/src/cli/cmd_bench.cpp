@@ -9,7 +9,7 @@
 //      blocks, |send - deadline| against |wake - deadline|.
 // With --soak N, instead of both: N cycles of the throughput run's loop after
 // a warm-up pass, checked (exit 1 when a check fails): no heap allocation, no
-// growth of the heap, no doubling of the median cycle time, and the same TCP
+// growth of the heap, no doubling of the CPU time per cycle, and the same TCP
 // and JOINTS payloads on every pass over the dataset.
 #include <cmath>
 #include <cstdio>
