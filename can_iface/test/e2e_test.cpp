@@ -57,7 +57,10 @@ TEST(E2eReceiver, TimeoutCountedOnceAndDropsReference) {
   EXPECT_EQ(rx.freshness(1101).error(), CanError::kStale);
   EXPECT_EQ(rx.freshness(1200).error(), CanError::kStale);
   EXPECT_EQ(rx.counters().timeouts, 1U);
-  // Any counter restarts a stale stream.
+  // The counter it stopped at does not restart it (a frozen or replayed
+  // frame); any other counter does.
+  EXPECT_EQ(rx.check_counter(3, 1250).error(), CanError::kCounterRepeated);
+  EXPECT_EQ(rx.freshness(1250).error(), CanError::kStale);
   EXPECT_TRUE(rx.check_counter(9, 1300).ok());
   EXPECT_TRUE(rx.freshness(1300).ok());
 }

@@ -193,7 +193,13 @@ Status<PortError> CanNodePort::publish(const Publication& p, std::int64_t& laten
   return flush(now);
 }
 
-Status<PortError> CanNodePort::housekeeping(std::int64_t now_ns) noexcept { return flush(now_ns); }
+Status<PortError> CanNodePort::housekeeping(std::int64_t now_ns) noexcept {
+  // Once per cycle (the loop's housekeeping step): kernel drops, error
+  // passive and a bus-off recovery become faults 9-11, sent by this flush.
+  // update() fails only for a fault outside the table, which it never names.
+  static_cast<void>(monitor_.update(bus_, node_));
+  return flush(now_ns);
+}
 
 Status<PortError> CanNodePort::flush(std::int64_t now_ns) noexcept {
   set_bus_time(now_ns);

@@ -247,7 +247,7 @@ CycleOutcome Executive::run_cycle() noexcept {
     // frame and delay it by one frame (measured on vcan: docs/loop.md).
     // It is outside the cycle's timing, which decided the overrun: one
     // frame, on a run's first and last cycle only.
-    flush_node(clock.now_ns(), 3U);
+    flush_node(clock.now_ns());
   }
   if (camera_cycle()) {
     ++s.status[static_cast<std::size_t>(record_.publication.status)];
@@ -300,10 +300,8 @@ void Executive::step_publish(std::int64_t trigger_ns) noexcept {
   const auto sent = node.publish(p, latency_ns);
   if (!sent.ok()) {
     ++stats_->publish_errors;
-    if (sent.error() == PortError::kBusDown && !bus_lost_) {
-      bus_lost_ = true;
-      ++stats_->bus_lost_events;
-      node.set_fault(Fault::kCanTxDropped, true, 0U);
+    if (sent.error() == PortError::kBusDown) {
+      on_bus_lost();
     }
     return;
   }
@@ -321,10 +319,8 @@ bool Executive::step_acquire() noexcept {
   NodePort& node = *parts_.node;
   hal::Clock& clock = *parts_.clock;
   const auto received = node.receive(clock.now_ns());
-  if (!received.ok() && received.error() == PortError::kBusDown && !bus_lost_) {
-    bus_lost_ = true;
-    ++stats_->bus_lost_events;
-    node.set_fault(Fault::kCanTxDropped, true, 1U);
+  if (!received.ok() && received.error() == PortError::kBusDown) {
+    on_bus_lost();
   }
   if (node.take_reset()) {
     ++stats_->resets;
@@ -338,7 +334,7 @@ bool Executive::step_acquire() noexcept {
       node.set_fault(Fault::kCameraTimeout, true, ms_without_frame(clock.now_ns()));
     }
     if (bus_lost_) {
-      node.set_fault(Fault::kCanTxDropped, true, 0U);
+      node.set_fault(Fault::kCanTxDropped, true, take_new_drops());
     }
     overrun_reported_ = false;
     frame_error_reported_ = false;
@@ -505,21 +501,42 @@ void Executive::make_publication() noexcept {
   }
 }
 
-void Executive::flush_node(std::int64_t now_ns, std::uint32_t where) noexcept {
-  NodePort& node = *parts_.node;
-  const auto kept = node.housekeeping(now_ns);
-  if (!kept.ok() && kept.error() == PortError::kBusDown && !bus_lost_) {
-    bus_lost_ = true;
-    ++stats_->bus_lost_events;
-    node.set_fault(Fault::kCanTxDropped, true, where);
+void Executive::flush_node(std::int64_t now_ns) noexcept {
+  const auto kept = parts_.node->housekeeping(now_ns);
+  if (!kept.ok() && kept.error() == PortError::kBusDown) {
+    on_bus_lost();
   }
+}
+
+void Executive::on_bus_lost() noexcept {
+  if (bus_lost_) {
+    return;
+  }
+  bus_lost_ = true;
+  ++stats_->bus_lost_events;
+  // Held until the bus is back: its EMCY gets out only if the bus still
+  // carries some frames; after an outage the controllers see its reset.
+  parts_.node->set_fault(Fault::kCanTxDropped, true, take_new_drops());
+}
+
+std::uint32_t Executive::take_new_drops() noexcept {
+  const std::uint64_t dropped = parts_.node->frames_dropped();
+  const std::uint64_t fresh = dropped >= drops_seen_ ? dropped - drops_seen_ : 0U;
+  drops_seen_ = dropped;
+  return fresh > 0xFFFFFFFFU ? 0xFFFFFFFFU : static_cast<std::uint32_t>(fresh);
 }
 
 void Executive::step_housekeeping() noexcept {
   NodePort& node = *parts_.node;
   hal::Clock& clock = *parts_.clock;
   const std::int64_t now = clock.now_ns();
-  flush_node(now, 2U);
+  flush_node(now);
+  if (!bus_lost_) {
+    // Frames dropped on a full transmit queue: fault 12 for the cycles that
+    // dropped some (detail: how many), reset by the next cycle that dropped none.
+    const std::uint32_t dropped = take_new_drops();
+    node.set_fault(Fault::kCanTxDropped, dropped > 0U, dropped);
+  }
   if ((camera_lost_ || bus_lost_) && now >= next_retry_ns_) {
     next_retry_ns_ = now + ms_to_ns(config_.loop.retry_ms);
     if (camera_lost_ && parts_.source->reopen().ok()) {
@@ -532,6 +549,7 @@ void Executive::step_housekeeping() noexcept {
     if (bus_lost_ && node.recover().ok()) {
       bus_lost_ = false;
       ++stats_->bus_recoveries;
+      static_cast<void>(take_new_drops());  // the outage's drops were its EMCY's; the count starts again
       node.set_fault(Fault::kCanTxDropped, false, 0U);
     }
   }

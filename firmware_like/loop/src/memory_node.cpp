@@ -62,6 +62,10 @@ Status<PortError> MemoryNode::publish(const Publication& publication, std::int64
   if (mode_ != NodeMode::kOperational) {
     return Status<PortError>::failure(PortError::kNotAllowed);
   }
+  if (tx_full_) {
+    dropped_ += 4U;  // TCP, JOINTS, MECHANICAL, QUALITY
+    return Status<PortError>::failure(PortError::kBusFull);
+  }
   latency_ns = clock_.now_ns() - publication.frame_timestamp_ns;
   ring_[published_ % kRing] = publication;
   ++published_;
@@ -78,6 +82,11 @@ Status<PortError> MemoryNode::housekeeping(std::int64_t now_ns) noexcept {
     return Status<PortError>::failure(PortError::kBusDown);
   }
   if (now_ns >= next_heartbeat_ns_) {
+    if (tx_full_) {
+      ++dropped_;
+      next_heartbeat_ns_ = now_ns + heartbeat_ns_;
+      return Status<PortError>::failure(PortError::kBusFull);
+    }
     ++heartbeats_;
     next_heartbeat_ns_ = now_ns + heartbeat_ns_;
   }

@@ -458,6 +458,27 @@ TEST(Executive, LostBusDegradesAndRecoversByItself) {
   EXPECT_FALSE(rig.node.fault_active(Fault::kCanTxDropped));
 }
 
+// Frames dropped on a full transmit queue: fault 12 in the cycles that
+// dropped some, its detail how many; not a lost bus; reset by the first
+// cycle that dropped none.
+// Verifies: REQ-LOOP-019
+TEST(Executive, FramesDroppedOnAFullQueueAreFault12ForTheCyclesThatDroppedThem) {
+  Rig rig(100U);
+  ASSERT_TRUE(run_cycles(*rig.loop, 5));
+  rig.node.set_tx_full(true);
+  ASSERT_TRUE(run_cycles(*rig.loop, 1));
+  EXPECT_TRUE(rig.node.fault_active(Fault::kCanTxDropped));
+  EXPECT_GE(rig.node.fault_detail(Fault::kCanTxDropped), 4U);  // the cycle's four PDOs at least
+  EXPECT_FALSE(rig.loop->last().bus_lost);
+  ASSERT_TRUE(run_cycles(*rig.loop, 3));
+  EXPECT_TRUE(rig.node.fault_active(Fault::kCanTxDropped));
+  rig.node.set_tx_full(false);
+  ASSERT_TRUE(run_cycles(*rig.loop, 1));
+  EXPECT_FALSE(rig.node.fault_active(Fault::kCanTxDropped));
+  EXPECT_EQ(rig.loop->stats().bus_lost_events, 0U);
+  EXPECT_EQ(rig.loop->stats().publish_errors, 4U);
+}
+
 // A pipeline whose model-guided rounds degrade the valid solve, as
 // vision's do when its image fit contradicts it at the TCP
 // (loop.max_valid_tcp_disagreement_mm).

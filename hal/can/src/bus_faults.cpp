@@ -20,15 +20,12 @@ Status<can::CanError> BusFaultMonitor::update(const CanBus& bus, can::Node& node
   const CanBusStats& stats = bus.stats();
   if (!have_reference_) {
     have_reference_ = true;
-    tx_dropped_ = stats.tx_dropped;
     restarts_ = stats.restarts;
     kernel_dropped_ = stats.rx_kernel_dropped;
     return ok_status<can::CanError>();
   }
-  const std::uint64_t tx_dropped = delta(stats.tx_dropped, tx_dropped_);
   const std::uint64_t restarts = delta(stats.restarts, restarts_);
   const std::uint64_t kernel_dropped = delta(stats.rx_kernel_dropped, kernel_dropped_);
-  tx_dropped_ = stats.tx_dropped;
   restarts_ = stats.restarts;
   kernel_dropped_ = stats.rx_kernel_dropped;
 
@@ -37,15 +34,11 @@ Status<can::CanError> BusFaultMonitor::update(const CanBus& bus, can::Node& node
       node.set_fault(can::Fault::kCanErrorPassive, bus.state() == BusState::kErrorPassive, 0U);
   const Status<can::CanError> recovered =
       node.set_fault(can::Fault::kCanBusOffRecovered, restarts > 0U, clamp_u32(stats.bus_off));
-  const Status<can::CanError> dropped = node.set_fault(can::Fault::kCanTxDropped, tx_dropped > 0U, clamp_u32(tx_dropped));
   if (result.ok() && !passive.ok()) {
     result = passive;
   }
   if (result.ok() && !recovered.ok()) {
     result = recovered;
-  }
-  if (result.ok() && !dropped.ok()) {
-    result = dropped;
   }
   return result;
 }

@@ -48,7 +48,8 @@ struct E2eCounters {
 };
 
 // Sequence check on the receiving side. The first message after a reset (or
-// after the stream went stale) is accepted without a sequence reference;
+// after the stream went stale, unless it repeats the last accepted counter:
+// a frozen or replayed frame) is accepted without a sequence reference;
 // after that a message is accepted when its counter moved forward by
 // 1..max_counter_step (modulo 15). A repeated counter is ignored; a jump
 // (backwards or too far) is ignored and becomes the new reference, so the

@@ -2,7 +2,8 @@
 // heartbeat, EMCY, PDO encoding) on a hal/can bus (SocketCAN or the simulated
 // bus), with every frame sent or received also written to a candump-format
 // log when one is given. Per cycle (can_iface/README.md): receive the bus
-// into Node::receive, Node::publish the estimate, Node::collect and send.
+// into Node::receive, Node::publish the estimate, Node::collect and send;
+// at housekeeping the bus's health into faults 9-11 (BusFaultMonitor).
 #pragma once
 
 #include <array>
@@ -10,6 +11,7 @@
 
 #include "tcpest/can_iface/node.hpp"
 #include "tcpest/hal/can/bus.hpp"
+#include "tcpest/hal/can/bus_faults.hpp"
 #include "tcpest/hal/can/candump_log.hpp"
 #include "tcpest/hal/can/sim_bus.hpp"
 #include "tcpest/hal/can/socketcan_bus.hpp"
@@ -63,6 +65,7 @@ class CanNodePort final : public NodePort {
   Status<PortError> housekeeping(std::int64_t now_ns) noexcept override;
   void set_fault(Fault fault, bool active, std::uint32_t detail) noexcept override;
   Status<PortError> recover() noexcept override;
+  std::uint64_t frames_dropped() const noexcept override { return send_errors_; }
 
   const can::Node& node() const noexcept { return node_; }
   std::uint64_t frames_sent() const noexcept { return frames_sent_; }
@@ -82,6 +85,7 @@ class CanNodePort final : public NodePort {
   char log_interface_[16] = {};
   std::int64_t wall_offset_ns_ = 0;  // CLOCK_REALTIME - loop clock, fixed at construction
   can::Node node_{};
+  hal::BusFaultMonitor monitor_{};
   can::TxBatch batch_{};
   std::array<hal::ReceivedFrame, can::kMaxRxPerCycle> rx_{};
   std::array<can::Frame, can::kMaxRxPerCycle> rx_frames_{};

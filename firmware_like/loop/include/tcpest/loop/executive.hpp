@@ -165,9 +165,12 @@ class Executive {
   // clock's reading at its end.
   std::int64_t run_pipeline() noexcept;
   void step_housekeeping() noexcept;
-  // Heartbeat and EMCY out now (the node's housekeeping); `where` is the
-  // bus-lost EMCY's detail (1 receive, 2 housekeeping, 3 after the cycle).
-  void flush_node(std::int64_t now_ns, std::uint32_t where) noexcept;
+  // Heartbeat and EMCY out now (the node's housekeeping).
+  void flush_node(std::int64_t now_ns) noexcept;
+  // The node's sends or receives found the bus down or gone: bus lost.
+  void on_bus_lost() noexcept;
+  // Frames the node dropped since the last call (fault 12's detail).
+  std::uint32_t take_new_drops() noexcept;
   void choose_prior(std::int64_t now_ns) noexcept;
   void make_publication() noexcept;
   void on_track_dropped() noexcept;
@@ -204,6 +207,7 @@ class Executive {
   int not_ready_run_ = 0;
   int dropped_run_ = 0;  // consecutive dropped (corrupt, truncated, wrongly sized) frames
   bool bus_lost_ = false;
+  std::uint64_t drops_seen_ = 0U;  // the node's frames_dropped() at the last take_new_drops()
   std::int64_t next_retry_ns_ = 0;
   std::int64_t last_frame_ns_ = 0;  // clock time of the last frame acquired (or of start()): camera-timeout EMCY detail
   bool overrun_reported_ = false;

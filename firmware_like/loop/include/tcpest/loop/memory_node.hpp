@@ -28,6 +28,7 @@ class MemoryNode final : public NodePort {
   Status<PortError> housekeeping(std::int64_t now_ns) noexcept override;
   void set_fault(Fault fault, bool active, std::uint32_t detail) noexcept override;
   Status<PortError> recover() noexcept override;
+  std::uint64_t frames_dropped() const noexcept override { return dropped_; }
 
   // Injection (tests).
   void inject_start() noexcept { mode_ = NodeMode::kOperational; }
@@ -37,6 +38,8 @@ class MemoryNode final : public NodePort {
   void inject_sync() noexcept { ++pending_syncs_; }
   void inject_prior(const JointPrior& prior, std::int64_t received_ns) noexcept;
   void set_bus_up(bool up) noexcept { bus_up_ = up; }
+  // A full transmit queue: publish and housekeeping drop their frames (kBusFull).
+  void set_tx_full(bool full) noexcept { tx_full_ = full; }
 
   // Observation.
   std::uint64_t published() const noexcept { return published_; }
@@ -58,6 +61,8 @@ class MemoryNode final : public NodePort {
   JointPrior prior_{};
   std::int64_t prior_ns_ = 0;
   bool bus_up_ = true;
+  bool tx_full_ = false;
+  std::uint64_t dropped_ = 0U;
   std::int64_t next_heartbeat_ns_ = 0;
   std::array<Publication, kRing> ring_{};
   std::uint64_t published_ = 0U;

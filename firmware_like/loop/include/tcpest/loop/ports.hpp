@@ -66,9 +66,12 @@ struct JointPrior {
 
 // Faults the loop reports (EMCY): one definition, the protocol's
 // (can_iface/emcy.hpp). The loop raises kCameraTimeout (no frames: device
-// gone or silent), kCanTxDropped (sends or receives fail), kCycleOverrun
+// gone or silent), kCanTxDropped (frames dropped on send:
+// in the cycles that dropped some, and while the bus is lost), kCycleOverrun
 // (once per run of overruns), kImageCorrupt (frames dropped as corrupt, once
 // per run) and kTrackingLost (the track was dropped, until re-acquired).
+// The port raises the bus's own faults (9-11: receive overrun, error
+// passive, bus-off recovered).
 using Fault = can::Fault;
 
 enum class PortError : std::uint8_t {
@@ -110,6 +113,9 @@ class NodePort {
   // After kBusDown: reopen the interface. kBusDown while it is down, gone or
   // still in bus-off.
   virtual Status<PortError> recover() noexcept = 0;
+  // Frames the port could not send since it was made (dropped, never sent
+  // late): the loop's fault 12 says how many each cycle dropped.
+  virtual std::uint64_t frames_dropped() const noexcept = 0;
 };
 
 }  // namespace loop
