@@ -24,11 +24,12 @@ tcpest_install_deps() {
 # What building and running tcpest needs.
 TCPEST_BUILD_PACKAGES=(cmake make g++ libeigen3-dev libjpeg62-turbo-dev libturbojpeg0-dev pkg-config)
 # What the tests and checks need on top (dpkg-dev and file: cpack's Debian
-# package and its dependencies; libclang-rt-14-dev: libFuzzer and the
+# package and its dependencies; gcovr: the coverage floor,
+# toolchain/coverage.sh; libclang-rt-14-dev: libFuzzer and the
 # sanitizer runtimes of clang 14, toolchain/fuzz.sh).
 TCPEST_TEST_PACKAGES=(libgtest-dev libgmock-dev libbenchmark-dev clang libclang-rt-14-dev clang-tidy cppcheck
                       can-utils user-mode-linux kmod iproute2 python3 g++-aarch64-linux-gnu
-                      dpkg-dev file)
+                      dpkg-dev file gcovr)
 # The vcan tests' qemu guest (tests/vcan/README.md), x86-64 hosts only; its
 # kernel is fetched by run-vcan.sh with apt-get download, not installed.
 if [ "$(uname -m)" = "x86_64" ]; then

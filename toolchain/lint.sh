@@ -40,7 +40,7 @@ for dir in common/include solver/include vision/include can_iface/include hal/*/
 done
 # Eigen and system headers are not analysed (missingIncludeSystem): they are
 # not ours, and parsing Eigen would take most of the CI budget.
-cppcheck --std=c++17 --language=c++ --enable=warning,performance,portability --inline-suppr \
+cppcheck -j "$(nproc)" --std=c++17 --language=c++ --enable=warning,performance,portability --inline-suppr \
   --error-exitcode=1 --quiet --suppress=missingIncludeSystem \
   --suppressions-list=toolchain/cppcheck-suppressions.txt "${includes[@]}" "${sources[@]}"
 echo "lint: clean"

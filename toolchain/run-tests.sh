@@ -3,6 +3,7 @@
 # builds (release with gcc; ASan + UBSan with clang; the fuzz targets;
 # aarch64 cross), runs the unit and integration tests, the static
 # analysers, the MISRA check (docs/coding-rules.md), the requirements trace,
+# the coverage floor of the core units (toolchain/coverage.sh),
 # a short fuzzing run (fuzz/), and the vcan tests (on the host or in a
 # guest: tests/vcan/README.md), and a short soak of the loop. Each step
 # prints its duration. `--quick` runs only the release build, its soak and
@@ -61,6 +62,9 @@ if [ "$quick" -eq 0 ]; then
   cmake --preset asan >/dev/null
   cmake --build build/asan -j"$jobs"
   ctest --preset asan -j"$jobs"
+
+  step "coverage of the core units by their tests (gcovr), floor 90 % lines, 75 % branches"
+  toolchain/coverage.sh
 
   step "fuzz targets (libFuzzer, ASan + UBSan), 30 s each over their seed corpora"
   toolchain/fuzz.sh 30

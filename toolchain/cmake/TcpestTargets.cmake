@@ -42,8 +42,10 @@ if(TCPEST_FUZZ)
                       -fno-omit-frame-pointer)
   add_link_options(-fsanitize=address,undefined)
 endif()
+# Coverage (toolchain/coverage.sh): -Og keeps line counts close to the
+# source and the image tests about ten times faster than -O0.
 if(TCPEST_COVERAGE)
-  add_compile_options(--coverage -O0 -g)
+  add_compile_options(--coverage -Og -g)
   add_link_options(--coverage)
 endif()
 
