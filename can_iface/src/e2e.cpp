@@ -21,13 +21,11 @@ Status<CanError> E2eReceiver::check_counter(std::uint8_t counter, std::int64_t n
   }
   // A stale stream loses its reference: the next message restarts it.
   static_cast<void>(freshness(now_us));  // only its side effect on the reference matters here
-  if (!have_reference_ && have_accepted_ && counter == last_counter_) {
-    // A stale stream restarts with any counter but the one it stopped at:
-    // a sender frozen on its last frame (or that frame replayed) stays refused.
-    ++counters_.repeated;
-    return Status<CanError>::failure(CanError::kCounterRepeated);
-  }
-  if (have_reference_) {
+  // Without a reference the stream restarts with any counter but the one it
+  // stopped at: a sender frozen on its last frame (or that frame replayed)
+  // stays refused as a repeat.
+  const bool stopped_at = have_accepted_ && counter == last_counter_;
+  if (have_reference_ || stopped_at) {
     const auto step =
         static_cast<std::uint8_t>((counter + kCounterModulo - last_counter_) % kCounterModulo);
     if (step == 0U) {
