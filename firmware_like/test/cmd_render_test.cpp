@@ -62,6 +62,38 @@ TEST(CmdRender, LabWritesImagesAndSidecarsDeterministically) {
   EXPECT_NE(slurp(a + "/0150.jpg"), slurp(c + "/0150.jpg"));
 }
 
+// --randomise: the same seed gives the same bytes, the sidecar holds the
+// look and the JPEG settings it was written with, the truth is the plain
+// render's; --clean excludes it.
+// Verifies: REQ-HAL-009
+TEST(CmdRender, RandomisedLooksAreDeterministicAndRecorded) {
+  const std::string a = temp_dir("render_rand_a");
+  const std::string b = temp_dir("render_rand_b");
+  const std::string plain = temp_dir("render_rand_plain");
+  for (const std::string& dir : {a, b}) {
+    ASSERT_EQ(run({"--set", "lab", "--n", "2", "--start", "40", "--seed", "6", "--randomise", "--out", dir, "--quiet"}),
+              kExitOk);
+  }
+  ASSERT_EQ(run({"--set", "lab", "--n", "2", "--start", "40", "--seed", "6", "--out", plain, "--quiet"}), kExitOk);
+  for (const char* stem : {"/0040", "/0041"}) {
+    const std::string image = slurp(a + stem + ".jpg");
+    ASSERT_GT(image.size(), 1000U);
+    EXPECT_EQ(image, slurp(b + stem + ".jpg"));
+    EXPECT_NE(image, slurp(plain + stem + ".jpg"));
+    const auto looked = render::read_sidecar_file((a + stem + ".json").c_str());
+    const auto unlooked = render::read_sidecar_file((plain + stem + ".json").c_str());
+    ASSERT_TRUE(looked.ok() && unlooked.ok());
+    EXPECT_TRUE(looked.value().has_appearance);
+    EXPECT_FALSE(unlooked.value().has_appearance);
+    EXPECT_GE(looked.value().jpeg_quality, 70);
+    EXPECT_LE(looked.value().jpeg_quality, 95);
+    for (std::size_t k = 0; k < solver::kNumCorners; ++k) {
+      EXPECT_EQ(looked.value().instrument.corners[k], unlooked.value().instrument.corners[k]) << k;
+    }
+  }
+  EXPECT_EQ(run({"--set", "lab", "--n", "1", "--randomise", "--clean", "--out", a}), kExitUsage);
+}
+
 TEST(CmdRender, SingleBehindTheCameraIsAValidImageSaidInTheSidecar) {
   const std::string dir = temp_dir("render_behind");
   ASSERT_EQ(run({"--set", "single", "--r-deg=-13.3,6.2,180,0,25,0,30", "--raw", "--out", dir}), kExitOk);

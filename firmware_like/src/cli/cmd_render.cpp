@@ -46,6 +46,10 @@ constexpr OptionSpec kOptions[] = {
     {"raw", nullptr, "write raw frames (binary PPM) instead of JPEG"},
     {"two-instruments", nullptr, "add the second instrument (right channel, nominal pose mirrored in x)"},
     {"clean", nullptr, "no noise, blur, vignetting or wet highlights (geometric checks)"},
+    {"randomise", nullptr,
+     "each image's look drawn from documented ranges: paint, gloss, tissue tint, white balance, exposure, "
+     "noise, blur, vignetting, JPEG quality and chroma subsampling (docs/rendering.md; seq: one look for the "
+     "sequence; --quality is then ignored)"},
     {"fps", "HZ", "seq: frame rate (default 25)"},
     {"supersample", "N", "samples per axis on edge pixels, 1..8 (default 4)"},
     {"contact-sheet", "FILE", "also write a contact sheet of the first 12 images (.jpg or .png)"},
@@ -155,6 +159,7 @@ struct RenderOptions {
   bool raw = false;
   bool two_instruments = false;
   bool clean = false;
+  bool randomise = false;
   bool quiet = false;
 };
 
@@ -264,6 +269,11 @@ int parse_render_options(const Args& args, RenderOptions& o) noexcept {
   o.raw = args.flag("raw");
   o.two_instruments = args.flag("two-instruments");
   o.clean = args.flag("clean");
+  o.randomise = args.flag("randomise");
+  if (o.randomise && o.clean) {
+    std::fprintf(stderr, "tcpest render: --randomise and --clean exclude each other (a clean render has no look to draw)\n");
+    return kExitUsage;
+  }
   o.quiet = args.flag("quiet");
   return kExitOk;
 }
@@ -364,6 +374,20 @@ void describe_scene(const RenderOptions& o, const SceneSources& from, int index,
       scene.r = o.single_r;
       break;
   }
+  if (o.randomise) {
+    // One look per image, one per sequence (the same camera and scene throughout).
+    const render::RandomLook look =
+        render::random_look(o.set == SetKind::Seq ? from.sequence.world_seed() : scene.seed);
+    scene.appearance = look.appearance;
+    scene.exposure = look.exposure;
+    scene.noise_sigma = look.noise_sigma;
+    scene.blur_sigma_px = look.blur_sigma_px;
+    scene.vignetting = look.vignetting;
+    sidecar_extra.has_appearance = true;
+    sidecar_extra.jpeg_quality = look.jpeg_quality;
+    static_cast<void>(std::snprintf(sidecar_extra.chroma_subsampling, sizeof sidecar_extra.chroma_subsampling, "%s",
+                                    render::to_string(look.chroma)));  // 3 characters
+  }
   if (o.two_instruments) {
     // The second instrument: its own smooth joints (seq) or a draw from
     // the working range, about the mirrored nominal pose.
@@ -394,10 +418,21 @@ int write_image(const RenderOptions& o, const RenderTools& t, int index, const S
   sidecar.prior = sidecar_extra.prior;
   sidecar.has_time = sidecar_extra.has_time;
   sidecar.time_s = sidecar_extra.time_s;
-  sidecar.jpeg_quality = o.raw ? 0 : static_cast<int>(o.quality);
+  // A randomised look brings its own JPEG quality and chroma subsampling.
+  const int quality = sidecar_extra.has_appearance ? sidecar_extra.jpeg_quality : static_cast<int>(o.quality);
+  render::ChromaSubsampling chroma = render::ChromaSubsampling::k420;
+  if (sidecar_extra.has_appearance) {
+    sidecar.has_appearance = true;
+    static_cast<void>(std::snprintf(sidecar.chroma_subsampling, sizeof sidecar.chroma_subsampling, "%s",
+                                    sidecar_extra.chroma_subsampling));  // 3 characters
+    chroma = std::strcmp(sidecar_extra.chroma_subsampling, "444") == 0   ? render::ChromaSubsampling::k444
+             : std::strcmp(sidecar_extra.chroma_subsampling, "422") == 0 ? render::ChromaSubsampling::k422
+                                                                         : render::ChromaSubsampling::k420;
+  }
+  sidecar.jpeg_quality = o.raw ? 0 : quality;
   static_cast<void>(std::snprintf(path, sizeof path, "%s.%s", stem, o.raw ? "ppm" : "jpg"));  // fits: checked above
   const auto written = o.raw ? render::write_ppm_file(t.view.view(), path)
-                             : t.encoder->write_file(t.view.view(), static_cast<int>(o.quality), path);
+                             : t.encoder->write_file(t.view.view(), quality, path, chroma);
   if (!written.ok()) {
     std::fprintf(stderr, "\ntcpest render: %s: %s\n", path, render::to_string(written.error()));
     return kExitFailure;

@@ -126,5 +126,38 @@ SequenceSample SequenceGenerator::sample(std::uint32_t frame) const noexcept {
   return out;
 }
 
+RandomLook random_look(std::uint64_t seed) noexcept {
+  Random rng(seed, 7U);  // a stream of its own: the scene's draws stay as they were
+  RandomLook look;
+  Appearance& a = look.appearance;
+  // The paint: each channel of each colour within 0.7..1.3 of ours, the
+  // whole 0.5..1.3 as bright, capped at a reflectance of 0.95.
+  const auto paint = [&rng](std::array<double, 3>& rgb) noexcept {
+    const double brightness = rng.uniform(0.5, 1.3);
+    for (double& c : rgb) {
+      c = std::min(0.95, c * brightness * rng.uniform(0.7, 1.3));
+    }
+  };
+  paint(a.blue_albedo);
+  paint(a.yellow_albedo);
+  a.stripe_gloss = rng.uniform(0.3, 2.4);
+  const double shaft = rng.uniform(0.005, 0.06);
+  a.shaft_albedo = {shaft, shaft, shaft * rng.uniform(1.0, 1.2)};
+  a.shaft_gloss = rng.uniform(0.1, 1.0);
+  const double grasper = rng.uniform(0.25, 0.6);
+  a.grasper_albedo = {grasper, grasper, grasper * rng.uniform(1.0, 1.1)};
+  a.grasper_gloss = rng.uniform(0.6, 2.5);
+  a.tissue_tint = {rng.uniform(0.8, 1.2), rng.uniform(0.7, 1.4), rng.uniform(0.7, 1.4)};
+  a.white_balance = {rng.uniform(0.8, 1.25), 1.0, rng.uniform(0.8, 1.25)};
+  look.exposure = rng.uniform(0.7, 1.4);
+  look.noise_sigma = rng.uniform(0.5, 3.0);
+  look.blur_sigma_px = rng.uniform(0.3, 1.2);
+  look.vignetting = rng.uniform(0.2, 0.6);
+  look.jpeg_quality = 70 + rng.below(26);  // 70..95
+  const int chroma = rng.below(5);          // 4:2:0 three times in five, 4:2:2 and 4:4:4 once each
+  look.chroma = chroma < 3 ? ChromaSubsampling::k420 : (chroma == 3 ? ChromaSubsampling::k422 : ChromaSubsampling::k444);
+  return look;
+}
+
 }  // namespace render
 }  // namespace tcpest

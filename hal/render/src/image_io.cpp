@@ -61,7 +61,16 @@ JpegEncoder::~JpegEncoder() {
   }
 }
 
-Status<ImageIoError> JpegEncoder::encode(const ImageView& image, int quality) noexcept {
+const char* to_string(ChromaSubsampling subsampling) noexcept {
+  switch (subsampling) {
+    case ChromaSubsampling::k420: return "420";
+    case ChromaSubsampling::k422: return "422";
+    case ChromaSubsampling::k444: return "444";
+  }
+  return "?";
+}
+
+Status<ImageIoError> JpegEncoder::encode(const ImageView& image, int quality, ChromaSubsampling subsampling) noexcept {
   if (!image.valid() || image.width > max_width_ || image.height > max_height_) {
     return Status<ImageIoError>::failure(ImageIoError::BadImage);
   }
@@ -71,8 +80,11 @@ Status<ImageIoError> JpegEncoder::encode(const ImageView& image, int quality) no
   unsigned char* out = buffer_;
   unsigned long size = capacity_;
   // TJFLAG_NOREALLOC: write into our buffer (sized by tjBufSize), never reallocate.
+  const int samp = subsampling == ChromaSubsampling::k444   ? TJSAMP_444
+                   : subsampling == ChromaSubsampling::k422 ? TJSAMP_422
+                                                            : TJSAMP_420;
   const int rc = tjCompress2(handle_, image.data, image.width, static_cast<int>(image.stride_bytes), image.height,
-                             TJPF_RGB, &out, &size, TJSAMP_420, quality, TJFLAG_NOREALLOC | TJFLAG_ACCURATEDCT);
+                             TJPF_RGB, &out, &size, samp, quality, TJFLAG_NOREALLOC | TJFLAG_ACCURATEDCT);
   if (rc != 0 || out != buffer_) {
     return Status<ImageIoError>::failure(ImageIoError::EncodeFailed);
   }
@@ -80,8 +92,9 @@ Status<ImageIoError> JpegEncoder::encode(const ImageView& image, int quality) no
   return ok_status<ImageIoError>();
 }
 
-Status<ImageIoError> JpegEncoder::write_file(const ImageView& image, int quality, const char* path) noexcept {
-  const auto encoded = encode(image, quality);
+Status<ImageIoError> JpegEncoder::write_file(const ImageView& image, int quality, const char* path,
+                                             ChromaSubsampling subsampling) noexcept {
+  const auto encoded = encode(image, quality, subsampling);
   if (!encoded.ok()) {
     return encoded;
   }

@@ -62,6 +62,7 @@ struct Rgb {
 };
 Rgb operator+(const Rgb& a, const Rgb& b) noexcept { return Rgb{a.r + b.r, a.g + b.g, a.b + b.b}; }
 Rgb operator*(const Rgb& a, double s) noexcept { return Rgb{a.r * s, a.g * s, a.b * s}; }
+Rgb per_channel(const Rgb& a, const Rgb& gain) noexcept { return Rgb{a.r * gain.r, a.g * gain.g, a.b * gain.b}; }
 Rgb mix(const Rgb& a, const Rgb& b, double t) noexcept { return a * (1.0 - t) + b * t; }
 
 // A straight tube piece: a cylinder of `radius` around p0 -> p1, cut by the
@@ -299,6 +300,8 @@ struct SceneLayout {
   bool motion_blur = false;
   double blur_dx = 0.0, blur_dy = 0.0;  // full streak, pixels
   double noise_sigma = 0.0, blur_sigma = 0.0, vignetting = 0.0;
+  Rgb tissue_tint{1.0, 1.0, 1.0};
+  std::array<double, 3> white_balance{1.0, 1.0, 1.0};
 };
 
 struct Sample {
@@ -357,6 +360,7 @@ struct Renderer::Impl {
   void build_instrument(const PoseVector& r, std::uint8_t index) noexcept;
   void bin_tiles() noexcept;
   void make_layout(const SceneSpec& scene, const GroundTruth& truth) noexcept;
+  void set_materials(const Appearance& appearance) noexcept;
   bool nearest_instrument_hit(const Vec3& origin, const Vec3& d, double tmax, Hit& hit,
                               const std::uint16_t* candidates, int candidate_count) const noexcept;
   TissueSample sample_tissue(double u, double v) const noexcept;
@@ -566,15 +570,21 @@ void Renderer::Impl::bake_textures() noexcept {
     const double shoulder = 1.0 - dmath::exp(-1.6 * x);
     tone[i] = static_cast<float>(255.0 * dmath::pow_positive(shoulder, 1.0 / 2.2));
   }
-  materials.albedo[kPartShaft] = Rgb{0.008, 0.008, 0.009};
-  materials.specular[kPartShaft] = 0.35;
-  materials.albedo[kPartGrasper] = Rgb{0.42, 0.42, 0.44};
-  materials.specular[kPartGrasper] = 1.6;
+  set_materials(Appearance{});
+}
+
+void Renderer::Impl::set_materials(const Appearance& a) noexcept {
+  materials.albedo[kPartShaft] = Rgb{a.shaft_albedo[0], a.shaft_albedo[1], a.shaft_albedo[2]};
+  materials.specular[kPartShaft] = a.shaft_gloss;
+  materials.albedo[kPartGrasper] = Rgb{a.grasper_albedo[0], a.grasper_albedo[1], a.grasper_albedo[2]};
+  materials.specular[kPartGrasper] = a.grasper_gloss;
   const auto& g = model.geometry();
+  const Rgb blue{a.blue_albedo[0], a.blue_albedo[1], a.blue_albedo[2]};
+  const Rgb yellow{a.yellow_albedo[0], a.yellow_albedo[1], a.yellow_albedo[2]};
   for (int m = 0; m < kNumMarkers; ++m) {
-    const bool blue = g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue;
-    materials.albedo[kPartStripe0 + m] = blue ? Rgb{0.012, 0.06, 0.36} : Rgb{0.62, 0.50, 0.04};
-    materials.specular[kPartStripe0 + m] = 1.2;
+    const bool is_blue = g.marker_colors[static_cast<std::size_t>(m)] == solver::MarkerColor::Blue;
+    materials.albedo[kPartStripe0 + m] = is_blue ? blue : yellow;
+    materials.specular[kPartStripe0 + m] = a.stripe_gloss;
   }
 }
 
@@ -801,7 +811,7 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueS
   Rgb albedo{0.64 * (1.0 + 0.2 * cv), 0.17 * (1.0 + 0.35 * cv), 0.12 * (1.0 + 0.3 * cv)};
   albedo = mix(albedo, Rgb{0.70, 0.42, 0.24}, 0.55 * t.fat);
   const double vessel = t.vessel;
-  albedo = mix(albedo, Rgb{0.30, 0.025, 0.04}, 0.75 * vessel);
+  albedo = per_channel(mix(albedo, Rgb{0.30, 0.025, 0.04}, 0.75 * vessel), s.tissue_tint);
   label = kLabelTissue;
   if (s.decoy) {
     const double dx = sx - s.decoy_x;
@@ -995,6 +1005,9 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   s.noise_sigma = scene.clean ? 0.0 : scene.noise_sigma;
   s.blur_sigma = scene.clean ? 0.0 : scene.blur_sigma_px;
   s.vignetting = scene.clean ? 0.0 : scene.vignetting;
+  s.tissue_tint = Rgb{scene.appearance.tissue_tint[0], scene.appearance.tissue_tint[1], scene.appearance.tissue_tint[2]};
+  s.white_balance = scene.appearance.white_balance;
+  set_materials(scene.appearance);
 
   const std::uint32_t hard = scene.hard_cases;
   Random hard_rng(world, 2U);
@@ -1231,7 +1244,8 @@ void Renderer::Impl::tone_map(const SceneSpec& scene, const float* src, const Mu
       const double vig = 1.0 - s.vignetting * rho2 * (0.6 + 0.4 * rho2);
       const std::uint64_t bits = (s.noise_sigma > 0.0) ? rng.next() : 0U;
       for (int c = 0; c < 3; ++c) {
-        const double lin = std::max(0.0, static_cast<double>(row[3 * x + c]) * vig);
+        const double lin =
+            std::max(0.0, static_cast<double>(row[3 * x + c]) * vig * s.white_balance[static_cast<std::size_t>(c)]);
         const double pos = std::min(static_cast<double>(kToneLutSize), lin * lut_scale);
         const auto idx = static_cast<int>(pos);
         const double frac = pos - idx;
@@ -1315,6 +1329,17 @@ Result<std::unique_ptr<Renderer>, RenderError> Renderer::create(const solver::Ca
   return R::success(std::move(renderer));
 }
 
+bool valid_appearance(const Appearance& a) noexcept {
+  const auto within = [](double v, double lo, double hi) noexcept { return std::isfinite(v) && v >= lo && v <= hi; };
+  bool ok = within(a.stripe_gloss, 0.0, 4.0) && within(a.shaft_gloss, 0.0, 4.0) && within(a.grasper_gloss, 0.0, 4.0);
+  for (std::size_t c = 0U; c < 3U; ++c) {
+    ok = ok && within(a.blue_albedo[c], 0.0, 1.0) && within(a.yellow_albedo[c], 0.0, 1.0) &&
+         within(a.shaft_albedo[c], 0.0, 1.0) && within(a.grasper_albedo[c], 0.0, 1.0) &&
+         within(a.tissue_tint[c], 0.25, 4.0) && within(a.white_balance[c], 0.25, 4.0);
+  }
+  return ok;
+}
+
 namespace {
 bool finite_scene(const SceneSpec& scene) noexcept {
   const double values[] = {scene.noise_sigma, scene.blur_sigma_px, scene.vignetting, scene.exposure,
@@ -1324,7 +1349,8 @@ bool finite_scene(const SceneSpec& scene) noexcept {
       return false;
     }
   }
-  return scene.r.allFinite() && (!scene.second_instrument || scene.r2.allFinite()) && scene.noise_sigma >= 0.0 &&
+  return valid_appearance(scene.appearance) && scene.r.allFinite() &&
+         (!scene.second_instrument || scene.r2.allFinite()) && scene.noise_sigma >= 0.0 &&
          scene.blur_sigma_px >= 0.0 && scene.blur_sigma_px <= 3.0 && scene.vignetting >= 0.0 &&
          scene.vignetting <= 1.0 && scene.exposure > 0.0 && scene.tissue_depth_mm >= 0.0 &&
          scene.tissue_depth_mm < 1000.0;

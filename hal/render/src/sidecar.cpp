@@ -332,6 +332,56 @@ const char* parse_frame_keys(const Reader& rd, std::size_t root, Sidecar& s, con
   return nullptr;
 }
 
+// render.appearance and render.chroma_subsampling (written by `tcpest
+// render --randomise`); absent: the default look. Returns nullptr on
+// success, else the failing field name.
+const char* parse_appearance(const Reader& rd, std::size_t render, Sidecar& s, const char*& message) noexcept {
+  const json::Document& doc = rd.doc();
+  const std::size_t chroma = rd.find(render, "chroma_subsampling");
+  if (chroma != json::kNone) {
+    if (!doc.string_equals(chroma, "420") && !doc.string_equals(chroma, "422") && !doc.string_equals(chroma, "444")) {
+      message = "expected \"420\", \"422\" or \"444\"";
+      return "render.chroma_subsampling";
+    }
+    static_cast<void>(doc.string(chroma, s.chroma_subsampling, sizeof s.chroma_subsampling));  // 3 chars: fits
+  }
+  const std::size_t a = rd.find(render, "appearance");
+  if (a == json::kNone) {
+    return nullptr;
+  }
+  Appearance& ap = s.scene.appearance;
+  const char* triples[] = {"blue_albedo", "yellow_albedo", "shaft_albedo", "grasper_albedo", "tissue_tint",
+                           "white_balance"};
+  double* triple_values[] = {ap.blue_albedo.data(),    ap.yellow_albedo.data(), ap.shaft_albedo.data(),
+                             ap.grasper_albedo.data(), ap.tissue_tint.data(),   ap.white_balance.data()};
+  for (std::size_t k = 0; k < 6U; ++k) {
+    const std::size_t m = rd.find(a, triples[k]);
+    if (m != json::kNone && !rd.numbers(m, triple_values[k], 3U)) {
+      message = "expected [r, g, b]";
+      return triples[k];
+    }
+  }
+  const char* singles[] = {"stripe_gloss", "shaft_gloss", "grasper_gloss"};
+  double* single_values[] = {&ap.stripe_gloss, &ap.shaft_gloss, &ap.grasper_gloss};
+  for (std::size_t k = 0; k < 3U; ++k) {
+    const std::size_t m = rd.find(a, singles[k]);
+    if (m != json::kNone) {
+      const auto v = doc.number(m);
+      if (!v.ok()) {
+        message = "expected a number";
+        return singles[k];
+      }
+      *single_values[k] = v.value();
+    }
+  }
+  if (!valid_appearance(ap)) {
+    message = "outside what a render can show (docs/dataset-format.md)";
+    return "render.appearance";
+  }
+  s.has_appearance = true;
+  return nullptr;
+}
+
 // The "render" object's keys (a missing or non-object "render" leaves them).
 // Returns nullptr on success, else the failing field name (message in `message`).
 const char* parse_render_keys(const Reader& rd, std::size_t root, Sidecar& s, const char*& message) noexcept {
@@ -378,7 +428,7 @@ const char* parse_render_keys(const Reader& rd, std::size_t root, Sidecar& s, co
   }
   const std::size_t c = rd.find(i, "clean");
   s.scene.clean = c != json::kNone && doc.type(c) == json::TokenType::True;
-  return nullptr;
+  return parse_appearance(rd, i, s, message);
 }
 
 }  // namespace
@@ -444,6 +494,22 @@ std::size_t format_sidecar(const Sidecar& s, char* out, std::size_t capacity) no
     if (s.has_motion_blur) {
       w.add(", \"motion_blur_px\": ");
       add_numbers(w, s.motion_blur_px.data(), 2);
+    }
+    if (s.has_appearance) {
+      const Appearance& a = s.scene.appearance;
+      w.add(",\n    \"chroma_subsampling\": \"%s\", \"appearance\": {\"blue_albedo\": ", s.chroma_subsampling);
+      add_numbers(w, a.blue_albedo.data(), 3);
+      w.add(", \"yellow_albedo\": ");
+      add_numbers(w, a.yellow_albedo.data(), 3);
+      w.add(", \"stripe_gloss\": %.6g, \"shaft_albedo\": ", a.stripe_gloss);
+      add_numbers(w, a.shaft_albedo.data(), 3);
+      w.add(", \"shaft_gloss\": %.6g, \"grasper_albedo\": ", a.shaft_gloss);
+      add_numbers(w, a.grasper_albedo.data(), 3);
+      w.add(", \"grasper_gloss\": %.6g, \"tissue_tint\": ", a.grasper_gloss);
+      add_numbers(w, a.tissue_tint.data(), 3);
+      w.add(", \"white_balance\": ");
+      add_numbers(w, a.white_balance.data(), 3);
+      w.add("}");
     }
     w.add("}");
   }

@@ -68,6 +68,42 @@ TEST(HardCases, OneToThreeDistinctCasesPerImage) {
   EXPECT_GT(counts[3], 0);
 }
 
+// The randomised look: the same seed gives the same look, every look can
+// be rendered, its numbers stay within docs/rendering.md's ranges, and over
+// many seeds every chroma subsampling is drawn.
+// Verifies: REQ-HAL-009
+TEST(RandomLook, DeterministicWithinItsRangesAndVaried) {
+  std::array<int, 3> chroma{};
+  double min_quality = 100.0;
+  double max_quality = 0.0;
+  for (std::uint64_t seed = 1U; seed <= 300U; ++seed) {
+    const RandomLook a = random_look(seed);
+    const RandomLook b = random_look(seed);
+    EXPECT_EQ(a.appearance.blue_albedo, b.appearance.blue_albedo);
+    EXPECT_EQ(a.appearance.white_balance, b.appearance.white_balance);
+    EXPECT_EQ(a.jpeg_quality, b.jpeg_quality);
+    EXPECT_TRUE(valid_appearance(a.appearance)) << seed;
+    EXPECT_GE(a.exposure, 0.7);
+    EXPECT_LE(a.exposure, 1.4);
+    EXPECT_GE(a.noise_sigma, 0.5);
+    EXPECT_LE(a.noise_sigma, 3.0);
+    EXPECT_GE(a.blur_sigma_px, 0.3);
+    EXPECT_LE(a.blur_sigma_px, 1.2);
+    EXPECT_GE(a.vignetting, 0.2);
+    EXPECT_LE(a.vignetting, 0.6);
+    min_quality = std::min(min_quality, static_cast<double>(a.jpeg_quality));
+    max_quality = std::max(max_quality, static_cast<double>(a.jpeg_quality));
+    ++chroma[static_cast<std::size_t>(a.chroma)];
+  }
+  EXPECT_GE(min_quality, 70.0);
+  EXPECT_LE(max_quality, 95.0);
+  EXPECT_GT(max_quality - min_quality, 20.0);
+  for (const int count : chroma) {
+    EXPECT_GT(count, 30);
+  }
+  EXPECT_NE(random_look(1U).appearance.yellow_albedo, random_look(2U).appearance.yellow_albedo);
+}
+
 TEST(Sequence, SmoothInRangeAndRandomAccess) {
   const solver::InstrumentGeometry g;
   const SequenceGenerator seq(g, 3U, 25.0);

@@ -72,6 +72,38 @@ TEST_F(RendererTest, SameSeedGivesByteIdenticalImages) {
   EXPECT_EQ(a.pixels, c.pixels);
 }
 
+// A look (Appearance) changes how the frame looks, never what it shows:
+// the same ground truth, other pixels; the default look is the renderer's
+// own; a look outside what a render can show is refused.
+// Verifies: REQ-HAL-009
+TEST_F(RendererTest, ALookChangesThePixelsNotTheTruth) {
+  test::Frame plain(720, 576);
+  test::Frame looked(720, 576);
+  SceneSpec scene;
+  scene.r = nominal(25.0, 20.0, 50.0);
+  scene.seed = 11U;
+  GroundTruth plain_truth;
+  ASSERT_TRUE(renderer_->render(scene, plain.view, plain_truth).ok());
+  SceneSpec other = scene;
+  other.appearance = random_look(5U).appearance;
+  GroundTruth looked_truth;
+  ASSERT_TRUE(renderer_->render(other, looked.view, looked_truth).ok());
+  EXPECT_NE(plain.pixels, looked.pixels);
+  for (std::size_t k = 0; k < solver::kNumCorners; ++k) {
+    EXPECT_EQ(plain_truth.instruments[0].corners[k], looked_truth.instruments[0].corners[k]) << k;
+    EXPECT_EQ(plain_truth.instruments[0].visible[k], looked_truth.instruments[0].visible[k]) << k;
+  }
+  // Back to the default look: the renderer keeps no look of the last frame.
+  ASSERT_TRUE(renderer_->render(scene, looked.view, looked_truth).ok());
+  EXPECT_EQ(plain.pixels, looked.pixels);
+  SceneSpec bad = scene;
+  bad.appearance.white_balance[0] = 0.0;
+  EXPECT_EQ(renderer_->render(bad, looked.view, looked_truth).error(), RenderError::BadScene);
+  bad = scene;
+  bad.appearance.blue_albedo[2] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(renderer_->render(bad, looked.view, looked_truth).error(), RenderError::BadScene);
+}
+
 TEST_F(RendererTest, AFixedWorldSeedKeepsTheSceneOnlyTheNoiseChanges) {
   test::Frame a(720, 576);
   test::Frame b(720, 576);

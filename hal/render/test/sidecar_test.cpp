@@ -8,6 +8,7 @@
 #include <string>
 
 #include "render_test_support.hpp"
+#include "tcpest/render/dataset.hpp"
 #include "tcpest/test/mutate.hpp"
 
 namespace tcpest {
@@ -83,6 +84,41 @@ TEST(Sidecar, RoundTripKeepsEveryField) {
       expect_same_instrument(s.second, p.second);
     }
   }
+}
+
+// A randomised look's appearance and chroma subsampling are written and
+// read back; a sidecar without them is the default look.
+// Verifies: REQ-HAL-009
+TEST(Sidecar, ARandomisedLookRoundTrips) {
+  Sidecar s = rendered_sidecar(false);
+  char text[kSidecarMaxBytes];
+  std::size_t n = format_sidecar(s, text, sizeof text);
+  auto parsed = parse_sidecar(text, n, "mem.json");
+  ASSERT_TRUE(parsed.ok());
+  EXPECT_FALSE(parsed.value().has_appearance);
+  EXPECT_STREQ(parsed.value().chroma_subsampling, "420");
+  s.has_appearance = true;
+  s.scene.appearance = random_look(3U).appearance;
+  std::snprintf(s.chroma_subsampling, sizeof s.chroma_subsampling, "444");
+  n = format_sidecar(s, text, sizeof text);
+  ASSERT_GT(n, 0U);
+  parsed = parse_sidecar(text, n, "mem.json");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message << " " << parsed.error().field;
+  const Appearance& a = parsed.value().scene.appearance;
+  EXPECT_TRUE(parsed.value().has_appearance);
+  EXPECT_STREQ(parsed.value().chroma_subsampling, "444");
+  for (std::size_t c = 0U; c < 3U; ++c) {
+    EXPECT_NEAR(a.blue_albedo[c], s.scene.appearance.blue_albedo[c], 1e-9);
+    EXPECT_NEAR(a.white_balance[c], s.scene.appearance.white_balance[c], 1e-9);
+    EXPECT_NEAR(a.tissue_tint[c], s.scene.appearance.tissue_tint[c], 1e-9);
+  }
+  EXPECT_NEAR(a.grasper_gloss, s.scene.appearance.grasper_gloss, 1e-5);
+  // A look no render can show is named.
+  const char bad[] = R"({"corners": [null, null, null, null, null, null, null, null, null, null, null, null],
+    "render": {"appearance": {"white_balance": [9, 1, 1]}}})";
+  const auto refused = parse_sidecar(bad, sizeof bad - 1U, "bad.json");
+  ASSERT_FALSE(refused.ok());
+  EXPECT_STREQ(refused.error().field, "render.appearance");
 }
 
 TEST(Sidecar, MotionBlurStreakIsWrittenOnlyWithTheBlur) {

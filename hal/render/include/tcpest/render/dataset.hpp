@@ -7,6 +7,8 @@
 #include <array>
 #include <cstdint>
 
+#include "tcpest/render/image_io.hpp"
+#include "tcpest/render/renderer.hpp"
 #include "tcpest/solver/instrument.hpp"
 #include "tcpest/solver/types.hpp"
 
@@ -83,6 +85,21 @@ class SequenceGenerator {
   std::array<std::array<Wave, 2>, 4> play_{};         // x_ch, y_ch, psi, mu
   std::array<std::array<Wave, 2>, 3> bias_{};         // encoder bias
 };
+
+// A randomised look (`tcpest render --randomise`): what one frame's
+// instrument paint, tissue, light, sensor, optics and JPEG look like, drawn
+// from `seed` over the ranges of docs/rendering.md ("Randomised
+// appearance"), so that a set does not reward what one look alone shows.
+struct RandomLook {
+  Appearance appearance{};
+  double exposure = 1.0;
+  double noise_sigma = 1.5;
+  double blur_sigma_px = 0.5;
+  double vignetting = 0.45;
+  int jpeg_quality = 92;
+  ChromaSubsampling chroma = ChromaSubsampling::k420;
+};
+RandomLook random_look(std::uint64_t seed) noexcept;
 
 }  // namespace render
 }  // namespace tcpest

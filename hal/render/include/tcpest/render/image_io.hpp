@@ -23,6 +23,10 @@ enum class ImageIoError : std::uint8_t {
 };
 const char* to_string(ImageIoError e) noexcept;
 
+// The JPEG's chroma subsampling: 4:2:0 (the default, most cameras'), 4:2:2, 4:4:4.
+enum class ChromaSubsampling : std::uint8_t { k420, k422, k444 };
+const char* to_string(ChromaSubsampling subsampling) noexcept;  // "420", "422", "444"
+
 class JpegEncoder {
  public:
   // For frames up to max_width x max_height.
@@ -34,11 +38,13 @@ class JpegEncoder {
   JpegEncoder& operator=(JpegEncoder&&) = delete;
 
   // Encodes (4:2:0 chroma, quality 1..100). The bytes stay valid until the next call.
-  Status<ImageIoError> encode(const ImageView& image, int quality) noexcept;
+  Status<ImageIoError> encode(const ImageView& image, int quality,
+                              ChromaSubsampling subsampling = ChromaSubsampling::k420) noexcept;
   const std::uint8_t* data() const noexcept { return buffer_; }
   std::size_t size() const noexcept { return size_; }
   // Encodes and writes to `path`.
-  Status<ImageIoError> write_file(const ImageView& image, int quality, const char* path) noexcept;
+  Status<ImageIoError> write_file(const ImageView& image, int quality, const char* path,
+                                  ChromaSubsampling subsampling = ChromaSubsampling::k420) noexcept;
 
  private:
   JpegEncoder() noexcept = default;

@@ -52,6 +52,25 @@ constexpr std::uint32_t kAllHardCases = (1U << kNumHardCases) - 1U;
 // Short names ("reflection", "occluder", "haze", "decoy", "noise", "motion_blur").
 const char* hard_case_name(int bit_index) noexcept;
 
+// How the instrument, the tissue and the sensor look: the defaults are the
+// renderer's own look (every set rendered before this existed); `tcpest
+// render --randomise` draws each frame's from documented ranges
+// (docs/rendering.md, "Randomised appearance"). Linear reflectances 0..1.
+struct Appearance {
+  std::array<double, 3> blue_albedo{0.012, 0.06, 0.36};    // RGB of the blue stripes
+  std::array<double, 3> yellow_albedo{0.62, 0.50, 0.04};   // RGB of the yellow stripes
+  double stripe_gloss = 1.2;                               // the sleeve's specular weight
+  std::array<double, 3> shaft_albedo{0.008, 0.008, 0.009};
+  double shaft_gloss = 0.35;
+  std::array<double, 3> grasper_albedo{0.42, 0.42, 0.44};
+  double grasper_gloss = 1.6;
+  std::array<double, 3> tissue_tint{1.0, 1.0, 1.0};        // multiplies the tissue's reflectance
+  std::array<double, 3> white_balance{1.0, 1.0, 1.0};      // the sensor's gain per channel
+};
+// True when every value is finite and within what a render can show
+// (reflectances 0..1, gloss 0..4, tints and gains 0.25..4).
+bool valid_appearance(const Appearance& appearance) noexcept;
+
 // What one frame shows. Everything random in the frame is drawn from `seed`.
 struct SceneSpec {
   solver::PoseVector r = solver::PoseVector::Zero();   // instrument 1 (left channel)
@@ -71,6 +90,7 @@ struct SceneSpec {
   double vignetting = 0.45;        // brightness lost at the image corner (0..1)
   double exposure = 1.0;           // multiplies the light
   double tissue_depth_mm = 0.0;    // mean tissue depth; 0 = drawn in [40, 90] from the seed
+  Appearance appearance{};
 };
 
 // Whether an instrument shows. BehindCamera: no part in front of the camera.

@@ -60,6 +60,11 @@ struct Sidecar {
   // that a reading of the streak can be checked against it.
   bool has_motion_blur = false;
   std::array<double, 2> motion_blur_px{};
+  // A randomised appearance (`tcpest render --randomise`): scene.appearance
+  // and the JPEG's chroma subsampling ("420", "422", "444") are written with
+  // the render settings, and read back when given.
+  bool has_appearance = false;
+  char chroma_subsampling[4] = "420";
   bool has_second = false;
   SidecarInstrument second;
 };
