@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # The results page: the shipped configuration (the estimator's built-in
 # defaults, the same `tcpest run` uses) scored on both data sources side by
-# side -- our renderer's sets at fixed seeds and the independent frames in
-# ../shared/data/independent -- and the loop's cycle times on a sequence of
-# each. Writes OUT/results.md (default build/results); with --docs also
+# side -- our renderer's sets at fixed seeds (with its default look and with
+# randomised looks) and the independent frames in ../shared/data/independent
+# -- and the loop's cycle times on a sequence of each. Writes OUT/results.md (default build/results); with --docs also
 # docs/results.md, the committed page. A few minutes on two cores.
 #
 #   toolchain/results.sh --docs      (regenerates docs/results.md)
@@ -43,6 +43,12 @@ frames="${OWN_FRAMES:-294}"
 pal="$independent/cams/pal.yaml"
 hd="$independent/cams/hd.yaml"
 [ -d "$out/own_hd" ] || "$tcpest" render --set lab --n 60 --seed 82 --calib "$hd" --out "$out/own_hd" --quiet
+# The same poses with randomised looks (docs/rendering.md, "Randomised
+# appearance"): what our renderer's one look alone rewards shows here.
+[ -d "$out/rnd_lab" ] || "$tcpest" render --set lab --n "$frames" --seed 77 --randomise --out "$out/rnd_lab" --quiet
+[ -d "$out/rnd_hard" ] || "$tcpest" render --set hard --n "$frames" --seed 78 --randomise --out "$out/rnd_hard" --quiet
+[ -d "$out/rnd_seq" ] || "$tcpest" render --set seq --n 100 --seed 79 --randomise --out "$out/rnd_seq" --quiet
+[ -d "$out/rnd_hd" ] || "$tcpest" render --set lab --n 60 --seed 82 --randomise --calib "$hd" --out "$out/rnd_hd" --quiet
 evaluate() {  # NAME CALIB DIR [ARGS...]
   local name="$1" calib="$2" dir="$3"
   shift 3
@@ -57,7 +63,11 @@ evaluate ind_lab "$pal" "$independent/pal_lab"
 evaluate ind_hard "$pal" "$independent/pal_hard"
 evaluate ind_real "$pal" "$independent/pal_real"
 evaluate ind_seq "$pal" "$independent/pal_seq" --no-prior
+evaluate rnd_lab "" "$out/rnd_lab"
+evaluate rnd_hard "" "$out/rnd_hard"
+evaluate rnd_seq "" "$out/rnd_seq" --no-prior
 evaluate own_hd "$hd" "$out/own_hd"
+evaluate rnd_hd "$hd" "$out/rnd_hd"
 evaluate ind_hd "$hd" "$independent/hd_lab"
 
 # The loop itself on a sequence of each source (no encoders, as fast as it goes).
@@ -67,6 +77,7 @@ run() {  # NAME CALIB DIR
   "$tcpest" run "${calib_args[@]}" "${config_args[@]}" --source "$3" --bus "log:$out/run_$1.log" --no-pacing --start-operational --quiet >"$out/run_$1.txt"
 }
 run own_seq "" "$out/own_seq"
+run rnd_seq "" "$out/rnd_seq"
 run ind_seq "$pal" "$independent/pal_seq"
 
 python3 toolchain/results_table.py "$out" >"$out/results.md"
