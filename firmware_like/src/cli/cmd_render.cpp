@@ -385,8 +385,7 @@ void describe_scene(const RenderOptions& o, const SceneSources& from, int index,
     scene.vignetting = look.vignetting;
     sidecar_extra.has_appearance = true;
     sidecar_extra.jpeg_quality = look.jpeg_quality;
-    static_cast<void>(std::snprintf(sidecar_extra.chroma_subsampling, sizeof sidecar_extra.chroma_subsampling, "%s",
-                                    render::to_string(look.chroma)));  // 3 characters
+    sidecar_extra.chroma = look.chroma;
   }
   if (o.two_instruments) {
     // The second instrument: its own smooth joints (seq) or a draw from
@@ -420,19 +419,12 @@ int write_image(const RenderOptions& o, const RenderTools& t, int index, const S
   sidecar.time_s = sidecar_extra.time_s;
   // A randomised look brings its own JPEG quality and chroma subsampling.
   const int quality = sidecar_extra.has_appearance ? sidecar_extra.jpeg_quality : static_cast<int>(o.quality);
-  render::ChromaSubsampling chroma = render::ChromaSubsampling::k420;
-  if (sidecar_extra.has_appearance) {
-    sidecar.has_appearance = true;
-    static_cast<void>(std::snprintf(sidecar.chroma_subsampling, sizeof sidecar.chroma_subsampling, "%s",
-                                    sidecar_extra.chroma_subsampling));  // 3 characters
-    chroma = std::strcmp(sidecar_extra.chroma_subsampling, "444") == 0   ? render::ChromaSubsampling::k444
-             : std::strcmp(sidecar_extra.chroma_subsampling, "422") == 0 ? render::ChromaSubsampling::k422
-                                                                         : render::ChromaSubsampling::k420;
-  }
+  sidecar.has_appearance = sidecar_extra.has_appearance;
+  sidecar.chroma = sidecar_extra.chroma;
   sidecar.jpeg_quality = o.raw ? 0 : quality;
   static_cast<void>(std::snprintf(path, sizeof path, "%s.%s", stem, o.raw ? "ppm" : "jpg"));  // fits: checked above
   const auto written = o.raw ? render::write_ppm_file(t.view.view(), path)
-                             : t.encoder->write_file(t.view.view(), quality, path, chroma);
+                             : t.encoder->write_file(t.view.view(), quality, path, sidecar.chroma);
   if (!written.ok()) {
     std::fprintf(stderr, "\ntcpest render: %s: %s\n", path, render::to_string(written.error()));
     return kExitFailure;

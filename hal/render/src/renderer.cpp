@@ -570,7 +570,6 @@ void Renderer::Impl::bake_textures() noexcept {
     const double shoulder = 1.0 - dmath::exp(-1.6 * x);
     tone[i] = static_cast<float>(255.0 * dmath::pow_positive(shoulder, 1.0 / 2.2));
   }
-  set_materials(Appearance{});
 }
 
 void Renderer::Impl::set_materials(const Appearance& a) noexcept {

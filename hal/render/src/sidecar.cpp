@@ -339,11 +339,17 @@ const char* parse_appearance(const Reader& rd, std::size_t render, Sidecar& s, c
   const json::Document& doc = rd.doc();
   const std::size_t chroma = rd.find(render, "chroma_subsampling");
   if (chroma != json::kNone) {
-    if (!doc.string_equals(chroma, "420") && !doc.string_equals(chroma, "422") && !doc.string_equals(chroma, "444")) {
+    bool named = false;
+    for (const ChromaSubsampling c : {ChromaSubsampling::k420, ChromaSubsampling::k422, ChromaSubsampling::k444}) {
+      if (doc.string_equals(chroma, to_string(c))) {
+        s.chroma = c;
+        named = true;
+      }
+    }
+    if (!named) {
       message = "expected \"420\", \"422\" or \"444\"";
       return "render.chroma_subsampling";
     }
-    static_cast<void>(doc.string(chroma, s.chroma_subsampling, sizeof s.chroma_subsampling));  // 3 chars: fits
   }
   const std::size_t a = rd.find(render, "appearance");
   if (a == json::kNone) {
@@ -497,7 +503,7 @@ std::size_t format_sidecar(const Sidecar& s, char* out, std::size_t capacity) no
     }
     if (s.has_appearance) {
       const Appearance& a = s.scene.appearance;
-      w.add(",\n    \"chroma_subsampling\": \"%s\", \"appearance\": {\"blue_albedo\": ", s.chroma_subsampling);
+      w.add(",\n    \"chroma_subsampling\": \"%s\", \"appearance\": {\"blue_albedo\": ", to_string(s.chroma));
       add_numbers(w, a.blue_albedo.data(), 3);
       w.add(", \"yellow_albedo\": ");
       add_numbers(w, a.yellow_albedo.data(), 3);

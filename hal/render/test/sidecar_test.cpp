@@ -96,17 +96,17 @@ TEST(Sidecar, ARandomisedLookRoundTrips) {
   auto parsed = parse_sidecar(text, n, "mem.json");
   ASSERT_TRUE(parsed.ok());
   EXPECT_FALSE(parsed.value().has_appearance);
-  EXPECT_STREQ(parsed.value().chroma_subsampling, "420");
+  EXPECT_EQ(parsed.value().chroma, ChromaSubsampling::k420);
   s.has_appearance = true;
   s.scene.appearance = random_look(3U).appearance;
-  std::snprintf(s.chroma_subsampling, sizeof s.chroma_subsampling, "444");
+  s.chroma = ChromaSubsampling::k444;
   n = format_sidecar(s, text, sizeof text);
   ASSERT_GT(n, 0U);
   parsed = parse_sidecar(text, n, "mem.json");
   ASSERT_TRUE(parsed.ok()) << parsed.error().message << " " << parsed.error().field;
   const Appearance& a = parsed.value().scene.appearance;
   EXPECT_TRUE(parsed.value().has_appearance);
-  EXPECT_STREQ(parsed.value().chroma_subsampling, "444");
+  EXPECT_EQ(parsed.value().chroma, ChromaSubsampling::k444);
   for (std::size_t c = 0U; c < 3U; ++c) {
     EXPECT_NEAR(a.blue_albedo[c], s.scene.appearance.blue_albedo[c], 1e-9);
     EXPECT_NEAR(a.white_balance[c], s.scene.appearance.white_balance[c], 1e-9);

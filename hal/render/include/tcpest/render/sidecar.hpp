@@ -12,6 +12,7 @@
 
 #include "tcpest/common/diagnostic.hpp"
 #include "tcpest/common/result.hpp"
+#include "tcpest/render/image_io.hpp"
 #include "tcpest/render/renderer.hpp"
 #include "tcpest/solver/types.hpp"
 
@@ -61,10 +62,10 @@ struct Sidecar {
   bool has_motion_blur = false;
   std::array<double, 2> motion_blur_px{};
   // A randomised appearance (`tcpest render --randomise`): scene.appearance
-  // and the JPEG's chroma subsampling ("420", "422", "444") are written with
-  // the render settings, and read back when given.
+  // and the JPEG's chroma subsampling are written with the render settings,
+  // and read back when given.
   bool has_appearance = false;
-  char chroma_subsampling[4] = "420";
+  ChromaSubsampling chroma = ChromaSubsampling::k420;
   bool has_second = false;
   SidecarInstrument second;
 };
