@@ -64,7 +64,8 @@ TEST(CmdRender, LabWritesImagesAndSidecarsDeterministically) {
 
 // --randomise: the same seed gives the same bytes, the sidecar holds the
 // look and the JPEG settings it was written with, the truth is the plain
-// render's; --clean excludes it.
+// render's, the images of a set share one build (radii, lamp) but not one
+// look; --clean excludes it.
 // Verifies: REQ-HAL-009
 TEST(CmdRender, RandomisedLooksAreDeterministicAndRecorded) {
   const std::string a = temp_dir("render_rand_a");
@@ -91,6 +92,15 @@ TEST(CmdRender, RandomisedLooksAreDeterministicAndRecorded) {
       EXPECT_EQ(looked.value().instrument.corners[k], unlooked.value().instrument.corners[k]) << k;
     }
   }
+  const auto first = render::read_sidecar_file((a + "/0040.json").c_str());
+  const auto second = render::read_sidecar_file((a + "/0041.json").c_str());
+  ASSERT_TRUE(first.ok() && second.ok());
+  const render::Appearance& one = first.value().scene.appearance;
+  const render::Appearance& two = second.value().scene.appearance;
+  EXPECT_NE(one.blue_albedo, two.blue_albedo);
+  EXPECT_EQ(one.shaft_radius_scale, two.shaft_radius_scale);
+  EXPECT_EQ(one.grasper_radius_scale, two.grasper_radius_scale);
+  EXPECT_EQ(one.lamp_offset_mm, two.lamp_offset_mm);
   EXPECT_EQ(run({"--set", "lab", "--n", "1", "--randomise", "--clean", "--out", a}), kExitUsage);
 }
 

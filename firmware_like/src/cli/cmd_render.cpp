@@ -379,6 +379,7 @@ void describe_scene(const RenderOptions& o, const SceneSources& from, int index,
     const render::RandomLook look =
         render::random_look(o.set == SetKind::Seq ? from.sequence.world_seed() : scene.seed);
     scene.appearance = look.appearance;
+    render::random_build(o.seed, scene.appearance);  // one instrument and endoscope per set
     scene.exposure = look.exposure;
     scene.noise_sigma = look.noise_sigma;
     scene.blur_sigma_px = look.blur_sigma_px;

@@ -159,5 +159,19 @@ RandomLook random_look(std::uint64_t seed) noexcept {
   return look;
 }
 
+void random_build(std::uint64_t set_seed, Appearance& appearance) noexcept {
+  Random rng(set_seed, 8U);  // a stream of its own, as random_look's
+  // The parts the solver does not model: the shaft from 0.9 to 1.03 times
+  // model.md's default (at most the tube's 1.81 mm), the grasper from 0.85
+  // to 1.15 times.
+  appearance.shaft_radius_scale = rng.uniform(0.9, 1.03);
+  appearance.grasper_radius_scale = rng.uniform(0.85, 1.15);
+  // The lamp up to 4 mm from the lens, in any direction (light guides
+  // beside the lens of a 10 mm endoscope).
+  const double lamp_mm = rng.uniform(0.0, 4.0);
+  const double lamp_rad = rng.uniform(0.0, 6.283185307179586);
+  appearance.lamp_offset_mm = {lamp_mm * dmath::cos(lamp_rad), lamp_mm * dmath::sin(lamp_rad)};
+}
+
 }  // namespace render
 }  // namespace tcpest

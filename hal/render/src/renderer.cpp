@@ -284,6 +284,8 @@ struct SceneLayout {
   double bump_mm = 4.0;
   double tex_cos = 1.0, tex_sin = 0.0, tex_u0 = 0.0, tex_v0 = 0.0;
   double light = 1.0;         // intensity: radiance = light / d^2 * brdf
+  Vec3 lamp = Vec3::Zero();   // the lamp's position (mm, camera frame): Appearance::lamp_offset_mm
+  bool lamp_at_lens = true;
   bool clean = false;
   // Hard cases.
   bool reflection = false;
@@ -357,6 +359,9 @@ struct Renderer::Impl {
   bool allocate() noexcept;
   void build_rays() noexcept;
   void bake_textures() noexcept;
+  // The parts' radii of the scene being built (Appearance's scales applied).
+  double shaft_radius_mm = 0.0;
+  double grasper_radius_mm = 0.0;
   void build_instrument(const PoseVector& r, std::uint8_t index) noexcept;
   void bin_tiles() noexcept;
   void make_layout(const SceneSpec& scene, const GroundTruth& truth) noexcept;
@@ -366,6 +371,25 @@ struct Renderer::Impl {
   TissueSample sample_tissue(double u, double v) const noexcept;
   double tissue_depth(double x, double y) const noexcept;
   bool in_occluder(double x, double y) const noexcept;
+  // Where the lamp lies from a surface point seen along `view` (unit, to
+  // the camera; `view_dist2` the squared distance to it): the unit vector
+  // to the lamp, the half vector between it and the view, and the squared
+  // distance the falloff uses. All three are the view's when the lamp sits
+  // at the lens.
+  struct LampView {
+    Vec3 to_lamp;
+    Vec3 half;
+    double dist2;
+  };
+  LampView lamp_view(const Vec3& point, const Vec3& view, double view_dist2) const noexcept {
+    if (layout.lamp_at_lens) {
+      return LampView{view, view, view_dist2};
+    }
+    const Vec3 d = layout.lamp - point;
+    const double d2 = d.squaredNorm();
+    const Vec3 to = d / std::sqrt(d2);
+    return LampView{to, (to + view).normalized(), d2};
+  }
   Rgb shade_instrument(const Hit& hit) const noexcept;
   Rgb shade_tissue(double x, double y, double plane, const TissueSample& t, std::uint8_t& label) const noexcept;
   Rgb shade_occluder(double x, double y) const noexcept;
@@ -631,7 +655,7 @@ void Renderer::Impl::build_instrument(const PoseVector& r, std::uint8_t index) n
     for (int i = 0; i < pieces; ++i) {
       const Vec3 a = f.channel_origin + (lambda * i / pieces) * axis;
       const Vec3 b = f.channel_origin + (lambda * (i + 1) / pieces) * axis;
-      add(a, b, axis, axis, g.shaft_radius_mm, kPartShaft, 0.0, 0.0, false, i == pieces - 1);
+      add(a, b, axis, axis, shaft_radius_mm, kPartShaft, 0.0, 0.0, false, i == pieces - 1);
     }
   }
   // Bending section: chords, every marker boundary a chord end.
@@ -653,7 +677,7 @@ void Renderer::Impl::build_instrument(const PoseVector& r, std::uint8_t index) n
   // Grasper: from the end of the bending section to the TCP.
   const solver::CentrelineFrame end = model.centreline(f, g.bend_length_mm);
   const Vec3 tcp = end.position + g.tcp_offset_mm * end.tangent;
-  add(end.position, tcp, end.tangent, end.tangent, g.grasper_radius_mm, kPartGrasper, g.bend_length_mm,
+  add(end.position, tcp, end.tangent, end.tangent, grasper_radius_mm, kPartGrasper, g.bend_length_mm,
       g.bend_length_mm + g.tcp_offset_mm, false, true);
   grasper_binormal[index] = end.binormal;
   inst_count[index] = prim_count - inst_first[index];
@@ -767,7 +791,9 @@ Rgb Renderer::Impl::shade_instrument(const Hit& hit) const noexcept {
   const Primitive& p = prims[hit.prim];
   const double dist2 = hit.point.squaredNorm();
   const Vec3 view = -hit.point / std::sqrt(dist2);
-  const double cosine = std::max(0.0, dot3(hit.normal, view));
+  const LampView lamp = lamp_view(hit.point, view, dist2);
+  const double cosine = std::max(0.0, dot3(hit.normal, lamp.to_lamp));
+  const double crest = std::max(0.0, dot3(hit.normal, lamp.half));
   Rgb albedo = materials.albedo[p.part];
   double ks = materials.specular[p.part];
   if (p.part == kPartGrasper) {
@@ -782,10 +808,10 @@ Rgb Renderer::Impl::shade_instrument(const Hit& hit) const noexcept {
   }
   // Glossy sleeve: a broad lobe plus a sharp one; along the tube's crest
   // (normal towards the camera and the light) it saturates to white.
-  const double c2 = cosine * cosine;
+  const double c2 = crest * crest;
   const double c8 = c2 * c2 * c2 * c2;
-  const double spec = ks * (0.35 * c8 + pow32(cosine));
-  const double light = layout.light * falloff(dist2);
+  const double spec = ks * (0.35 * c8 + pow32(crest));
+  const double light = layout.light * falloff(lamp.dist2);
   return Rgb{light * (albedo.r * cosine + spec), light * (albedo.g * cosine + spec), light * (albedo.b * cosine + spec)};
 }
 
@@ -825,23 +851,25 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueS
       }
     }
   }
-  const double cosine = std::max(0.0, dot3(normal, view));
+  const LampView lamp = lamp_view(point, view, dist2);
+  const double cosine = std::max(0.0, dot3(normal, lamp.to_lamp));
+  const double crest = std::max(0.0, dot3(normal, lamp.half));
   Rgb c = albedo * cosine;
   double spec = 0.0;
   if (!s.clean) {
     // Wet spots: fine relief and a sharp lobe, only where the tissue is wet.
     const double wet = t.wet;
     if (wet > 0.0) {
-      // Glints where the wet film's relief faces the light (light and camera coincide).
+      // Glints where the wet film's relief mirrors the lamp into the camera.
       const Vec3 wet_normal = Vec3(gx + 2.2 * t.wet_du, gy + 2.2 * t.wet_dv, -1.0).normalized();
-      const double cw = std::max(0.0, dot3(wet_normal, view));
+      const double cw = std::max(0.0, dot3(wet_normal, lamp.half));
       const double c32 = pow32(cw);
       spec = 3.0 * wet * c32 * c32;
     }
-    spec += 0.06 * pow32(cosine);  // broad sheen of the mucosa
+    spec += 0.06 * pow32(crest);  // broad sheen of the mucosa
   }
   c = c + Rgb{spec, spec, spec};
-  const double light = s.light * falloff(dist2);
+  const double light = s.light * falloff(lamp.dist2);
   c = c * light;
   if (s.reflection && s.reflection_strength > 0.0) {
     // Mirror image on the wet film: reflect the view ray about the smooth normal.
@@ -901,7 +929,9 @@ Rgb Renderer::Impl::shade_occluder(double x, double y) const noexcept {
   const Vec3 point(x * s.occ_depth, y * s.occ_depth, s.occ_depth);
   const double dist2 = point.squaredNorm();
   const Vec3 view = -point / std::sqrt(dist2);
-  const double cosine = std::max(0.0, dot3(normal, view));
+  const LampView lamp = lamp_view(point, view, dist2);
+  const double cosine = std::max(0.0, dot3(normal, lamp.to_lamp));
+  const double crest = std::max(0.0, dot3(normal, lamp.half));
   Rgb albedo;
   double ks = 0.0;
   if (s.occ_blood) {
@@ -918,8 +948,8 @@ Rgb Renderer::Impl::shade_occluder(double x, double y) const noexcept {
   }
   // Darker towards the rim (the flap curls away from the light).
   const double rim = 1.0 - 0.6 * r2 * r2;
-  const double spec = ks * pow32(cosine);
-  const double light = s.light * falloff(dist2) * rim;
+  const double spec = ks * pow32(crest);
+  const double light = s.light * falloff(lamp.dist2) * rim;
   return Rgb{light * (albedo.r * cosine + spec), light * (albedo.g * cosine + spec), light * (albedo.b * cosine + spec)};
 }
 
@@ -1006,6 +1036,8 @@ void Renderer::Impl::make_layout(const SceneSpec& scene, const GroundTruth& trut
   s.vignetting = scene.clean ? 0.0 : scene.vignetting;
   s.tissue_tint = Rgb{scene.appearance.tissue_tint[0], scene.appearance.tissue_tint[1], scene.appearance.tissue_tint[2]};
   s.white_balance = scene.appearance.white_balance;
+  s.lamp = Vec3(scene.appearance.lamp_offset_mm[0], scene.appearance.lamp_offset_mm[1], 0.0);
+  s.lamp_at_lens = scene.appearance.lamp_offset_mm[0] == 0.0 && scene.appearance.lamp_offset_mm[1] == 0.0;
   set_materials(scene.appearance);
 
   const std::uint32_t hard = scene.hard_cases;
@@ -1336,7 +1368,8 @@ bool valid_appearance(const Appearance& a) noexcept {
          within(a.shaft_albedo[c], 0.0, 1.0) && within(a.grasper_albedo[c], 0.0, 1.0) &&
          within(a.tissue_tint[c], 0.25, 4.0) && within(a.white_balance[c], 0.25, 4.0);
   }
-  return ok;
+  return ok && within(a.shaft_radius_scale, 0.5, 1.5) && within(a.grasper_radius_scale, 0.5, 1.5) &&
+         within(a.lamp_offset_mm[0], -10.0, 10.0) && within(a.lamp_offset_mm[1], -10.0, 10.0);
 }
 
 namespace {
@@ -1363,6 +1396,9 @@ Status<RenderError> Renderer::ground_truth(const SceneSpec& scene, GroundTruth& 
   Impl& m = *impl_;
   m.prim_count = 0;
   m.inst_count[1] = 0;
+  const auto& g = m.model.geometry();
+  m.shaft_radius_mm = g.shaft_radius_mm * scene.appearance.shaft_radius_scale;
+  m.grasper_radius_mm = g.grasper_radius_mm * scene.appearance.grasper_radius_scale;
   m.build_instrument(scene.r, 0U);
   truth.instrument_count = 1;
   if (scene.second_instrument) {

@@ -356,6 +356,11 @@ const char* parse_appearance(const Reader& rd, std::size_t render, Sidecar& s, c
     return nullptr;
   }
   Appearance& ap = s.scene.appearance;
+  const std::size_t lamp = rd.find(a, "lamp_offset_mm");
+  if (lamp != json::kNone && !rd.numbers(lamp, ap.lamp_offset_mm.data(), 2U)) {
+    message = "expected [x, y]";
+    return "lamp_offset_mm";
+  }
   const char* triples[] = {"blue_albedo", "yellow_albedo", "shaft_albedo", "grasper_albedo", "tissue_tint",
                            "white_balance"};
   double* triple_values[] = {ap.blue_albedo.data(),    ap.yellow_albedo.data(), ap.shaft_albedo.data(),
@@ -367,9 +372,11 @@ const char* parse_appearance(const Reader& rd, std::size_t render, Sidecar& s, c
       return triples[k];
     }
   }
-  const char* singles[] = {"stripe_gloss", "shaft_gloss", "grasper_gloss"};
-  double* single_values[] = {&ap.stripe_gloss, &ap.shaft_gloss, &ap.grasper_gloss};
-  for (std::size_t k = 0; k < 3U; ++k) {
+  const char* singles[] = {"stripe_gloss", "shaft_gloss", "grasper_gloss", "shaft_radius_scale",
+                           "grasper_radius_scale"};
+  double* single_values[] = {&ap.stripe_gloss, &ap.shaft_gloss, &ap.grasper_gloss, &ap.shaft_radius_scale,
+                             &ap.grasper_radius_scale};
+  for (std::size_t k = 0; k < 5U; ++k) {
     const std::size_t m = rd.find(a, singles[k]);
     if (m != json::kNone) {
       const auto v = doc.number(m);
@@ -515,6 +522,9 @@ std::size_t format_sidecar(const Sidecar& s, char* out, std::size_t capacity) no
       add_numbers(w, a.tissue_tint.data(), 3);
       w.add(", \"white_balance\": ");
       add_numbers(w, a.white_balance.data(), 3);
+      w.add(", \"shaft_radius_scale\": %.6g, \"grasper_radius_scale\": %.6g, \"lamp_offset_mm\": ",
+            a.shaft_radius_scale, a.grasper_radius_scale);
+      add_numbers(w, a.lamp_offset_mm.data(), 2);
       w.add("}");
     }
     w.add("}");

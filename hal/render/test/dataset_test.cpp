@@ -91,6 +91,18 @@ TEST(RandomLook, DeterministicWithinItsRangesAndVaried) {
     EXPECT_LE(a.blur_sigma_px, 1.2);
     EXPECT_GE(a.vignetting, 0.2);
     EXPECT_LE(a.vignetting, 0.6);
+    Appearance built = a.appearance;
+    random_build(seed, built);
+    Appearance again = a.appearance;
+    random_build(seed, again);
+    EXPECT_EQ(built.lamp_offset_mm, again.lamp_offset_mm);
+    EXPECT_EQ(built.blue_albedo, a.appearance.blue_albedo);  // the look's fields untouched
+    EXPECT_TRUE(valid_appearance(built)) << seed;
+    EXPECT_GE(built.shaft_radius_scale, 0.9);
+    EXPECT_LE(built.shaft_radius_scale, 1.03);
+    EXPECT_GE(built.grasper_radius_scale, 0.85);
+    EXPECT_LE(built.grasper_radius_scale, 1.15);
+    EXPECT_LE(std::hypot(built.lamp_offset_mm[0], built.lamp_offset_mm[1]), 4.0);
     min_quality = std::min(min_quality, static_cast<double>(a.jpeg_quality));
     max_quality = std::max(max_quality, static_cast<double>(a.jpeg_quality));
     ++chroma[static_cast<std::size_t>(a.chroma)];

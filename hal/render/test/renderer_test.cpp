@@ -104,6 +104,44 @@ TEST_F(RendererTest, ALookChangesThePixelsNotTheTruth) {
   EXPECT_EQ(renderer_->render(bad, looked.view, looked_truth).error(), RenderError::BadScene);
 }
 
+// The parts the solver does not model (the shaft's and the grasper's
+// radii) and the lamp beside the lens change the pixels, never the corners
+// or the TCP; out of their ranges the scene is refused.
+// Verifies: REQ-HAL-009
+TEST_F(RendererTest, PartRadiiAndTheLampChangeThePixelsNotTheTruth) {
+  test::Frame plain(720, 576);
+  test::Frame changed(720, 576);
+  SceneSpec scene;
+  scene.r = nominal(25.0, 20.0, 50.0);
+  scene.seed = 12U;
+  GroundTruth plain_truth;
+  ASSERT_TRUE(renderer_->render(scene, plain.view, plain_truth).ok());
+  const auto same_truth = [&plain_truth](const GroundTruth& t) {
+    EXPECT_EQ(plain_truth.instruments[0].tcp, t.instruments[0].tcp);
+    for (std::size_t k = 0; k < solver::kNumCorners; ++k) {
+      EXPECT_EQ(plain_truth.instruments[0].corners[k], t.instruments[0].corners[k]) << k;
+    }
+  };
+  SceneSpec wider = scene;
+  wider.appearance.grasper_radius_scale = 1.15;
+  wider.appearance.shaft_radius_scale = 0.9;
+  GroundTruth truth;
+  ASSERT_TRUE(renderer_->render(wider, changed.view, truth).ok());
+  EXPECT_NE(plain.pixels, changed.pixels);
+  same_truth(truth);
+  SceneSpec lamp = scene;
+  lamp.appearance.lamp_offset_mm = {3.0, -2.0};
+  ASSERT_TRUE(renderer_->render(lamp, changed.view, truth).ok());
+  EXPECT_NE(plain.pixels, changed.pixels);
+  same_truth(truth);
+  SceneSpec bad = scene;
+  bad.appearance.grasper_radius_scale = 2.0;
+  EXPECT_EQ(renderer_->render(bad, changed.view, truth).error(), RenderError::BadScene);
+  bad = scene;
+  bad.appearance.lamp_offset_mm[1] = 25.0;
+  EXPECT_EQ(renderer_->render(bad, changed.view, truth).error(), RenderError::BadScene);
+}
+
 TEST_F(RendererTest, AFixedWorldSeedKeepsTheSceneOnlyTheNoiseChanges) {
   test::Frame a(720, 576);
   test::Frame b(720, 576);

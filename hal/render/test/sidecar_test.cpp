@@ -113,6 +113,10 @@ TEST(Sidecar, ARandomisedLookRoundTrips) {
     EXPECT_NEAR(a.tissue_tint[c], s.scene.appearance.tissue_tint[c], 1e-9);
   }
   EXPECT_NEAR(a.grasper_gloss, s.scene.appearance.grasper_gloss, 1e-5);
+  EXPECT_NEAR(a.shaft_radius_scale, s.scene.appearance.shaft_radius_scale, 1e-5);
+  EXPECT_NEAR(a.grasper_radius_scale, s.scene.appearance.grasper_radius_scale, 1e-5);
+  EXPECT_NEAR(a.lamp_offset_mm[0], s.scene.appearance.lamp_offset_mm[0], 1e-9);
+  EXPECT_NEAR(a.lamp_offset_mm[1], s.scene.appearance.lamp_offset_mm[1], 1e-9);
   // A look no render can show is named.
   const char bad[] = R"({"corners": [null, null, null, null, null, null, null, null, null, null, null, null],
     "render": {"appearance": {"white_balance": [9, 1, 1]}}})";

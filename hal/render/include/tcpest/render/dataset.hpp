@@ -101,5 +101,13 @@ struct RandomLook {
 };
 RandomLook random_look(std::uint64_t seed) noexcept;
 
+// The build a randomised set is imaged with (`tcpest render --randomise`):
+// the instrument's shaft and grasper radii (parts the solver does not
+// model) and the endoscope's lamp beside the lens, drawn from the set's
+// seed over docs/rendering.md's ranges into `appearance` (its other fields
+// untouched). One per set: one instrument under one endoscope images a whole
+// set, so that what an estimator learns of them from earlier frames holds.
+void random_build(std::uint64_t set_seed, Appearance& appearance) noexcept;
+
 }  // namespace render
 }  // namespace tcpest

@@ -66,9 +66,20 @@ struct Appearance {
   double grasper_gloss = 1.6;
   std::array<double, 3> tissue_tint{1.0, 1.0, 1.0};        // multiplies the tissue's reflectance
   std::array<double, 3> white_balance{1.0, 1.0, 1.0};      // the sensor's gain per channel
+  // The shaft's and the grasper's radii as multiples of the geometry's.
+  // model.md gives those radii only as rendering defaults (the solver does
+  // not use them), so a real instrument's may differ: the estimator must
+  // not rely on them (docs/rendering.md, "Randomised appearance").
+  double shaft_radius_scale = 1.0;
+  double grasper_radius_scale = 1.0;
+  // The lamp's position in the lens plane (mm, camera x and y; 0, 0: at the
+  // lens, light and view coincide). An endoscope's light guides sit beside
+  // the lens: shading and highlights then fall off-centre on the tube.
+  std::array<double, 2> lamp_offset_mm{0.0, 0.0};
 };
 // True when every value is finite and within what a render can show
-// (reflectances 0..1, gloss 0..4, tints and gains 0.25..4).
+// (reflectances 0..1, gloss 0..4, tints and gains 0.25..4, radius scales
+// 0.5..1.5, the lamp within 10 mm of the lens).
 bool valid_appearance(const Appearance& appearance) noexcept;
 
 // What one frame shows. Everything random in the frame is drawn from `seed`.
