@@ -1,6 +1,7 @@
 // The IRLS fit of a quadratic Bezier curve (bezier_fit.hpp).
 #include "bezier_fit.hpp"
 #include "tcpest/common/dmath.hpp"
+#include "robust_step.hpp"
 
 #include <algorithm>
 #include <array>
@@ -132,7 +133,7 @@ bool fit_bezier(Border& border, double c, int iterations, int scale_iterations) 
     if (it < scale_iterations) {
       // MAD scale (residuals are distances, already >= 0), floored so that a
       // near-perfect fit does not reject every point.
-      scale = 1.4826 * median(residual.data(), n);
+      scale = detail::kMadToSigma * median(residual.data(), n);
       if (scale < 0.15) {
         scale = 0.15;
       }

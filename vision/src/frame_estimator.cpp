@@ -67,6 +67,8 @@ Result<std::unique_ptr<FrameEstimator>, VisionError> FrameEstimator::create(cons
 
 void FrameEstimator::drop_track() noexcept { temporal_.reset(); }
 
+void FrameEstimator::reset_appearance() noexcept { extractor_->part_widths().reset(); }
+
 Status<VisionError> FrameEstimator::run_stages(const ImageView& image, const FramePrior& prior,
                                                StepObserver* observer, FrameEstimate& out) noexcept {
   const auto done = [observer](EstimationStep step) noexcept {
@@ -209,6 +211,11 @@ FrameEstimate FrameEstimator::estimate(const ImageView& image, const FramePrior&
     if (out.failed_step > EstimationStep::kInterpret) {
       temporal_.add(extractor_->result().interpretation);
     }
+  }
+  // A valid estimate whose pose the image fit gave: its part widths are
+  // the scene's (PartWidths).
+  if (out.estimate.quality == solver::EstimateQuality::Valid && out.guided.rounds_kept > 0) {
+    extractor_->part_widths().learn(out.guided.fit);
   }
   report_corners(out);
   return out;

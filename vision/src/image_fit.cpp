@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Dense>
 
@@ -281,6 +282,8 @@ struct SilhouetteReadout {
   int readings = 0;  // on the striped section (ImageFitSummary::silhouette_readings)
   int plain = 0;     // ... of them where the peak's centre reads too (plain_silhouette_readings)
   int grasper = 0;   // on the grasper (ImageFitSummary::grasper_readings)
+  double shaft_width_px = std::numeric_limits<double>::quiet_NaN();    // ImageFitSummary::shaft_width_px
+  double grasper_width_px = std::numeric_limits<double>::quiet_NaN();  // ImageFitSummary::grasper_width_px
 };
 
 // The grasper's silhouette along `normal` through p (px from p, outwards
@@ -352,6 +355,36 @@ bool neutral_edge(const ImageView& image, const solver::Vec2& p, const solver::V
   return std::fabs(offset_px) <= window_px;
 }
 
+// How far outside the model's silhouette `part` was read on both sides
+// alike: the mean of the two sides' median offsets (along their outward
+// normals), NaN when a side has no reading. Bounded: one pass.
+double common_offset_px(Part part, const FitReadings& fit) noexcept {
+  std::array<std::array<double, kMaxReadings>, 2> offsets{};
+  std::array<int, 2> counts{};
+  for (int i = 0; i < fit.count; ++i) {
+    const Reading& rd = fit.readings[static_cast<std::size_t>(i)];
+    if (!rd.arc && rd.part == part) {
+      const std::size_t side = rd.side & 1U;
+      offsets[side][static_cast<std::size_t>(counts[side])] = rd.offset_px;
+      ++counts[side];
+    }
+  }
+  if (counts[0] == 0 || counts[1] == 0) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return 0.5 * (detail::median_of(offsets[0].data(), counts[0]) + detail::median_of(offsets[1].data(), counts[1]));
+}
+
+// Takes the part's learned width off each of its readings (PartWidths).
+void take_off_width(Part part, double width_px, FitReadings& fit) noexcept {
+  for (int i = 0; i < fit.count; ++i) {
+    Reading& rd = fit.readings[static_cast<std::size_t>(i)];
+    if (!rd.arc && rd.part == part) {
+      rd.offset_px -= width_px;
+    }
+  }
+}
+
 // Silhouette readings at the frames f within edge_window_px: both sides
 // along the striped section, the shaft's just before the base up to the
 // channel exit (lambda_mm) and the grasper's past the tip (neither counted:
@@ -359,7 +392,7 @@ bool neutral_edge(const ImageView& image, const solver::Vec2& p, const solver::V
 SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorConfig& config,
                                       const solver::CameraModel& camera, const solver::InstrumentModel& model,
                                       const solver::PoseFrames& f, double edge_window_px, double lambda_mm,
-                                      FitReadings& fit) noexcept {
+                                      const PartWidths& widths, FitReadings& fit) noexcept {
   SilhouetteReadout out;
   const auto read_silhouette = [&](Part part, double s, std::size_t side) noexcept {
     solver::Vec2 point;
@@ -423,6 +456,10 @@ SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorCon
       out.grasper += read_silhouette(Part::kGrasper, beyond, side) ? 1 : 0;
     }
   }
+  out.shaft_width_px = common_offset_px(Part::kShaft, fit);
+  out.grasper_width_px = common_offset_px(Part::kGrasper, fit);
+  take_off_width(Part::kShaft, widths.shaft_px(), fit);
+  take_off_width(Part::kGrasper, widths.grasper_px(), fit);
   return out;
 }
 
@@ -588,12 +625,14 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
     summary.streak_px = streak_px;
     refiner.use_streak(summary.streak_px);
     const SilhouetteReadout silhouette =
-        read_fit_silhouette(refiner, config_, camera, model, f, edge_window_px, x[solver::kLambda], fit);
+        read_fit_silhouette(refiner, config_, camera, model, f, edge_window_px, x[solver::kLambda], part_widths_, fit);
     summary.iterations = it + 1;
     summary.arc_readings = arcs.readings;
     summary.silhouette_readings = silhouette.readings;
     summary.grasper_readings = silhouette.grasper;
     summary.plain_silhouette_readings = silhouette.plain;
+    summary.shaft_width_px = silhouette.shaft_width_px;
+    summary.grasper_width_px = silhouette.grasper_width_px;
     summary.boundaries = boundaries;
     summary.boundary_run = boundary_run;
     // A fine iteration needs 2 boundaries' arcs, and no silhouette reading:
@@ -633,6 +672,37 @@ Status<VisionError> FeatureExtractor::fit_pose_to_image(const ImageView& image, 
   }
   r = x;
   return ok_status<VisionError>();
+}
+
+void PartWidths::Window::add(double px) noexcept {
+  if (!std::isfinite(px) || std::fabs(px) > kMaxWidthPx) {
+    return;  // not read on both sides, or no silhouette of the part
+  }
+  values_[static_cast<std::size_t>(next_)] = px;
+  next_ = (next_ + 1) % kWindow;
+  count_ = std::min(count_ + 1, kWindow);
+}
+
+double PartWidths::Window::median_px() const noexcept {
+  if (count_ < kMinFrames) {
+    return 0.0;
+  }
+  std::array<double, kWindow> sorted = values_;
+  const double median = detail::median_of(sorted.data(), count_);
+  // Only a width the frames agree on: the median beyond kAgreement of its
+  // standard errors (the MAD's scale over the square root of the frames).
+  std::array<double, kWindow> spread{};
+  for (int i = 0; i < count_; ++i) {
+    spread[static_cast<std::size_t>(i)] = std::fabs(values_[static_cast<std::size_t>(i)] - median);
+  }
+  const double standard_error =
+      detail::kMadToSigma * detail::median_of(spread.data(), count_) / std::sqrt(static_cast<double>(count_));
+  return std::fabs(median) > kAgreement * standard_error ? median : 0.0;
+}
+
+void PartWidths::learn(const ImageFitSummary& fit) noexcept {
+  shaft_.add(fit.shaft_width_px);
+  grasper_.add(fit.grasper_width_px);
 }
 
 }  // namespace vision

@@ -16,6 +16,10 @@ namespace tcpest {
 namespace vision {
 namespace detail {
 
+// The median absolute deviation times this is a normal distribution's
+// standard deviation (the robust scale of every fit here).
+constexpr double kMadToSigma = 1.4826;
+
 // Median of v[0..n) (reorders v). n >= 1.
 inline double median_of(double* v, int n) noexcept {
   std::sort(v, v + n);
@@ -26,7 +30,7 @@ inline double median_of(double* v, int n) noexcept {
 // (reordered): 3 x the MAD scale, the scale at least floor_px (a fit that
 // already agrees must not turn every reading into an outlier).
 inline double tukey_cut_px(double* abs_residuals, int n, double floor_px) noexcept {
-  return 3.0 * std::max(floor_px, 1.4826 * median_of(abs_residuals, n));
+  return 3.0 * std::max(floor_px, kMadToSigma * median_of(abs_residuals, n));
 }
 
 // One round of an image fit (IRLS with re-measurement): the round's

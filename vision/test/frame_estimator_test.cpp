@@ -116,13 +116,14 @@ TEST_F(FrameEstimatorOnARenderedFrame, GivesAValidEstimateNearTheTruthWithEveryS
   EXPECT_EQ(e.corners_detected > 0, true);
 }
 
-// Same frames, same priors, same estimator: the same bits (the loop's and
-// the offline commands' results can be compared byte for byte), and no
+// Same frames, same priors, same estimator state: the same bits (the loop's
+// and the offline commands' results can be compared byte for byte), and no
 // heap after start-up.
 // Verifies: REQ-VISION-009
 TEST_F(FrameEstimatorOnARenderedFrame, IsDeterministicAndAllocationFree) {
   const FrameEstimate a = estimator->estimate(image, encoders_prior(), nullptr);
   estimator->drop_track();
+  estimator->reset_appearance();
   FrameEstimate b;
   {
     test::AllocationScope scope;
@@ -171,6 +172,83 @@ FrameEstimate solved_at(const solver::PoseVector& r) {
 }
 
 // Verifies: REQ-VISION-011
+// PartWidths: nothing until kMinFrames valid frames; then the median of
+// the window when the frames agree on it (beyond twice its standard
+// error), 0 when they scatter around nothing; readings that are not a
+// part's (NaN, beyond kMaxWidthPx) are ignored; the window forgets; reset
+// forgets everything.
+// Verifies: REQ-VISION-013
+TEST(PartWidths, LearnsTheMedianTheFramesAgreeOnAndForgets) {
+  PartWidths widths;
+  ImageFitSummary fit;
+  fit.shaft_width_px = 1.0;
+  fit.grasper_width_px = std::numeric_limits<double>::quiet_NaN();
+  for (int i = 0; i < PartWidths::kMinFrames - 1; ++i) {
+    widths.learn(fit);
+  }
+  EXPECT_EQ(widths.shaft_px(), 0.0);
+  fit.shaft_width_px = 1.2;
+  widths.learn(fit);
+  EXPECT_DOUBLE_EQ(widths.shaft_px(), 1.0);
+  EXPECT_EQ(widths.grasper_px(), 0.0);  // never read on both sides
+  fit.shaft_width_px = 2.0 * PartWidths::kMaxWidthPx;
+  widths.learn(fit);
+  EXPECT_DOUBLE_EQ(widths.shaft_px(), 1.0);  // no silhouette of the shaft: ignored
+  // Scattered around nothing: not significant.
+  PartWidths scattered;
+  for (int i = 0; i < PartWidths::kWindow; ++i) {
+    fit.shaft_width_px = (i % 2 == 0 ? 1.0 : -1.0) * (0.2 + 0.1 * i);
+    scattered.learn(fit);
+  }
+  EXPECT_EQ(scattered.shaft_px(), 0.0);
+  // A new width replaces the old one within a window.
+  for (int i = 0; i < PartWidths::kWindow; ++i) {
+    fit.shaft_width_px = -0.5 + 0.01 * (i % 3);
+    widths.learn(fit);
+  }
+  EXPECT_NEAR(widths.shaft_px(), -0.49, 1e-12);
+  widths.reset();
+  EXPECT_EQ(widths.shaft_px(), 0.0);
+}
+
+// A grasper wider and a shaft narrower than model.md's rendering defaults
+// (a real instrument's need not be those): the valid frames teach the
+// estimator how much wider and narrower their silhouettes read, the
+// estimate stays valid near the truth, and reset_appearance() forgets it.
+// Verifies: REQ-VISION-013
+TEST(PartWidthsOnRenderedFrames, AreLearnedFromValidFramesAndForgottenAtAReset) {
+  Models m;
+  auto renderer = render::Renderer::create(m.camera, m.model, render::RenderSettings{});
+  ASSERT_TRUE(renderer.ok());
+  auto created = FrameEstimator::create(m.camera, m.model, default_color_model(), EstimatorConfig{});
+  ASSERT_TRUE(created.ok());
+  FrameEstimator& estimator = *created.value();
+  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(m.camera.width() * m.camera.height() * 3));
+  const MutableImageView out{pixels.data(), m.camera.width(), m.camera.height(),
+                             static_cast<std::size_t>(m.camera.width()) * 3U};
+  for (int i = 0; i < PartWidths::kMinFrames + 2; ++i) {
+    render::SceneSpec spec;
+    spec.r = m.model.geometry().nominal_pose(24.0 + i, 0.2 + 0.1 * i, 0.6);
+    spec.seed = 40U + static_cast<std::uint64_t>(i);
+    spec.appearance.grasper_radius_scale = 1.25;
+    spec.appearance.shaft_radius_scale = 0.9;
+    render::GroundTruth truth;
+    ASSERT_TRUE(renderer.value()->render(spec, out, truth).ok());
+    FramePrior prior;
+    prior.source = PriorSource::kEncoder;
+    prior.r = m.model.geometry().nominal_pose(24.0 + i + 1.0, 0.2 + 0.1 * i - 0.05, 0.6 + 0.05);
+    const FrameEstimate e = estimator.estimate(out.view(), prior, nullptr);
+    ASSERT_EQ(e.estimate.quality, solver::EstimateQuality::Valid) << i;
+    EXPECT_LT((e.tcp_mm - truth.instruments[0].tcp).norm(), 1.5) << i;
+  }
+  // 0.25 * 1.5 mm wider on each side at 50-70 mm: about a pixel; the shaft 0.9 narrower.
+  EXPECT_GT(estimator.extractor().part_widths().grasper_px(), 0.4);
+  EXPECT_LT(estimator.extractor().part_widths().shaft_px(), estimator.extractor().part_widths().grasper_px());
+  estimator.reset_appearance();
+  EXPECT_EQ(estimator.extractor().part_widths().grasper_px(), 0.0);
+  EXPECT_EQ(estimator.extractor().part_widths().shaft_px(), 0.0);
+}
+
 TEST(Track, ChoosesEncodersThenTheTrackThenTheGenericPrior) {
   const Models m;
   Track track(m.model, 3);

@@ -324,6 +324,7 @@ bool Executive::step_acquire() noexcept {
   }
   if (node.take_reset()) {
     ++stats_->resets;
+    parts_.pipeline->reset_appearance();  // a reset node forgets what it learned too
     if (track_.alive()) {
       on_track_dropped();
     }
@@ -464,6 +465,7 @@ bool Executive::camera_cycle() const noexcept {
 void Executive::reset_sequence() noexcept {
   track_.reset();
   parts_.pipeline->drop_track();
+  parts_.pipeline->reset_appearance();
 }
 
 void Executive::on_track_dropped() noexcept {

@@ -107,14 +107,16 @@ TEST(Executive, TracksTheSimulatedMotionAndPublishesEveryFrame) {
 }
 
 // A new sequence (the soak's next pass over its dataset) starts from the
-// generic prior with the pipeline's temporal priors forgotten, as the first
-// frame did; it is not a lost track: nothing counted, no EMCY.
+// generic prior with the pipeline's temporal priors and learned appearance
+// forgotten, as the first frame did; it is not a lost track: nothing
+// counted, no EMCY.
 // Verifies: REQ-LOOP-018
 TEST(Executive, ANewSequenceStartsFromTheGenericPriorWithoutDroppingTheTrack) {
   Rig rig(50U);
   ASSERT_TRUE(run_cycles(*rig.loop, 10));
   rig.loop->reset_sequence();
   EXPECT_EQ(rig.pipeline.drops(), 1);
+  EXPECT_EQ(rig.pipeline.appearance_resets(), 1);
   ASSERT_TRUE(run_cycles(*rig.loop, 10));
   const LoopStats& s = rig.loop->stats();
   EXPECT_EQ(s.prior[static_cast<std::size_t>(PriorSource::kGeneric)], 2U);
@@ -233,10 +235,12 @@ TEST(Executive, NmtStopAndPreOperationalSilenceThePdos) {
   ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
   EXPECT_EQ(rig.node.published(), 6U);
   EXPECT_EQ(rig.node.publication(0).status, EstimateStatus::kValid);
+  EXPECT_EQ(rig.pipeline.appearance_resets(), 0);
   rig.node.inject_reset();
   ASSERT_EQ(rig.loop->run_cycle(), CycleOutcome::kContinue);
   EXPECT_EQ(rig.loop->stats().resets, 1U);
   EXPECT_EQ(rig.loop->last().prior, PriorSource::kGeneric);
+  EXPECT_EQ(rig.pipeline.appearance_resets(), 1);  // a reset node forgets what it learned of the scene
 }
 
 // A source serving the simulated camera's frames at 25 Hz, for the tests

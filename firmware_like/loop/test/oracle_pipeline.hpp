@@ -28,8 +28,10 @@ class OraclePipeline final : public FeaturePipeline {
   vision::FrameEstimate estimate(const ImageView& image, const vision::FramePrior& prior,
                                  vision::StepObserver& observer) noexcept override;
   void drop_track() noexcept override { ++drops_; }
+  void reset_appearance() noexcept override { ++appearance_resets_; }
   void set_encoder_check(const solver::EncoderCheck& check) noexcept { check_ = check; }
   int drops() const noexcept { return drops_; }
+  int appearance_resets() const noexcept { return appearance_resets_; }
 
  private:
   const solver::InstrumentModel& model_;
@@ -39,6 +41,7 @@ class OraclePipeline final : public FeaturePipeline {
   const hal::TruthSource* truth_ = nullptr;
   std::uint32_t sequence_ = 0U;  // frames estimated (the noise's key)
   int drops_ = 0;
+  int appearance_resets_ = 0;
 };
 
 // The oracle with an estimate that takes simulated time (overruns and slips).

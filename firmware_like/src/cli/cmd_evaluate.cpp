@@ -616,6 +616,7 @@ int cmd_evaluate(int argc, char** argv) {
   EvaluateRun run{options, setup, pipeline, reader, pixels, totals, csv, dataset_count > 1U};
   for (std::size_t set = 0U; set < dataset_count; ++set) {
     pipeline.reset_sequence();  // a dataset is a sequence of its own
+    pipeline.reset_appearance();  // ... and a scene of its own
     for (const std::string& name : sidecars[set]) {
       if (static_cast<unsigned long long>(totals.frames) + static_cast<unsigned long long>(totals.unreadable) >=
           options.max_images) {

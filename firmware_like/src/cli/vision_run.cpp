@@ -294,6 +294,8 @@ void EstimatePipeline::reset_sequence() noexcept {
   estimator_->drop_track();
 }
 
+void EstimatePipeline::reset_appearance() noexcept { estimator_->reset_appearance(); }
+
 void EstimatePipeline::frame_failed() noexcept {
   if (track_->frame_failed()) {
     estimator_->drop_track();

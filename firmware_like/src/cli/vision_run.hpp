@@ -106,7 +106,11 @@ class EstimatePipeline {
             const loop::LoopConfig& config) noexcept;
   // One frame of a sequence. `prior_joints` (lambda, phi, theta) may be null.
   EstimateResult process(const ImageView& image, const double* prior_joints) noexcept;
+  // A new sequence: the track and the temporal priors are forgotten (the
+  // learned appearance is kept: images of one scene, as evaluate's lab sets).
   void reset_sequence() noexcept;
+  // A new scene: what was learned of its appearance is forgotten too.
+  void reset_appearance() noexcept;
   // A frame of the sequence that could not be read: it counts towards the
   // track's drop, as a dropped frame does in the loop.
   void frame_failed() noexcept;

@@ -19,6 +19,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 
 #include "tcpest/common/image.hpp"
@@ -195,6 +196,52 @@ struct ImageFitSummary {
   // Of silhouette_readings, those the gradient peak's centre gives (all of
   // them without a streak): what the validity rule counts (GuidedOptions).
   int plain_silhouette_readings = 0;
+  // How far outside the model's silhouettes the shaft's and the grasper's
+  // were read on both sides alike (px, the mean of the two sides' median
+  // offsets at the last iteration, before the learned width was taken off;
+  // NaN: not read on both sides). What PartWidths learns from.
+  double shaft_width_px = std::numeric_limits<double>::quiet_NaN();
+  double grasper_width_px = std::numeric_limits<double>::quiet_NaN();
+};
+
+// The shaft's and the grasper's widths as the images show them (ours,
+// docs/vision.md "Part widths"). model.md gives their radii as defaults for
+// rendering, not as the instrument's; the edge's blur and shading move a
+// silhouette reading too. A part read wider or narrower than the model
+// moves both its silhouettes outwards or inwards alike, which the image fit
+// would take for a change of depth. So the fit takes off each part's
+// readings the median of what the last kWindow valid frames read
+// (ImageFitSummary::*_width_px), once kMinFrames have and they agree on it
+// (the median beyond kAgreement standard errors): learned from the scene,
+// forgotten as it changes, reset with the node (docs/decisions/0054).
+// Fixed size, no heap.
+class PartWidths {
+ public:
+  static constexpr int kWindow = 15;
+  static constexpr int kMinFrames = 3;
+  static constexpr double kAgreement = 2.0;
+  // A learned width is bounded: beyond it a reading is no silhouette of the part.
+  static constexpr double kMaxWidthPx = 4.0;
+  // Learns from the image fit of a frame whose estimate is valid.
+  void learn(const ImageFitSummary& fit) noexcept;
+  void reset() noexcept { *this = PartWidths{}; }
+  // The learned widths (px; 0 until kMinFrames have been learned).
+  double shaft_px() const noexcept { return shaft_.median_px(); }
+  double grasper_px() const noexcept { return grasper_.median_px(); }
+
+ private:
+  class Window {
+   public:
+    void add(double px) noexcept;
+    double median_px() const noexcept;
+
+   private:
+    std::array<double, kWindow> values_{};
+    int count_ = 0;
+    int next_ = 0;
+  };
+  Window shaft_{};
+  Window grasper_{};
 };
 
 // What fit_channel_to_shaft did.
@@ -333,6 +380,9 @@ class FeatureExtractor {
   const ClassifierLut& lut() const noexcept { return regions_->lut(); }
   const ColorModel& colors() const noexcept { return colors_; }
   const ExtractorConfig& config() const noexcept { return config_; }
+  // The part widths the image fit takes off its shaft and grasper readings.
+  const PartWidths& part_widths() const noexcept { return part_widths_; }
+  PartWidths& part_widths() noexcept { return part_widths_; }
   // Class of each pixel of the last frame (row-major, width() per row).
   const std::uint8_t* class_image() const noexcept { return regions_->class_image(); }
   // The grid step stage 1 used on the last frame (1 = every pixel).
@@ -362,6 +412,7 @@ class FeatureExtractor {
   std::unique_ptr<detail::BlurredEdgeScratch> edge_scratch_;
   // The model-guided fits' minimisers and rows, allocated at create().
   std::unique_ptr<detail::FitScratch> fit_scratch_;
+  PartWidths part_widths_{};
   bool class_distance_ready_ = false;
   std::array<int, 4> distance_box_{};  // x0, y0, x1, y1 (inclusive) where the distances were computed
   void compute_class_distances() noexcept;

@@ -141,6 +141,9 @@ class FrameEstimator {
   FrameEstimate estimate(const ImageView& image, const FramePrior& prior, StepObserver* observer) noexcept;
   // The track is dropped: forget the temporal priors.
   void drop_track() noexcept;
+  // Forget what was learned of the scene's appearance (PartWidths): a
+  // reset node, a new scene.
+  void reset_appearance() noexcept;
 
   const EstimatorConfig& config() const noexcept { return config_; }
   const FeatureExtractor& extractor() const noexcept { return *extractor_; }

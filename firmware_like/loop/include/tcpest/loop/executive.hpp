@@ -144,8 +144,9 @@ class Executive {
   // The source starts a new sequence (the next pass over a replayed dataset):
   // the next frame starts from the generic prior, as the first one did. The
   // track and the temporal priors are forgotten, as the offline commands'
-  // EstimatePipeline::reset_sequence() does; not a lost track (nothing
-  // counted, no EMCY). Between cycles; allocates nothing.
+  // EstimatePipeline::reset_sequence() does, and what was learned of the
+  // scene's appearance, as their reset_appearance() does; not a lost track
+  // (nothing counted, no EMCY). Between cycles; allocates nothing.
   void reset_sequence() noexcept;
 
   const LoopStats& stats() const noexcept { return *stats_; }

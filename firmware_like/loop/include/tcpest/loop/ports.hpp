@@ -37,6 +37,9 @@ class FeaturePipeline {
                                          vision::StepObserver& observer) noexcept = 0;
   // The track is dropped: forget the temporal priors.
   virtual void drop_track() noexcept = 0;
+  // Forget what was learned of the scene's appearance (a reset node, a new
+  // sequence). A pipeline that learns nothing has nothing to forget.
+  virtual void reset_appearance() noexcept {}
 };
 
 // The CiA 301 state the node is in (the CAN unit's NMT state machine).

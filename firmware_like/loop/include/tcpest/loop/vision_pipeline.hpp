@@ -23,6 +23,7 @@ class VisionPipeline final : public FeaturePipeline {
     return estimator_->estimate(image, prior, &observer);
   }
   void drop_track() noexcept override { estimator_->drop_track(); }
+  void reset_appearance() noexcept override { estimator_->reset_appearance(); }
 
   const vision::FrameEstimator& estimator() const noexcept { return *estimator_; }
   const vision::FeatureExtractor& extractor() const noexcept { return estimator_->extractor(); }
