@@ -44,6 +44,9 @@ constexpr double kPlaneEps = 1.0e-7;     // mm: overlap of neighbouring chords (
 // a hundred times more than the scene.
 constexpr double kLightNearMm = 15.0;
 double falloff(double dist2) noexcept { return 1.0 / std::max(dist2, kLightNearMm * kLightNearMm); }
+// What lights tissue in the instrument's shadow: the scene's scattered light,
+// as a share of the lamp's.
+constexpr double kShadowLight = 0.2;
 
 // Instrument parts (label = kLabelInstrument + 8 * instrument + part), the
 // public PixelLabel codes.
@@ -389,6 +392,24 @@ struct Renderer::Impl {
     const double d2 = d.squaredNorm();
     const Vec3 to = d / std::sqrt(d2);
     return LampView{to, (to + view).normalized(), d2};
+  }
+  // Whether an instrument lies between `point` and the lamp.
+  bool shadowed(const Vec3& point, const LampView& lamp) const noexcept {
+    const double reach = std::sqrt(lamp.dist2);
+    for (int k = 0; k < 2; ++k) {
+      if (inst_count[k] == 0 || misses_sphere(point, lamp.to_lamp, inst_centre[k], inst_radius[k])) {
+        continue;
+      }
+      Hit hit;
+      for (int i = inst_first[k]; i < inst_first[k] + inst_count[k]; ++i) {
+        const Primitive& p = prims[i];
+        if (!misses_sphere(point, lamp.to_lamp, p.centre, p.bound_radius) &&
+            intersect(p, point, lamp.to_lamp, 1e-3, reach, hit)) {
+          return true;
+        }
+      }
+    }
+    return false;
   }
   Rgb shade_instrument(const Hit& hit) const noexcept;
   Rgb shade_tissue(double x, double y, double plane, const TissueSample& t, std::uint8_t& label) const noexcept;
@@ -869,7 +890,10 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueS
     spec += 0.06 * pow32(crest);  // broad sheen of the mucosa
   }
   c = c + Rgb{spec, spec, spec};
-  const double light = s.light * falloff(lamp.dist2);
+  // A lamp beside the lens: the instrument's shadow on the tissue shows
+  // beside it (lit then only by the scene's scattered light).
+  const double shadow = !s.lamp_at_lens && shadowed(point, lamp) ? kShadowLight : 1.0;
+  const double light = s.light * falloff(lamp.dist2) * shadow;
   c = c * light;
   if (s.reflection && s.reflection_strength > 0.0) {
     // Mirror image on the wet film: reflect the view ray about the smooth normal.

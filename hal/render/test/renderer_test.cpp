@@ -106,7 +106,8 @@ TEST_F(RendererTest, ALookChangesThePixelsNotTheTruth) {
 
 // The parts the solver does not model (the shaft's and the grasper's
 // radii) and the lamp beside the lens change the pixels, never the corners
-// or the TCP; out of their ranges the scene is refused.
+// or the TCP; the lamp casts the instrument's shadow on the tissue; out of
+// their ranges the scene is refused.
 // Verifies: REQ-HAL-009
 TEST_F(RendererTest, PartRadiiAndTheLampChangeThePixelsNotTheTruth) {
   test::Frame plain(720, 576);
@@ -134,6 +135,23 @@ TEST_F(RendererTest, PartRadiiAndTheLampChangeThePixelsNotTheTruth) {
   ASSERT_TRUE(renderer_->render(lamp, changed.view, truth).ok());
   EXPECT_NE(plain.pixels, changed.pixels);
   same_truth(truth);
+  // The lamp beside the lens casts the instrument's shadow on the tissue:
+  // tissue beside the instrument (not its own pixels, whose shading moves
+  // less) turns much darker than under the lamp at the lens.
+  SceneSpec near = scene;
+  near.clean = true;
+  near.tissue_depth_mm = 45.0;
+  std::vector<float> coverage(720U * 576U);
+  ASSERT_TRUE(renderer_->render(near, plain.view, truth, coverage.data()).ok());
+  near.appearance.lamp_offset_mm = {0.0, 4.0};
+  ASSERT_TRUE(renderer_->render(near, changed.view, truth, coverage.data()).ok());
+  int shadowed = 0;
+  for (std::size_t i = 0U; i < coverage.size(); ++i) {
+    const int before = plain.pixels[3U * i] + plain.pixels[3U * i + 1U] + plain.pixels[3U * i + 2U];
+    const int after = changed.pixels[3U * i] + changed.pixels[3U * i + 1U] + changed.pixels[3U * i + 2U];
+    shadowed += coverage[i] == 0.0F && before > 60 && 2 * after < before ? 1 : 0;
+  }
+  EXPECT_GT(shadowed, 100);
   SceneSpec bad = scene;
   bad.appearance.grasper_radius_scale = 2.0;
   EXPECT_EQ(renderer_->render(bad, changed.view, truth).error(), RenderError::BadScene);
