@@ -1,7 +1,7 @@
 // The IRLS fit of a quadratic Bezier curve (bezier_fit.hpp).
 #include "bezier_fit.hpp"
 #include "tcpest/common/dmath.hpp"
-#include "robust_step.hpp"
+#include "robust_scale.hpp"
 
 #include <algorithm>
 #include <array>

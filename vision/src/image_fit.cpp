@@ -360,7 +360,7 @@ bool neutral_edge(const ImageView& image, const solver::Vec2& p, const solver::V
 // normals), NaN when a side has no reading. Bounded: one pass.
 double common_offset_px(Part part, const FitReadings& fit) noexcept {
   std::array<std::array<double, kMaxReadings>, 2> offsets{};
-  std::array<int, 2> counts{};
+  int counts[2] = {0, 0};
   for (int i = 0; i < fit.count; ++i) {
     const Reading& rd = fit.readings[static_cast<std::size_t>(i)];
     if (!rd.arc && rd.part == part) {
@@ -678,7 +678,7 @@ void PartWidths::Window::add(double px) noexcept {
   if (!std::isfinite(px) || std::fabs(px) > kMaxWidthPx) {
     return;  // not read on both sides, or no silhouette of the part
   }
-  values_[static_cast<std::size_t>(next_)] = px;
+  values_[next_] = px;
   next_ = (next_ + 1) % kWindow;
   count_ = std::min(count_ + 1, kWindow);
 }
@@ -687,16 +687,16 @@ double PartWidths::Window::median_px() const noexcept {
   if (count_ < kMinFrames) {
     return 0.0;
   }
-  std::array<double, kWindow> sorted = values_;
-  const double median = detail::median_of(sorted.data(), count_);
+  const int n = std::min(count_, kWindow);  // count_ never exceeds the window
+  double work[kWindow] = {};
+  std::copy(values_, values_ + n, work);
+  const double median = detail::median_of(work, n);
   // Only a width the frames agree on: the median beyond kAgreement of its
   // standard errors (the MAD's scale over the square root of the frames).
-  std::array<double, kWindow> spread{};
-  for (int i = 0; i < count_; ++i) {
-    spread[static_cast<std::size_t>(i)] = std::fabs(values_[static_cast<std::size_t>(i)] - median);
+  for (int i = 0; i < n; ++i) {
+    work[i] = std::fabs(values_[i] - median);
   }
-  const double standard_error =
-      detail::kMadToSigma * detail::median_of(spread.data(), count_) / std::sqrt(static_cast<double>(count_));
+  const double standard_error = detail::kMadToSigma * detail::median_of(work, n) / std::sqrt(static_cast<double>(n));
   return std::fabs(median) > kAgreement * standard_error ? median : 0.0;
 }
 

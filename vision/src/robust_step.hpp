@@ -10,21 +10,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "robust_scale.hpp"
 #include "tcpest/solver/levenberg_marquardt.hpp"
 
 namespace tcpest {
 namespace vision {
 namespace detail {
-
-// The median absolute deviation times this is a normal distribution's
-// standard deviation (the robust scale of every fit here).
-constexpr double kMadToSigma = 1.4826;
-
-// Median of v[0..n) (reorders v). n >= 1.
-inline double median_of(double* v, int n) noexcept {
-  std::sort(v, v + n);
-  return (n % 2 == 1) ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 // Tukey's cut (px) for residuals whose absolute values are abs_residuals[0..n)
 // (reordered): 3 x the MAD scale, the scale at least floor_px (a fit that

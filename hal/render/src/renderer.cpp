@@ -412,6 +412,9 @@ struct Renderer::Impl {
     return false;
   }
   Rgb shade_instrument(const Hit& hit) const noexcept;
+  // The tissue's reflectance at (sx, sy) on its mean plane (mm), a decoy's
+  // over it; `label` says which.
+  Rgb tissue_albedo(double sx, double sy, const TissueSample& t, std::uint8_t& label) const noexcept;
   Rgb shade_tissue(double x, double y, double plane, const TissueSample& t, std::uint8_t& label) const noexcept;
   Rgb shade_occluder(double x, double y) const noexcept;
   Sample shade(double x, double y, const std::uint16_t* candidates, int candidate_count) const noexcept;
@@ -836,23 +839,9 @@ Rgb Renderer::Impl::shade_instrument(const Hit& hit) const noexcept {
   return Rgb{light * (albedo.r * cosine + spec), light * (albedo.g * cosine + spec), light * (albedo.b * cosine + spec)};
 }
 
-Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueSample& t,
-                                 std::uint8_t& label) const noexcept {
+Rgb Renderer::Impl::tissue_albedo(double sx, double sy, const TissueSample& t, std::uint8_t& label) const noexcept {
   const SceneLayout& s = layout;
-  const double sx = x * plane;
-  const double sy = y * plane;
-  const double z = plane + s.bump_mm * t.height;
-  const Vec3 point(x * z, y * z, z);
-  // Height gradient on the surface (mm/mm): texture derivative rotated back.
-  const double hu = s.bump_mm * t.height_du / kTexelMm;
-  const double hv = s.bump_mm * t.height_dv / kTexelMm;
-  const double gx = s.depth_mm * s.tilt_x / plane + s.tex_cos * hu + s.tex_sin * hv;
-  const double gy = s.depth_mm * s.tilt_y / plane - s.tex_sin * hu + s.tex_cos * hv;
-  Vec3 normal = Vec3(gx, gy, -1.0).normalized();
-  const double dist2 = point.squaredNorm();
-  const Vec3 view = -point / std::sqrt(dist2);
-
-  // Albedo: reddish mucosa, colour variation, fat patches, vessels.
+  // Reddish mucosa, colour variation, fat patches, vessels.
   const double cv = t.colour;
   Rgb albedo{0.64 * (1.0 + 0.2 * cv), 0.17 * (1.0 + 0.35 * cv), 0.12 * (1.0 + 0.3 * cv)};
   albedo = mix(albedo, Rgb{0.70, 0.42, 0.24}, 0.55 * t.fat);
@@ -872,6 +861,26 @@ Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueS
       }
     }
   }
+  return albedo;
+}
+
+Rgb Renderer::Impl::shade_tissue(double x, double y, double plane, const TissueSample& t,
+                                 std::uint8_t& label) const noexcept {
+  const SceneLayout& s = layout;
+  const double sx = x * plane;
+  const double sy = y * plane;
+  const double z = plane + s.bump_mm * t.height;
+  const Vec3 point(x * z, y * z, z);
+  // Height gradient on the surface (mm/mm): texture derivative rotated back.
+  const double hu = s.bump_mm * t.height_du / kTexelMm;
+  const double hv = s.bump_mm * t.height_dv / kTexelMm;
+  const double gx = s.depth_mm * s.tilt_x / plane + s.tex_cos * hu + s.tex_sin * hv;
+  const double gy = s.depth_mm * s.tilt_y / plane - s.tex_sin * hu + s.tex_cos * hv;
+  Vec3 normal = Vec3(gx, gy, -1.0).normalized();
+  const double dist2 = point.squaredNorm();
+  const Vec3 view = -point / std::sqrt(dist2);
+
+  const Rgb albedo = tissue_albedo(sx, sy, t, label);
   const LampView lamp = lamp_view(point, view, dist2);
   const double cosine = std::max(0.0, dot3(normal, lamp.to_lamp));
   const double crest = std::max(0.0, dot3(normal, lamp.half));

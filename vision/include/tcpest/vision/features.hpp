@@ -236,7 +236,7 @@ class PartWidths {
     double median_px() const noexcept;
 
    private:
-    std::array<double, kWindow> values_{};
+    double values_[kWindow] = {};  // a ring of the last count_ readings (px)
     int count_ = 0;
     int next_ = 0;
   };
