@@ -48,8 +48,9 @@ constexpr OptionSpec kOptions[] = {
     {"clean", nullptr, "no noise, blur, vignetting or wet highlights (geometric checks)"},
     {"randomise", nullptr,
      "each image's look drawn from documented ranges: paint, gloss, tissue tint, white balance, exposure, "
-     "noise, blur, vignetting, JPEG quality and chroma subsampling (docs/rendering.md; seq: one look for the "
-     "sequence; --quality is then ignored)"},
+     "noise, blur, vignetting, JPEG quality and chroma subsampling; per set the shaft's and grasper's radii "
+     "and the lamp beside the lens, with its shadow (docs/rendering.md; seq: one look for the sequence; "
+     "--quality is then ignored)"},
     {"fps", "HZ", "seq: frame rate (default 25)"},
     {"supersample", "N", "samples per axis on edge pixels, 1..8 (default 4)"},
     {"contact-sheet", "FILE", "also write a contact sheet of the first 12 images (.jpg or .png)"},
