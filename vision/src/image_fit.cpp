@@ -681,6 +681,7 @@ void PartWidths::Window::add(double px) noexcept {
   values_[next_] = px;
   next_ = (next_ + 1) % kWindow;
   count_ = std::min(count_ + 1, kWindow);
+  learned_px_ = median_px();
 }
 
 double PartWidths::Window::median_px() const noexcept {

@@ -225,20 +225,23 @@ class PartWidths {
   // Learns from the image fit of a frame whose estimate is valid.
   void learn(const ImageFitSummary& fit) noexcept;
   void reset() noexcept { *this = PartWidths{}; }
-  // The learned widths (px; 0 until kMinFrames have been learned).
-  double shaft_px() const noexcept { return shaft_.median_px(); }
-  double grasper_px() const noexcept { return grasper_.median_px(); }
+  // The learned widths (px; 0 until kMinFrames have been learned). Kept
+  // from the last learn(): every iteration of every fit reads them.
+  double shaft_px() const noexcept { return shaft_.learned_px(); }
+  double grasper_px() const noexcept { return grasper_.learned_px(); }
 
  private:
   class Window {
    public:
     void add(double px) noexcept;
-    double median_px() const noexcept;
+    double learned_px() const noexcept { return learned_px_; }
 
    private:
+    double median_px() const noexcept;
     double values_[kWindow] = {};  // a ring of the last count_ readings (px)
     int count_ = 0;
     int next_ = 0;
+    double learned_px_ = 0.0;  // median_px() after the last add()
   };
   Window shaft_{};
   Window grasper_{};
