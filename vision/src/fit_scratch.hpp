@@ -30,6 +30,15 @@ constexpr int kFitShaftSamples = 6;        // per side: the shaft's silhouette j
 constexpr int kFitGrasperSamples = 6;      // per side: the grasper's silhouette past the tip
 constexpr int kMaxFitReadings = kNumBoundaries * kFitArcSamples + 2 * kFitSilhouetteSamples +
                                 2 * kFitShaftSamples + 2 * kFitGrasperSamples;
+// Where they lie: the tube's silhouette samples spread over its length (not
+// at its very ends, where the shaft and the grasper meet it); the shaft's
+// from kFitShaftFirstMm before the base, kFitShaftStepMm apart.
+constexpr double kFitShaftFirstMm = 1.0;
+constexpr double kFitShaftStepMm = 1.5;
+constexpr double fit_silhouette_s_mm(double bend_length_mm, int i) noexcept {
+  return bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
+}
+constexpr double fit_shaft_back_mm(int i) noexcept { return kFitShaftFirstMm + kFitShaftStepMm * i; }
 
 // The shaft fit (shaft_fit.cpp): the channel's pose x_ch, y_ch, psi, mu
 // from the shaft's silhouette.

@@ -64,12 +64,10 @@ struct Reading {
 };
 
 using detail::kFitSilhouetteSamples;
-// The shaft's silhouette just before the base (1 to 8.5 mm): it fixes the
-// channel axis in the image, which the base boundary's corners (never read
-// directly: docs/vision.md) depend on.
+// The shaft's silhouette just before the base (1 to 8.5 mm,
+// detail::fit_shaft_back_mm): it fixes the channel axis in the image, which
+// the base boundary's corners (never read directly: docs/vision.md) depend on.
 using detail::kFitShaftSamples;
-constexpr double kFitShaftFirstMm = 1.0;
-constexpr double kFitShaftStepMm = 1.5;
 // The grasper's silhouette 2 to 9.5 mm past the tip: it holds the tip's
 // direction where an occluder or a smear hides the stripes. Not nearer:
 // within 1-2 mm of the tip the wider tube's end beside it is read instead.
@@ -438,11 +436,11 @@ SilhouetteReadout read_fit_silhouette(const Refiner& refiner, const ExtractorCon
   const double bend_length_mm = model.geometry().bend_length_mm;
   for (std::size_t side = 0U; side < 2U; ++side) {
     for (int i = 0; i < kFitSilhouetteSamples; ++i) {
-      const double s = bend_length_mm * (0.03 + 0.94 * i / (kFitSilhouetteSamples - 1.0));
+      const double s = detail::fit_silhouette_s_mm(bend_length_mm, i);
       out.readings += read_silhouette(Part::kTube, s, side) ? 1 : 0;
     }
     for (int i = 0; i < kFitShaftSamples && config.refiner.refine_shaft_readings; ++i) {
-      const double back = kFitShaftFirstMm + kFitShaftStepMm * i;
+      const double back = detail::fit_shaft_back_mm(i);
       if (back > lambda_mm - 1.0) {
         break;  // the shaft starts at the channel exit
       }
