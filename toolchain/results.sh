@@ -3,7 +3,8 @@
 # defaults, the same `tcpest run` uses) scored on both data sources side by
 # side -- our renderer's sets at fixed seeds (with its default look and with
 # randomised looks) and the independent frames in ../shared/data/independent
-# -- and the loop's cycle times on a sequence of each. Writes OUT/results.md (default build/results); with --docs also
+# -- the loop's cycle times on a sequence of each, and the model-guided readers at
+# each annotated frame's true pose (vision_reading_eval). Writes OUT/results.md (default build/results); with --docs also
 # docs/results.md, the committed page. A few minutes on two cores.
 #
 #   toolchain/results.sh --docs      (regenerates docs/results.md)
@@ -79,6 +80,33 @@ run() {  # NAME CALIB DIR
 run own_seq "" "$out/own_seq"
 run rnd_seq "" "$out/rnd_seq"
 run ind_seq "$pal" "$independent/pal_seq"
+
+# The model-guided readers at each annotated frame's true pose
+# (vision_reading_eval, docs/vision.md "Reading accuracy at the true pose").
+reading_eval="${READING_EVAL:-$(dirname "$tcpest")/../vision/test/vision_reading_eval}"
+reading() {  # NAME CALIB DIR
+  local calib_args=()
+  [ -n "$2" ] && calib_args=(--calib "$2")
+  "$reading_eval" "${calib_args[@]}" "$3" >"$out/reading_$1.txt"
+}
+rm -f "$out"/reading_*.txt
+if [ -x "$reading_eval" ]; then
+  reading own_lab "" "$out/own_lab"
+  reading rnd_lab "" "$out/rnd_lab"
+  reading ind_lab "$pal" "$independent/pal_lab"
+  reading own_hard "" "$out/own_hard"
+  reading rnd_hard "" "$out/rnd_hard"
+  reading ind_hard "$pal" "$independent/pal_hard"
+  reading own_seq "" "$out/own_seq"
+  reading rnd_seq "" "$out/rnd_seq"
+  reading ind_seq "$pal" "$independent/pal_seq"
+  reading ind_real "$pal" "$independent/pal_real"
+  reading own_hd "$hd" "$out/own_hd"
+  reading rnd_hd "$hd" "$out/rnd_hd"
+  reading ind_hd "$hd" "$independent/hd_lab"
+else
+  echo "results: no vision_reading_eval at $reading_eval: the readers' table is left out" >&2
+fi
 
 python3 toolchain/results_table.py "$out" >"$out/results.md"
 echo "results: $out/results.md"
