@@ -65,11 +65,15 @@ def read_reading(path):
     colour = re.search(r"boundaries 1-4: +\d+ visible corners, measured +([\d.]+) %; of those off along +([\d.]+) %, "
                        r"across +([\d.]+) %", t)
     tip = re.search(r"boundary 5: +\d+ visible corners, measured +([\d.]+) %", t)
+    inside = re.search(r"model off by d px: .* d -2: +([\d.]+) %", t)
+    outside = re.search(r"model off by d px: .* d \+2: +([\d.]+) %", t)
     along = re.findall(r"boundary \d: .*along median ([-+\d.]+) px", t)
     return {
         "tube_good": float(tube.group(2)) if tube else None,
         "tube_bad": float(tube.group(3)) if tube else None,
         "tube_offset": float(tube.group(4)) if tube else None,
+        "tube_inside": float(inside.group(1)) if inside else None,
+        "tube_outside": float(outside.group(1)) if outside else None,
         "shaft_good": float(shaft.group(2)) if shaft else None,
         "measured": float(colour.group(1)) if colour else None,
         "off_along": float(colour.group(2)) if colour else None,
@@ -187,13 +191,16 @@ def main():
         print("\n## The readers at the true pose (`vision_reading_eval`)\n")
         print("At each frame's true pose (its sidecar's r) the model lies on the image: what a reader reports there")
         print("is its own error, with no fit, solve or track in between (docs/vision.md, \"Reading accuracy at the")
-        print("true pose\"). Silhouettes: the image fit's reader at its sample points, per cent of the points sampled.")
+        print("true pose\"). Silhouettes: the image fit's reader at its sample points, per cent of the points sampled;")
+        print("with the model moved 2 px along the normal, the reading must point back to the true silhouette.")
         print("Corners: `refine_corners` at the true pose; a measured corner is off when its part along the tube or")
         print("across it exceeds 0.7 px.\n")
         reading_rows = [
             ("tube silhouette read within 1 px (%)", "tube_good", ".1f"),
             ("tube silhouette read beyond 1 px (%)", "tube_bad", ".1f"),
             ("tube silhouette, median offset (px, outwards)", "tube_offset", "+.3f"),
+            ("... with the model 2 px inside: read back within 1 px (%)", "tube_inside", ".1f"),
+            ("... with the model 2 px outside: read back within 1 px (%)", "tube_outside", ".1f"),
             ("shaft silhouette read within 1 px (%)", "shaft_good", ".1f"),
             ("boundaries 1-4: corners measured (%)", "measured", ".1f"),
             ("... measured, off along (%)", "off_along", ".1f"),

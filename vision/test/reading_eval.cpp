@@ -80,6 +80,25 @@ struct SilhouetteTally {
   }
 };
 
+// The tube's silhouette reader with the model beside the truth: the sample
+// point moved by d px along its normal (a fit not yet converged), where a
+// good reader reports -d. How far a reader still points back to the
+// silhouette says how it steers a fit from a start a few pixels off, which
+// its accuracy at the truth alone does not.
+constexpr std::array<double, 6> kModelOffsetsPx = {{-3.0, -2.0, -1.0, 1.0, 2.0, 3.0}};
+struct BasinTally {
+  std::array<int, kModelOffsetsPx.size()> sampled{};
+  std::array<int, kModelOffsetsPx.size()> read{};
+  std::array<int, kModelOffsetsPx.size()> good{};
+  void report() const {
+    std::printf("  silhouette, tube, model off by d px: within %.1f px of the truth (of sampled)", kGoodReadingPx);
+    for (std::size_t i = 0U; i < kModelOffsetsPx.size(); ++i) {
+      std::printf("%s d %+.0f: %5.1f %%", i == 0U ? " " : ", ", kModelOffsetsPx[i], 100.0 * good[i] / std::max(sampled[i], 1));
+    }
+    std::printf("\n");
+  }
+};
+
 struct BoundaryTally {
   int visible = 0;
   int measured = 0;
@@ -126,7 +145,8 @@ bool sidecars_in(const std::string& dir, std::vector<std::string>& names) {
 // The silhouette reader at the image fit's sample points (image_fit.cpp).
 void read_silhouettes(const vision::detail::Refiner& refiner, const vision::ExtractorConfig& config,
                       const solver::CameraModel& camera, const solver::InstrumentModel& model,
-                      const solver::PoseFrames& f, double lambda_mm, SilhouetteTally& tube, SilhouetteTally& shaft) {
+                      const solver::PoseFrames& f, double lambda_mm, SilhouetteTally& tube, SilhouetteTally& shaft,
+                      BasinTally& basin) {
   const double window_px = config.refiner.refine_edge_search_px;
   const double length_mm = model.geometry().bend_length_mm;
   for (std::size_t side = 0U; side < 2U; ++side) {
@@ -141,6 +161,17 @@ void read_silhouettes(const vision::detail::Refiner& refiner, const vision::Extr
       ++tube.sampled;
       if (refiner.edge(p, n, window_px, e)) {
         tube.offsets_px.push_back(e);
+      }
+      for (std::size_t k = 0U; k < kModelOffsetsPx.size(); ++k) {
+        const solver::Vec2 moved = p + kModelOffsetsPx[k] * n;
+        if (!camera.in_image(moved)) {
+          continue;
+        }
+        ++basin.sampled[k];
+        if (refiner.edge(moved, n, window_px, e)) {
+          ++basin.read[k];
+          basin.good[k] += std::fabs(e + kModelOffsetsPx[k]) <= kGoodReadingPx ? 1 : 0;
+        }
       }
     }
     for (int i = 0; i < vision::detail::kFitShaftSamples; ++i) {
@@ -201,6 +232,7 @@ int evaluate(const std::string& dir, const solver::CameraModel& camera, const so
   const vision::ExtractorConfig& config = extractor.config();
   SilhouetteTally tube;
   SilhouetteTally shaft;
+  BasinTally basin;
   std::array<BoundaryTally, kNumBoundaries> boundaries{};
   int frames = 0;
   std::vector<std::uint8_t> bytes;
@@ -242,7 +274,7 @@ int evaluate(const std::string& dir, const solver::CameraModel& camera, const so
     const solver::PoseFrames f = model.frames(r);
     const ImageView image = out.view();  // the Refiner keeps a reference
     const vision::detail::Refiner refiner(image, extractor.colors(), config, camera, model, f, nullptr);
-    read_silhouettes(refiner, config, camera, model, f, r[solver::kLambda], tube, shaft);
+    read_silhouettes(refiner, config, camera, model, f, r[solver::kLambda], tube, shaft, basin);
     if (extractor.refine_corners(image, camera, model, r).ok()) {
       score_corners(extractor.result(), sc.instrument, boundaries, config.refiner.refine_predicted_confidence);
     }
@@ -252,6 +284,7 @@ int evaluate(const std::string& dir, const solver::CameraModel& camera, const so
     return 0;  // nothing to report
   }
   tube.report("tube");
+  basin.report();
   shaft.report("shaft");
   // The colour boundaries together (the base's corners are never measured,
   // the tip's only when its arc shows a colour change), then each one.
