@@ -116,6 +116,18 @@ def fmt(v, spec):
     return format(v, spec)
 
 
+def print_set_table(rows, by_set):
+    """One row per (label, key, format) of `rows`, one column per set of SETS and source."""
+    print("| | " + header_cells(SETS) + " |")
+    print("|---" * (1 + len(SOURCES) * len(SETS)) + "|")
+    for label, key, spec in rows:
+        cells = []
+        for _, names in SETS:
+            for name in names:
+                cells.append(fmt(by_set.get(name, {}).get(key) if name else None, spec))
+        print(f"| {label} | " + " | ".join(cells) + " |")
+
+
 def main():
     out = Path(sys.argv[1])
     evals = {p.stem[5:]: read_eval(p) for p in out.glob("eval_*.txt")}
@@ -146,14 +158,7 @@ def main():
         ("median time, solve and refine (us)", "solve_us", ".0f"),
         ("frames", "frames", "d"),
     ]
-    print("| | " + header_cells(SETS) + " |")
-    print("|---" * (1 + len(SOURCES) * len(SETS)) + "|")
-    for label, key, spec in rows:
-        cells = []
-        for _, names in SETS:
-            for name in names:
-                cells.append(fmt(evals.get(name, {}).get(key) if name else None, spec))
-        print(f"| {label} | " + " | ".join(cells) + " |")
+    print_set_table(rows, evals)
     print("\n## The loop (`tcpest run --no-pacing`, no encoders)\n")
     print("| | " + header_cells(RUNS) + " |")
     print("|---" * (1 + len(SOURCES) * len(RUNS)) + "|")
@@ -208,14 +213,7 @@ def main():
             ("tip boundary: corners measured (%)", "tip_measured", ".1f"),
             ("along median, boundaries 1-5 (px, towards the tip)", "along", ""),
         ]
-        print("| | " + header_cells(SETS) + " |")
-        print("|---" * (1 + len(SOURCES) * len(SETS)) + "|")
-        for label, key, spec in reading_rows:
-            cells = []
-            for _, names in SETS:
-                for name in names:
-                    cells.append(fmt(readings.get(name, {}).get(key) if name else None, spec))
-            print(f"| {label} | " + " | ".join(cells) + " |")
+        print_set_table(reading_rows, readings)
 
 
 if __name__ == "__main__":
