@@ -207,17 +207,20 @@ void score_corners(const vision::Extraction& e, const render::SidecarInstrument&
       continue;
     }
     ++t.measured;
-    // Along: towards the same side's corner of the next boundary (the one
-    // before for the tip's).
-    const std::size_t k2 = k + 2U < static_cast<std::size_t>(kNumCorners) ? k + 2U : k - 2U;
-    solver::Vec2 along = truth.corners[k2] - truth.corners[k];
+    // Along: towards the same side's corner of the next boundary, or from
+    // the one before when the next is not given (a null corner's pixel is
+    // not set: docs/dataset-format.md); neither given: no split.
+    const bool next_given = k + 2U < static_cast<std::size_t>(kNumCorners) && truth.corner_present[k + 2U];
+    const bool previous_given = k >= 2U && truth.corner_present[k - 2U];
+    if (!next_given && !previous_given) {
+      continue;
+    }
+    solver::Vec2 along = next_given ? solver::Vec2(truth.corners[k + 2U] - truth.corners[k])
+                                    : solver::Vec2(truth.corners[k] - truth.corners[k - 2U]);
     if (!(along.norm() > 1e-9)) {
       continue;
     }
     along.normalize();
-    if (k2 < k) {
-      along = -along;
-    }
     const solver::Vec2 d(c.pixel.x - truth.corners[k].x(), c.pixel.y - truth.corners[k].y());
     const double a = d.dot(along);
     const double x = d.x() * along.y() - d.y() * along.x();
