@@ -15,10 +15,7 @@
 //   those the share more than 0.7 px off along the tube and across it, and
 //   the median signed offset along (px, towards the tip).
 // Not a test; a tool (allocates freely).
-#include <dirent.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -28,7 +25,7 @@
 
 #include "../src/fit_scratch.hpp"
 #include "../src/refiner.hpp"
-#include "tcpest/hal/camera/jpeg_decoder.hpp"
+#include "cli/vision_run.hpp"
 #include "tcpest/render/sidecar.hpp"
 #include "tcpest/solver/config_io.hpp"
 #include "tcpest/vision/color_model.hpp"
@@ -88,7 +85,6 @@ struct SilhouetteTally {
 constexpr std::array<double, 6> kModelOffsetsPx = {{-3.0, -2.0, -1.0, 1.0, 2.0, 3.0}};
 struct BasinTally {
   std::array<int, kModelOffsetsPx.size()> sampled{};
-  std::array<int, kModelOffsetsPx.size()> read{};
   std::array<int, kModelOffsetsPx.size()> good{};
   void report() const {
     std::printf("  silhouette, tube, model off by d px: within %.1f px of the truth (of sampled)", kGoodReadingPx);
@@ -106,41 +102,6 @@ struct BoundaryTally {
   int off_across = 0;
   std::vector<double> along_px;  // signed, towards the tip
 };
-
-bool read_file(const std::string& path, std::vector<std::uint8_t>& bytes) {
-  FILE* f = std::fopen(path.c_str(), "rb");
-  if (f == nullptr) {
-    return false;
-  }
-  bytes.clear();
-  std::uint8_t buffer[65536];
-  std::size_t n = 0U;
-  while ((n = std::fread(buffer, 1U, sizeof buffer, f)) > 0U) {
-    bytes.insert(bytes.end(), buffer, buffer + n);
-  }
-  const bool ok = std::ferror(f) == 0;
-  static_cast<void>(std::fclose(f));  // read only: nothing to lose
-  return ok;
-}
-
-// The sidecars (*.json) of a dataset directory, sorted; false when the
-// directory cannot be read.
-bool sidecars_in(const std::string& dir, std::vector<std::string>& names) {
-  names.clear();
-  DIR* d = opendir(dir.c_str());
-  if (d == nullptr) {
-    return false;
-  }
-  for (const dirent* e = readdir(d); e != nullptr; e = readdir(d)) {
-    const std::string name = e->d_name;
-    if (name.size() > 5U && name.compare(name.size() - 5U, 5U, ".json") == 0) {
-      names.push_back(dir + "/" + name);
-    }
-  }
-  static_cast<void>(closedir(d));  // a directory read: nothing to lose
-  std::sort(names.begin(), names.end());
-  return true;
-}
 
 // The silhouette reader at the image fit's sample points (image_fit.cpp).
 void read_silhouettes(const vision::detail::Refiner& refiner, const vision::ExtractorConfig& config,
@@ -169,7 +130,6 @@ void read_silhouettes(const vision::detail::Refiner& refiner, const vision::Extr
         }
         ++basin.sampled[k];
         if (refiner.edge(moved, n, window_px, e)) {
-          ++basin.read[k];
           basin.good[k] += std::fabs(e + kModelOffsetsPx[k]) <= kGoodReadingPx ? 1 : 0;
         }
       }
@@ -231,51 +191,40 @@ void score_corners(const vision::Extraction& e, const render::SidecarInstrument&
 }
 
 int evaluate(const std::string& dir, const solver::CameraModel& camera, const solver::InstrumentModel& model,
-             vision::FeatureExtractor& extractor, hal::JpegDecoder& decoder) {
+             vision::FeatureExtractor& extractor, cli::ImageReader& reader) {
   const vision::ExtractorConfig& config = extractor.config();
   SilhouetteTally tube;
   SilhouetteTally shaft;
   BasinTally basin;
   std::array<BoundaryTally, kNumBoundaries> boundaries{};
   int frames = 0;
-  std::vector<std::uint8_t> bytes;
   std::vector<std::uint8_t> pixels;
   std::vector<std::string> sidecars;
-  if (!sidecars_in(dir, sidecars)) {
-    std::fprintf(stderr, "vision_reading_eval: cannot read the directory %s: %s\n", dir.c_str(), std::strerror(errno));
+  if (!cli::list_sidecars("vision_reading_eval", dir, sidecars)) {
     return 0;
   }
-  for (const std::string& path : sidecars) {
+  for (const std::string& name : sidecars) {
+    const std::string path = dir + "/" + name;
     const auto sidecar = render::read_sidecar_file(path.c_str());
     if (!sidecar.ok() || !sidecar.value().instrument.has_r) {
       continue;
     }
     const render::Sidecar& sc = sidecar.value();
-    if (!read_file(dir + "/" + sc.image, bytes)) {
-      std::fprintf(stderr, "vision_reading_eval: cannot read %s/%s\n", dir.c_str(), sc.image);
+    const std::string image_path = dir + "/" + sc.image;
+    ImageView image{};
+    char error[160] = {};
+    if (!reader.read(image_path.c_str(), pixels, image, error, sizeof error)) {
+      std::fprintf(stderr, "vision_reading_eval: %s: %s\n", image_path.c_str(), error);
       continue;
     }
-    const auto info = decoder.inspect(bytes.data(), bytes.size());
-    if (!info.ok()) {
-      std::fprintf(stderr, "vision_reading_eval: %s/%s is no JPEG we decode\n", dir.c_str(), sc.image);
-      continue;
-    }
-    if (info.value().width != camera.width() || info.value().height != camera.height()) {
-      std::fprintf(stderr, "vision_reading_eval: %s/%s is %dx%d, the calibration's %dx%d (--calib)\n", dir.c_str(),
-                   sc.image, info.value().width, info.value().height, camera.width(), camera.height());
-      continue;
-    }
-    pixels.assign(static_cast<std::size_t>(info.value().width) * static_cast<std::size_t>(info.value().height) * 3U, 0U);
-    const std::size_t stride = static_cast<std::size_t>(info.value().width) * 3U;
-    const MutableImageView out{pixels.data(), info.value().width, info.value().height, stride};
-    if (!decoder.decode(bytes.data(), bytes.size(), out).ok()) {
-      std::fprintf(stderr, "vision_reading_eval: %s/%s: %s\n", dir.c_str(), sc.image, decoder.last_message());
+    if (image.width != camera.width() || image.height != camera.height()) {
+      std::fprintf(stderr, "vision_reading_eval: %s is %dx%d, the calibration's %dx%d (--calib)\n", image_path.c_str(),
+                   image.width, image.height, camera.width(), camera.height());
       continue;
     }
     ++frames;
     const solver::PoseVector& r = sc.instrument.r;
     const solver::PoseFrames f = model.frames(r);
-    const ImageView image = out.view();  // the Refiner keeps a reference
     const vision::detail::Refiner refiner(image, extractor.colors(), config, camera, model, f, nullptr);
     read_silhouettes(refiner, config, camera, model, f, r[solver::kLambda], tube, shaft, basin);
     if (extractor.refine_corners(image, camera, model, r).ok()) {
@@ -335,14 +284,14 @@ int main(int argc, char** argv) {
   const auto camera = solver::CameraModel::create(intrinsics);
   const auto model = solver::InstrumentModel::create(solver::InstrumentGeometry{});
   auto extractor = vision::FeatureExtractor::create(vision::ExtractorConfig{}, vision::default_color_model());
-  hal::JpegDecoder decoder;
-  if (!camera.ok() || !model.ok() || !extractor.ok() || !decoder.init(kMaxWidth, kMaxHeight).ok()) {
+  cli::ImageReader reader;
+  if (!camera.ok() || !model.ok() || !extractor.ok() || !reader.init(kMaxWidth, kMaxHeight)) {
     std::fprintf(stderr, "vision_reading_eval: set-up failed\n");
     return 1;
   }
   int frames = 0;
   for (int i = first; i < argc; ++i) {
-    frames += evaluate(argv[i], camera.value(), model.value(), *extractor.value(), decoder);
+    frames += evaluate(argv[i], camera.value(), model.value(), *extractor.value(), reader);
   }
   return frames > 0 ? 0 : 1;
 }

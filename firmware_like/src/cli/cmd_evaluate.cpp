@@ -7,7 +7,6 @@
 // seeds) are pooled into one score, with a frame-success line per
 // directory: a change is judged on many frames, not on one set's few that
 // sit near the tolerance.
-#include <dirent.h>
 
 #include <algorithm>
 #include <array>
@@ -56,30 +55,6 @@ double quantile_of(std::vector<double>& v, double share) noexcept {
   std::sort(v.begin(), v.end());
   const auto last = static_cast<double>(v.size() - 1U);
   return v[static_cast<std::size_t>(std::lround(share * last))];
-}
-
-// The sidecars of one dataset directory, sorted; false (with the reason
-// printed) when it cannot be read or holds none.
-bool list_sidecars(const std::string& dir, std::vector<std::string>& sidecars) {
-  sidecars.clear();
-  DIR* d = opendir(dir.c_str());
-  if (d == nullptr) {
-    std::fprintf(stderr, "tcpest evaluate: cannot open directory %s: %s\n", dir.c_str(), std::strerror(errno));
-    return false;
-  }
-  for (const dirent* entry = readdir(d); entry != nullptr; entry = readdir(d)) {
-    const std::size_t n = std::strlen(entry->d_name);
-    if (n > 5U && std::strcmp(entry->d_name + n - 5U, ".json") == 0) {
-      sidecars.emplace_back(entry->d_name);
-    }
-  }
-  static_cast<void>(closedir(d));  // read-only directory handle
-  std::sort(sidecars.begin(), sidecars.end());
-  if (sidecars.empty()) {
-    std::fprintf(stderr, "tcpest evaluate: no sidecar (*.json) in %s\n", dir.c_str());
-    return false;
-  }
-  return true;
 }
 
 // One frame's corners against its truth: the visible ones, those found
@@ -592,7 +567,7 @@ int cmd_evaluate(int argc, char** argv) {
   std::vector<std::vector<std::string>> sidecars(dataset_count);
   for (std::size_t i = 0U; i < dataset_count; ++i) {
     datasets[i].dir = args.positional(i);
-    if (!list_sidecars(datasets[i].dir, sidecars[i])) {
+    if (!list_sidecars("tcpest evaluate", datasets[i].dir, sidecars[i])) {
       return kExitConfig;
     }
   }

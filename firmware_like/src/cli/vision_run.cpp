@@ -1,6 +1,9 @@
 #include "cli/vision_run.hpp"
 
+#include <dirent.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -180,6 +183,28 @@ bool ImageReader::read_pnm(const char* path, std::vector<std::uint8_t>& samples,
   }
   samples.assign(file_.begin() + static_cast<std::ptrdiff_t>(offset),
                  file_.begin() + static_cast<std::ptrdiff_t>(offset + bytes));
+  return true;
+}
+
+bool list_sidecars(const char* command, const std::string& dir, std::vector<std::string>& sidecars) {
+  sidecars.clear();
+  DIR* d = opendir(dir.c_str());
+  if (d == nullptr) {
+    std::fprintf(stderr, "%s: cannot open directory %s: %s\n", command, dir.c_str(), std::strerror(errno));
+    return false;
+  }
+  for (const dirent* entry = readdir(d); entry != nullptr; entry = readdir(d)) {
+    const std::size_t n = std::strlen(entry->d_name);
+    if (n > 5U && std::strcmp(entry->d_name + n - 5U, ".json") == 0) {
+      sidecars.emplace_back(entry->d_name);
+    }
+  }
+  static_cast<void>(closedir(d));  // read-only directory handle
+  std::sort(sidecars.begin(), sidecars.end());
+  if (sidecars.empty()) {
+    std::fprintf(stderr, "%s: no sidecar (*.json) in %s\n", command, dir.c_str());
+    return false;
+  }
   return true;
 }
 

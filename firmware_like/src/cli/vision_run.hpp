@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "cli/setup.hpp"
@@ -49,6 +50,11 @@ class ImageReader {
   int max_width_ = 0;
   int max_height_ = 0;
 };
+
+// The sidecars (*.json) of one dataset directory (docs/dataset-format.md),
+// their names sorted; false, after printing why (prefixed by `command`),
+// when it cannot be read or holds none.
+bool list_sidecars(const char* command, const std::string& dir, std::vector<std::string>& sidecars);
 
 // --colors FILE or the built-in model. False after printing an error.
 bool load_color_model(const char* command, const char* path, vision::ColorModel& out) noexcept;
