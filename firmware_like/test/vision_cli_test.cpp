@@ -132,6 +132,10 @@ TEST(VisionCommands, EvaluateAndTrainColorsOnARenderedDataset) {
   // ... and on the same frames the TCP of the pose the corners were read at.
   EXPECT_NE(summary.find("the image fit's pose instead ("), std::string::npos) << summary;
   EXPECT_EQ(summary.find("the image fit's pose instead (0 of the valid"), std::string::npos) << summary;
+  // ... with its valid frames' count beyond 3 mm, as the solve's (docs/results.md compares the two).
+  const std::size_t fit_line = summary.find("the image fit's pose instead (");
+  const std::string fit_text = summary.substr(fit_line, summary.find('\n', fit_line) - fit_line);
+  EXPECT_NE(fit_text.find(" mm, over 3 mm: "), std::string::npos) << fit_text;
   // One line per row of the estimation policy, in the table's order: the
   // frames it ran on, and those whose estimate it gave.
   std::size_t at = 0U;

@@ -406,11 +406,11 @@ struct EvaluateTotals {
                 solve_tcp.degraded_mm.size(), median_of(solve_tcp.degraded_mm),
                 quantile_of(solve_tcp.degraded_mm, 0.9), kDegradedFarMm, solve_tcp.degraded_far());
     std::printf("the image fit's pose instead (%zu of the valid, %zu of the degraded: those with a round kept): valid "
-                "TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm; degraded median %.2f mm, 90th percentile "
-                "%.2f mm, over %.0f mm: %ld\n",
+                "TCP error median %.2f mm, RMS x/y/z %.2f / %.2f / %.2f mm, over %.0f mm: %ld; degraded median %.2f mm, "
+                "90th percentile %.2f mm, over %.0f mm: %ld\n",
                 fit_tcp.valid_mm.size(), fit_tcp.degraded_mm.size(), median_of(fit_tcp.valid_mm),
-                fit_tcp.valid_rms_mm(0), fit_tcp.valid_rms_mm(1), fit_tcp.valid_rms_mm(2),
-                median_of(fit_tcp.degraded_mm), quantile_of(fit_tcp.degraded_mm, 0.9), kDegradedFarMm,
+                fit_tcp.valid_rms_mm(0), fit_tcp.valid_rms_mm(1), fit_tcp.valid_rms_mm(2), kValidFarMm,
+                fit_tcp.valid_far(), median_of(fit_tcp.degraded_mm), quantile_of(fit_tcp.degraded_mm, 0.9), kDegradedFarMm,
                 fit_tcp.degraded_far());
     std::printf("median time: stage 1 %.0f us, stage 2 %.0f us, stage 3 %.0f us, stage 4 %.0f us, stages 1-4 %.0f "
                 "us, solver %.0f us\n",
