@@ -196,6 +196,8 @@ TEST(VisionCommands, EvaluatePoolsSeveralDatasets) {
   EXPECT_NE(limited.find("pooled over 2 datasets: 3 images scored"), std::string::npos) << limited;
   EXPECT_NE(limited.find(second + "/0000.ppm: "), std::string::npos) << limited;
   EXPECT_EQ(limited.find(second + "/0001.ppm: "), std::string::npos) << limited;
+  // Each line gives the image fit's pose's TCP error beside the solve's.
+  EXPECT_NE(limited.find(" mm (image fit's pose "), std::string::npos) << limited;
   // A directory that cannot be read fails the run before any image is.
   testing::internal::CaptureStdout();
   EXPECT_EQ(run({"evaluate", first, "/nonexistent-dir"}), kExitConfig);

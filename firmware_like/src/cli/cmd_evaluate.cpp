@@ -523,10 +523,15 @@ void evaluate_frame(EvaluateRun& run, DatasetTally& tally, const std::string& na
   }
   if (run.options.verbose) {
     // Pooled: the image named with its directory, as in the corner rows.
-    std::printf("%s%s%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm, stages %.0f us\n",
+    // The image fit's pose beside the solve's (docs/solver.md); -1 without a kept round.
+    const double fit_err = result.guided_rounds > 0 && tcp_err >= 0.0
+                               ? (result.fit_tcp - truth.instrument.tcp).norm()
+                               : -1.0;
+    std::printf("%s%s%s: %s, visible %d, found ok %d of %d found, %s%s, TCP error %.2f mm (image fit's pose %.2f mm), "
+                "stages %.0f us\n",
                 run.pooled ? dir.c_str() : "", run.pooled ? "/" : "", truth.image, to_string(result.status),
                 score.visible, score.found_ok, e.corner_count, result.extraction_ok ? "extraction ok" : "extraction: ",
-                result.extraction_ok ? "" : result.extraction_error, tcp_err, run.totals.stages_total_us.back());
+                result.extraction_ok ? "" : result.extraction_error, tcp_err, fit_err, run.totals.stages_total_us.back());
   }
 }
 
