@@ -124,13 +124,13 @@ def fmt(v, spec):
     return format(v, spec)
 
 
-def print_set_table(rows, by_set):
-    """One row per (label, key, format) of `rows`, one column per set of SETS and source."""
-    print("| | " + header_cells(SETS) + " |")
-    print("|---" * (1 + len(SOURCES) * len(SETS)) + "|")
+def print_set_table(rows, by_set, groups=SETS):
+    """One row per (label, key, format) of `rows`, one column per set of `groups` and source."""
+    print("| | " + header_cells(groups) + " |")
+    print("|---" * (1 + len(SOURCES) * len(groups)) + "|")
     for label, key, spec in rows:
         cells = []
-        for _, names in SETS:
+        for _, names in groups:
             for name in names:
                 cells.append(fmt(by_set.get(name, {}).get(key) if name else None, spec))
         print(f"| {label} | " + " | ".join(cells) + " |")
@@ -176,8 +176,6 @@ def main():
     print("pose\" score, on the same valid frames, the pose the corners were read at: the change of contract")
     print("docs/solver.md proposes (\"The image fit's pose and the TCP\").")
     print("\n## The loop (`tcpest run --no-pacing`, no encoders)\n")
-    print("| | " + header_cells(RUNS) + " |")
-    print("|---" * (1 + len(SOURCES) * len(RUNS)) + "|")
     run_rows = [
         ("valid share (%)", "valid_share", ".1f"),
         ("cycle median (ms)", "p50", ".2f"),
@@ -186,12 +184,7 @@ def main():
         ("cycles over the budget", "overruns", "d"),
         ("cycle budget (ms)", "budget", ".2f"),
     ]
-    for label, key, spec in run_rows:
-        cells = []
-        for _, names in RUNS:
-            for name in names:
-                cells.append(fmt(runs.get(name, {}).get(key), spec))
-        print(f"| {label} | " + " | ".join(cells) + " |")
+    print_set_table(run_rows, runs, RUNS)
     print("\nPer step (ms): budget, then p50 / p99.9 and the cycles over the step's budget.\n")
     print("| step | budget | " + header_cells(RUNS) + " |")
     print("|---" * (2 + len(SOURCES) * len(RUNS)) + "|")
