@@ -50,26 +50,30 @@ hd="$independent/cams/hd.yaml"
 [ -d "$out/rnd_hard" ] || "$tcpest" render --set hard --n "$frames" --seed 78 --randomise --out "$out/rnd_hard" --quiet
 [ -d "$out/rnd_seq" ] || "$tcpest" render --set seq --n 100 --seed 79 --randomise --out "$out/rnd_seq" --quiet
 [ -d "$out/rnd_hd" ] || "$tcpest" render --set lab --n 60 --seed 82 --randomise --calib "$hd" --out "$out/rnd_hd" --quiet
-evaluate() {  # NAME CALIB DIR [ARGS...]
-  local name="$1" calib="$2" dir="$3"
-  shift 3
-  local calib_args=()
+# Every scored set, once: NAME CALIB DIR [EVALUATE ARGS] (the sequences run
+# without encoders). Both evaluate and the readers' tool go through it.
+sets=(
+  "own_lab||$out/own_lab"
+  "own_hard||$out/own_hard"
+  "own_seq||$out/own_seq|--no-prior"
+  "ind_lab|$pal|$independent/pal_lab"
+  "ind_hard|$pal|$independent/pal_hard"
+  "ind_real|$pal|$independent/pal_real"
+  "ind_seq|$pal|$independent/pal_seq|--no-prior"
+  "rnd_lab||$out/rnd_lab"
+  "rnd_hard||$out/rnd_hard"
+  "rnd_seq||$out/rnd_seq|--no-prior"
+  "own_hd|$hd|$out/own_hd"
+  "rnd_hd|$hd|$out/rnd_hd"
+  "ind_hd|$hd|$independent/hd_lab"
+)
+for entry in "${sets[@]}"; do
+  IFS='|' read -r name calib dir set_args <<<"$entry"
+  calib_args=()
   [ -n "$calib" ] && calib_args=(--calib "$calib")
-  "$tcpest" evaluate "${calib_args[@]}" "${config_args[@]}" "${extra[@]}" "$@" "$dir" >"$out/eval_$name.txt"
-}
-evaluate own_lab "" "$out/own_lab"
-evaluate own_hard "" "$out/own_hard"
-evaluate own_seq "" "$out/own_seq" --no-prior
-evaluate ind_lab "$pal" "$independent/pal_lab"
-evaluate ind_hard "$pal" "$independent/pal_hard"
-evaluate ind_real "$pal" "$independent/pal_real"
-evaluate ind_seq "$pal" "$independent/pal_seq" --no-prior
-evaluate rnd_lab "" "$out/rnd_lab"
-evaluate rnd_hard "" "$out/rnd_hard"
-evaluate rnd_seq "" "$out/rnd_seq" --no-prior
-evaluate own_hd "$hd" "$out/own_hd"
-evaluate rnd_hd "$hd" "$out/rnd_hd"
-evaluate ind_hd "$hd" "$independent/hd_lab"
+  read -r -a set_extra <<<"$set_args"
+  "$tcpest" evaluate "${calib_args[@]}" "${config_args[@]}" "${extra[@]}" "${set_extra[@]}" "$dir" >"$out/eval_$name.txt"
+done
 
 # The loop itself on a sequence of each source (no encoders, as fast as it goes).
 run() {  # NAME CALIB DIR
@@ -84,26 +88,14 @@ run ind_seq "$pal" "$independent/pal_seq"
 # The model-guided readers at each annotated frame's true pose
 # (vision_reading_eval, docs/vision.md "Reading accuracy at the true pose").
 reading_eval="${READING_EVAL:-$(dirname "$tcpest")/../vision/test/vision_reading_eval}"
-reading() {  # NAME CALIB DIR
-  local calib_args=()
-  [ -n "$2" ] && calib_args=(--calib "$2")
-  "$reading_eval" "${calib_args[@]}" "$3" >"$out/reading_$1.txt"
-}
 rm -f "$out"/reading_*.txt
 if [ -x "$reading_eval" ]; then
-  reading own_lab "" "$out/own_lab"
-  reading rnd_lab "" "$out/rnd_lab"
-  reading ind_lab "$pal" "$independent/pal_lab"
-  reading own_hard "" "$out/own_hard"
-  reading rnd_hard "" "$out/rnd_hard"
-  reading ind_hard "$pal" "$independent/pal_hard"
-  reading own_seq "" "$out/own_seq"
-  reading rnd_seq "" "$out/rnd_seq"
-  reading ind_seq "$pal" "$independent/pal_seq"
-  reading ind_real "$pal" "$independent/pal_real"
-  reading own_hd "$hd" "$out/own_hd"
-  reading rnd_hd "$hd" "$out/rnd_hd"
-  reading ind_hd "$hd" "$independent/hd_lab"
+  for entry in "${sets[@]}"; do
+    IFS='|' read -r name calib dir _ <<<"$entry"
+    calib_args=()
+    [ -n "$calib" ] && calib_args=(--calib "$calib")
+    "$reading_eval" "${calib_args[@]}" "$dir" >"$out/reading_$name.txt"
+  done
 else
   echo "results: no vision_reading_eval at $reading_eval: the readers' table is left out" >&2
 fi
