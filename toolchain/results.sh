@@ -75,6 +75,15 @@ for entry in "${sets[@]}"; do
   "$tcpest" evaluate "${calib_args[@]}" "${config_args[@]}" "${extra[@]}" "${set_extra[@]}" "$dir" >"$out/eval_$name.txt"
 done
 
+# The floor of eq. 8: its solve from each frame's exact visible corners
+# (toolchain/eq8_from_truth.py), what no reading of the image can beat.
+for entry in "${sets[@]}"; do
+  IFS='|' read -r name calib dir _ <<<"$entry"
+  calib_args=()
+  [ -n "$calib" ] && calib_args=(--calib "$calib")
+  python3 toolchain/eq8_from_truth.py "$tcpest" "$dir" "${calib_args[@]}" "${config_args[@]}" >"$out/truth_solve_$name.txt"
+done
+
 # The loop itself on a sequence of each source (no encoders, as fast as it goes).
 run() {  # NAME CALIB DIR
   local calib_args=()
