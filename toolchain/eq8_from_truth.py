@@ -22,17 +22,28 @@ def main():
     tcpest, folder = sys.argv[1], Path(sys.argv[2])
     requests, truths = [], []
     for sidecar in sorted(folder.glob("*.json")):
-        s = json.loads(sidecar.read_text())
-        corners = [c if visible else None for c, visible in zip(s["corners"], s["corner_visible"])]
-        requests.append(json.dumps({"corners": corners, "prior": s["r"][4:7]}))
-        truths.append(s["tcp"])
+        try:
+            s = json.loads(sidecar.read_text())
+            corners = [c if visible else None for c, visible in zip(s["corners"], s["corner_visible"])]
+            joints = s["r"][4:7]
+            truth = [float(v) for v in s["tcp"]]
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            sys.exit(f"eq8_from_truth: {sidecar}: not a sidecar with r, tcp, corners and corner_visible ({error!r})")
+        requests.append(json.dumps({"corners": corners, "prior": joints}))
+        truths.append(truth)
     if not requests:
         sys.exit(f"eq8_from_truth: no sidecar in {folder}")
     args = [tcpest, "solve", "--corners", "-"] + sys.argv[3:]
-    done = subprocess.run(args, input="\n".join(requests) + "\n", capture_output=True, text=True, check=False)
+    try:
+        done = subprocess.run(args, input="\n".join(requests) + "\n", capture_output=True, text=True, check=False)
+    except OSError as error:
+        sys.exit(f"eq8_from_truth: cannot run {tcpest}: {error}")
     errors, residuals = [], []
     for line, truth in zip(done.stdout.splitlines(), truths):
-        solved = json.loads(line)
+        try:
+            solved = json.loads(line)
+        except ValueError:
+            sys.exit(f"eq8_from_truth: {tcpest} solve printed a line that is not JSON: {line[:200]}")
         if solved.get("tcp") is not None:
             errors.append([a - b for a, b in zip(solved["tcp"], truth)])
             residuals.append(solved["rms_px"])
