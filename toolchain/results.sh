@@ -67,10 +67,19 @@ sets=(
   "rnd_hd|$hd|$out/rnd_hd"
   "ind_hd|$hd|$independent/hd_lab"
 )
-for entry in "${sets[@]}"; do
-  IFS='|' read -r name calib dir set_args <<<"$entry"
+# calib_args: the --calib option for a camera file, none for the built-in camera.
+calib_option() {  # CALIB
   calib_args=()
-  [ -n "$calib" ] && calib_args=(--calib "$calib")
+  if [ -n "$1" ]; then calib_args=(--calib "$1"); fi
+}
+# One entry of `sets` into name, dir, set_args and calib_args.
+read_set() {  # ENTRY
+  local calib
+  IFS='|' read -r name calib dir set_args <<<"$1"
+  calib_option "$calib"
+}
+for entry in "${sets[@]}"; do
+  read_set "$entry"
   read -r -a set_extra <<<"$set_args"
   "$tcpest" evaluate "${calib_args[@]}" "${config_args[@]}" "${extra[@]}" "${set_extra[@]}" "$dir" >"$out/eval_$name.txt"
 done
@@ -78,16 +87,13 @@ done
 # The floor of eq. 8: its solve from each frame's exact visible corners
 # (toolchain/eq8_from_truth.py), what no reading of the image can beat.
 for entry in "${sets[@]}"; do
-  IFS='|' read -r name calib dir _ <<<"$entry"
-  calib_args=()
-  [ -n "$calib" ] && calib_args=(--calib "$calib")
+  read_set "$entry"
   python3 toolchain/eq8_from_truth.py "$tcpest" "$dir" "${calib_args[@]}" "${config_args[@]}" >"$out/truth_solve_$name.txt"
 done
 
 # The loop itself on a sequence of each source (no encoders, as fast as it goes).
 run() {  # NAME CALIB DIR
-  local calib_args=()
-  [ -n "$2" ] && calib_args=(--calib "$2")
+  calib_option "$2"
   "$tcpest" run "${calib_args[@]}" "${config_args[@]}" --source "$3" --bus "log:$out/run_$1.log" --no-pacing --start-operational --quiet >"$out/run_$1.txt"
 }
 run own_seq "" "$out/own_seq"
@@ -100,9 +106,7 @@ reading_eval="${READING_EVAL:-$(dirname "$tcpest")/../vision/test/vision_reading
 rm -f "$out"/reading_*.txt
 if [ -x "$reading_eval" ]; then
   for entry in "${sets[@]}"; do
-    IFS='|' read -r name calib dir _ <<<"$entry"
-    calib_args=()
-    [ -n "$calib" ] && calib_args=(--calib "$calib")
+    read_set "$entry"
     "$reading_eval" "${calib_args[@]}" "$dir" >"$out/reading_$name.txt"
   done
 else
